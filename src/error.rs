@@ -1,0 +1,108 @@
+//! The library's error type. Every variant carries what a user needs to act: the file, the byte
+//! offset or point index, what was expected, and a hint. Exit codes are decided from
+//! [`Error::exit_class`] in the binary; nothing here prints.
+
+use std::path::PathBuf;
+
+/// Which class of failure an error belongs to; the CLI maps each to a documented exit code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExitClass {
+    /// The command line or configuration is wrong (exit 2).
+    Usage,
+    /// An input file is unreadable, malformed or unsupported (exit 3).
+    BadInput,
+    /// The output or work directory could not be written (exit 4).
+    Output,
+    /// The run was stopped by a signal (exit 130).
+    Interrupted,
+    /// A bug or an unexpected internal state (exit 1).
+    Internal,
+}
+
+/// Errors of the tilecurv library.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A configuration value is invalid.
+    #[error("{0}")]
+    Usage(String),
+
+    /// An input file is malformed or unsupported.
+    #[error("{path}: {what}{}", offset.map(|o| format!(" (at byte offset {o})")).unwrap_or_default())]
+    BadInput {
+        /// The input file.
+        path: PathBuf,
+        /// Byte offset in the file where the problem was found, if known.
+        offset: Option<u64>,
+        /// What is wrong and what to do.
+        what: String,
+    },
+
+    /// Reading an input file failed at the operating-system level.
+    #[error("{path}: cannot read: {source}")]
+    ReadIo {
+        /// The input file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+
+    /// Writing the output or the work directory failed.
+    #[error("{path}: cannot write: {source}{hint}")]
+    WriteIo {
+        /// The file or directory being written.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+        /// A hint on what to do (may be empty).
+        hint: &'static str,
+    },
+
+    /// The run was interrupted by a signal before it finished.
+    #[error("interrupted: no output was written")]
+    Interrupted,
+
+    /// An internal invariant was violated (a bug: please report it).
+    #[error("internal error: {0} (this is a bug in tilecurv; please report it)")]
+    Internal(String),
+}
+
+impl Error {
+    /// The class of this error, for the exit code.
+    pub fn exit_class(&self) -> ExitClass {
+        match self {
+            Error::Usage(_) => ExitClass::Usage,
+            Error::BadInput { .. } | Error::ReadIo { .. } => ExitClass::BadInput,
+            Error::WriteIo { .. } => ExitClass::Output,
+            Error::Interrupted => ExitClass::Interrupted,
+            Error::Internal(_) => ExitClass::Internal,
+        }
+    }
+
+    /// A bad-input error at a byte offset.
+    pub fn bad_input(path: &std::path::Path, offset: Option<u64>, what: impl Into<String>) -> Self {
+        Error::BadInput {
+            path: path.to_path_buf(),
+            offset,
+            what: what.into(),
+        }
+    }
+
+    /// A write error on `path`, with a standard hint for the common causes.
+    pub fn write(path: &std::path::Path, source: std::io::Error) -> Self {
+        let hint = match source.kind() {
+            std::io::ErrorKind::PermissionDenied => " (check the directory's permissions)",
+            std::io::ErrorKind::NotFound => " (does the output directory exist?)",
+            _ if source.raw_os_error() == Some(28) => " (the disk is full: free space or use --work-dir elsewhere)",
+            _ => "",
+        };
+        Error::WriteIo {
+            path: path.to_path_buf(),
+            source,
+            hint,
+        }
+    }
+}
+
+/// Result alias for the library.
+pub type Result<T> = std::result::Result<T, Error>;

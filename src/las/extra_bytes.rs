@@ -1,0 +1,186 @@
+//! The extra-bytes VLR (LASF_Spec, record 4): parsing the descriptors of an input file, reading
+//! a scalar extra dimension from a record, and encoding the descriptors of tilecurv's columns
+//! (one scalar per descriptor, types 1 to 10 only: the tuple types 11 to 30 are deprecated).
+
+use super::vlr::{padded, Vlr};
+
+/// User id of the extra-bytes VLR.
+pub const USER_ID: &str = "LASF_Spec";
+/// Record id of the extra-bytes VLR.
+pub const RECORD_ID: u16 = 4;
+/// Size of one descriptor.
+pub const DESCRIPTOR_SIZE: usize = 192;
+
+/// Scalar data types of the extra-bytes specification (types 1 to 10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScalarType {
+    /// u8
+    U8 = 1,
+    /// i8
+    I8 = 2,
+    /// u16
+    U16 = 3,
+    /// i16
+    I16 = 4,
+    /// u32
+    U32 = 5,
+    /// i32
+    I32 = 6,
+    /// u64
+    U64 = 7,
+    /// i64
+    I64 = 8,
+    /// f32
+    F32 = 9,
+    /// f64
+    F64 = 10,
+}
+
+impl ScalarType {
+    fn from_code(code: u8) -> Option<Self> {
+        use ScalarType::*;
+        Some(match code {
+            1 => U8,
+            2 => I8,
+            3 => U16,
+            4 => I16,
+            5 => U32,
+            6 => I32,
+            7 => U64,
+            8 => I64,
+            9 => F32,
+            10 => F64,
+            _ => return None,
+        })
+    }
+
+    /// Size in bytes.
+    pub fn size(self) -> usize {
+        use ScalarType::*;
+        match self {
+            U8 | I8 => 1,
+            U16 | I16 => 2,
+            U32 | I32 | F32 => 4,
+            U64 | I64 | F64 => 8,
+        }
+    }
+
+    /// Decodes one value of this type from little-endian bytes.
+    pub fn decode(self, b: &[u8]) -> f64 {
+        use ScalarType::*;
+        let mut a = [0u8; 8];
+        a[..self.size()].copy_from_slice(&b[..self.size()]);
+        match self {
+            U8 => a[0] as f64,
+            I8 => a[0] as i8 as f64,
+            U16 => u16::from_le_bytes([a[0], a[1]]) as f64,
+            I16 => i16::from_le_bytes([a[0], a[1]]) as f64,
+            U32 => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            I32 => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            U64 => u64::from_le_bytes(a) as f64,
+            I64 => i64::from_le_bytes(a) as f64,
+            F32 => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            F64 => f64::from_le_bytes(a),
+        }
+    }
+}
+
+/// One parsed descriptor of an input file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Descriptor {
+    /// Dimension name.
+    pub name: String,
+    /// Raw data type code (0 = undocumented bytes, 1-10 scalars, 11-30 deprecated tuples).
+    pub data_type: u8,
+    /// Byte offset within the extra bytes of a record.
+    pub offset: usize,
+    /// Size in bytes.
+    pub size: usize,
+    /// Scale for scalar types (1 when absent).
+    pub scale: f64,
+    /// Offset for scalar types (0 when absent).
+    pub value_offset: f64,
+}
+
+impl Descriptor {
+    /// The scalar type, if this is a scalar dimension (types 1-10).
+    pub fn scalar(&self) -> Option<ScalarType> {
+        ScalarType::from_code(self.data_type)
+    }
+
+    /// Reads this dimension's value (scale and offset applied) from a record's extra bytes.
+    pub fn read(&self, extra: &[u8]) -> Option<f64> {
+        let t = self.scalar()?;
+        let raw = t.decode(extra.get(self.offset..self.offset + t.size())?);
+        Some(raw * self.scale + self.value_offset)
+    }
+}
+
+/// Parses the descriptors of an extra-bytes VLR payload. Returns an error message when the
+/// payload is malformed; unknown reserved type codes are sized by their options byte as the
+/// specification says for type 0.
+pub fn parse(data: &[u8]) -> Result<Vec<Descriptor>, String> {
+    if data.len() % DESCRIPTOR_SIZE != 0 {
+        return Err(format!("extra-bytes VLR is {} bytes, not a multiple of {DESCRIPTOR_SIZE}", data.len()));
+    }
+    let mut out = Vec::new();
+    let mut offset = 0usize;
+    for d in data.chunks_exact(DESCRIPTOR_SIZE) {
+        let data_type = d[2];
+        let options = d[3];
+        let name_end = d[4..36].iter().position(|&c| c == 0).unwrap_or(32);
+        let name = String::from_utf8_lossy(&d[4..4 + name_end]).into_owned();
+        let size = match data_type {
+            0 => options as usize,
+            1..=10 => ScalarType::from_code(data_type).map(|t| t.size()).unwrap_or(0),
+            11..=30 => {
+                let base = ScalarType::from_code((data_type - 1) % 10 + 1).map(|t| t.size()).unwrap_or(0);
+                base * (((data_type - 1) / 10) as usize + 1)
+            }
+            other => return Err(format!("extra dimension {name:?} has unknown data type {other}")),
+        };
+        let f = |o: usize| f64::from_le_bytes(d[o..o + 8].try_into().unwrap_or([0; 8]));
+        let scale = if options & 0x08 != 0 { f(112) } else { 1.0 };
+        let value_offset = if options & 0x10 != 0 { f(136) } else { 0.0 };
+        out.push(Descriptor { name, data_type, offset, size, scale, value_offset });
+        offset += size;
+    }
+    Ok(out)
+}
+
+/// A new column that tilecurv adds, for its descriptor.
+#[derive(Debug, Clone)]
+pub struct NewColumn {
+    /// Dimension name (at most 32 bytes).
+    pub name: String,
+    /// Storage type.
+    pub ty: ScalarType,
+    /// Human-readable description with its unit (at most 32 bytes).
+    pub description: String,
+}
+
+/// Encodes one scalar descriptor (no scale, offset, min, max; no-data NaN for floats is not
+/// declared because readers disagree on it: the flag column says when a value is undefined).
+pub fn encode(col: &NewColumn) -> [u8; DESCRIPTOR_SIZE] {
+    let mut d = [0u8; DESCRIPTOR_SIZE];
+    d[2] = col.ty as u8;
+    d[3] = 0;
+    d[4..36].copy_from_slice(&padded::<32>(&col.name));
+    d[160..192].copy_from_slice(&padded::<32>(&col.description));
+    d
+}
+
+/// A type-0 descriptor covering `n` undocumented extra bytes, so that columns appended after
+/// them are found at the right offset.
+pub fn encode_undocumented(n: u8) -> [u8; DESCRIPTOR_SIZE] {
+    let mut d = [0u8; DESCRIPTOR_SIZE];
+    d[2] = 0;
+    d[3] = n;
+    d[4..36].copy_from_slice(&padded::<32>("undocumented extra bytes"));
+    d
+}
+
+/// Whether `v` is the extra-bytes VLR.
+pub fn is_extra_bytes(v: &Vlr) -> bool {
+    v.is(USER_ID, RECORD_ID)
+}

@@ -1,0 +1,209 @@
+//! The LAS public header block: parsing with validation against the file size, and patching for
+//! the output. The original header bytes are kept so that every field we do not change (GUID,
+//! system identifier, dates, return counts, bounds) is written back untouched.
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+/// Size in bytes of the fixed part of each point data record format 0 to 10.
+pub const POINT_FORMAT_SIZES: [u16; 11] = [20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67];
+
+/// The fields of a LAS header that tilecurv reads, plus the raw bytes it was parsed from.
+#[derive(Debug, Clone)]
+pub struct LasHeader {
+    /// Version (major, minor), e.g. (1, 4).
+    pub version: (u8, u8),
+    /// Global encoding bits (bit 4: CRS is WKT).
+    pub global_encoding: u16,
+    /// Size of the header block in bytes.
+    pub header_size: u16,
+    /// Byte offset of the first point record.
+    pub offset_to_point_data: u32,
+    /// Number of VLRs between the header and the points.
+    pub num_vlrs: u32,
+    /// Point data record format (0 to 10), without the LAZ bits.
+    pub point_format: u8,
+    /// Whether the point data is LAZ-compressed (bit 7 of the stored format id).
+    pub compressed: bool,
+    /// Bytes per point record, extra bytes included.
+    pub record_length: u16,
+    /// Number of point records (the 64-bit count for LAS 1.4 when set).
+    pub point_count: u64,
+    /// Coordinate scale factors.
+    pub scale: [f64; 3],
+    /// Coordinate offsets.
+    pub offset: [f64; 3],
+    /// Minimum x, y, z as stored in the header (not trusted for planning).
+    pub min: [f64; 3],
+    /// Maximum x, y, z as stored in the header.
+    pub max: [f64; 3],
+    /// Start of waveform data packet record (LAS 1.3+), 0 if none.
+    pub waveform_start: u64,
+    /// Start of the first EVLR (LAS 1.4), 0 if none.
+    pub evlr_start: u64,
+    /// Number of EVLRs (LAS 1.4).
+    pub evlr_count: u32,
+    /// The original header bytes (`header_size` of them).
+    pub raw: Vec<u8>,
+}
+
+fn u16_at(b: &[u8], o: usize) -> u16 {
+    u16::from_le_bytes([b[o], b[o + 1]])
+}
+fn u32_at(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
+}
+fn u64_at(b: &[u8], o: usize) -> u64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[o..o + 8]);
+    u64::from_le_bytes(a)
+}
+fn f64_at(b: &[u8], o: usize) -> f64 {
+    f64::from_bits(u64_at(b, o))
+}
+
+impl LasHeader {
+    /// Parses and validates the header at the start of `bytes` (the whole file or at least its
+    /// first 375 bytes), checking it against `file_len`.
+    pub fn parse(path: &Path, bytes: &[u8], file_len: u64) -> Result<Self> {
+        let bad = |off: usize, what: String| Error::bad_input(path, Some(off as u64), what);
+        if file_len == 0 {
+            return Err(Error::bad_input(path, None, "the file is empty (0 bytes); expected a LAS or LAZ file"));
+        }
+        if bytes.len() < 227 || &bytes[0..4] != b"LASF" {
+            let got = if bytes.len() >= 4 { format!("{:?}", String::from_utf8_lossy(&bytes[0..4])) } else { format!("{} bytes", bytes.len()) };
+            return Err(bad(0, format!("not a LAS/LAZ file: expected the signature \"LASF\" and a header of at least 227 bytes, found {got}")));
+        }
+        let version = (bytes[24], bytes[25]);
+        if version.0 != 1 || version.1 > 4 {
+            return Err(bad(24, format!("unsupported LAS version {}.{}; tilecurv reads LAS 1.0 to 1.4", version.0, version.1)));
+        }
+        let header_size = u16_at(bytes, 94);
+        let min_header = match version.1 { 0..=2 => 227, 3 => 235, _ => 375 };
+        if (header_size as usize) < min_header {
+            return Err(bad(94, format!("header size {header_size} is smaller than the {min_header} bytes LAS 1.{} requires", version.1)));
+        }
+        if header_size as u64 > file_len || header_size as usize > bytes.len() {
+            return Err(bad(94, format!("header size {header_size} is larger than the file ({file_len} bytes): the file is truncated")));
+        }
+        let offset_to_point_data = u32_at(bytes, 96);
+        if offset_to_point_data < header_size as u32 {
+            return Err(bad(96, format!("offset to point data {offset_to_point_data} lies inside the {header_size}-byte header")));
+        }
+        if offset_to_point_data as u64 > file_len {
+            return Err(bad(96, format!("offset to point data {offset_to_point_data} is past the end of the file ({file_len} bytes): the file is truncated")));
+        }
+        let raw_format = bytes[104];
+        let compressed = raw_format & 0x80 != 0;
+        let point_format = raw_format & 0x3f;
+        if point_format > 10 {
+            return Err(bad(104, format!("unknown point data record format {point_format}; LAS defines formats 0 to 10")));
+        }
+        let record_length = u16_at(bytes, 105);
+        let base = POINT_FORMAT_SIZES[point_format as usize];
+        if record_length < base {
+            return Err(bad(105, format!("point record length {record_length} is shorter than the {base} bytes of point format {point_format}")));
+        }
+        let legacy_count = u32_at(bytes, 107) as u64;
+        let scale = [f64_at(bytes, 131), f64_at(bytes, 139), f64_at(bytes, 147)];
+        let offset = [f64_at(bytes, 155), f64_at(bytes, 163), f64_at(bytes, 171)];
+        for (i, s) in scale.iter().enumerate() {
+            if !(s.is_finite() && *s != 0.0) {
+                return Err(bad(131 + 8 * i, format!("{} scale factor is {s}; it must be finite and non-zero", ["x", "y", "z"][i])));
+            }
+            if !offset[i].is_finite() {
+                return Err(bad(155 + 8 * i, format!("{} offset is {}; it must be finite", ["x", "y", "z"][i], offset[i])));
+            }
+        }
+        let max = [f64_at(bytes, 179), f64_at(bytes, 195), f64_at(bytes, 211)];
+        let min = [f64_at(bytes, 187), f64_at(bytes, 203), f64_at(bytes, 219)];
+        let waveform_start = if version.1 >= 3 { u64_at(bytes, 227) } else { 0 };
+        let (evlr_start, evlr_count, point_count) = if version.1 >= 4 {
+            let c64 = u64_at(bytes, 247);
+            let count = if c64 != 0 { c64 } else { legacy_count };
+            (u64_at(bytes, 235), u32_at(bytes, 243), count)
+        } else {
+            (0, 0, legacy_count)
+        };
+        if evlr_count > 0 && (evlr_start < offset_to_point_data as u64 || evlr_start > file_len) {
+            return Err(bad(235, format!("start of first EVLR {evlr_start} is outside the file's data area ({offset_to_point_data}..{file_len})")));
+        }
+        Ok(LasHeader {
+            version,
+            global_encoding: u16_at(bytes, 6),
+            header_size,
+            offset_to_point_data,
+            num_vlrs: u32_at(bytes, 100),
+            point_format,
+            compressed,
+            record_length,
+            point_count,
+            scale,
+            offset,
+            min,
+            max,
+            waveform_start,
+            evlr_start,
+            evlr_count,
+            raw: bytes[..header_size as usize].to_vec(),
+        })
+    }
+
+    /// Number of extra bytes per record beyond the point format's fixed fields.
+    pub fn extra_bytes_len(&self) -> u16 {
+        self.record_length - POINT_FORMAT_SIZES[self.point_format as usize]
+    }
+
+    /// The end of the point data region: the first EVLR or the waveform block if either follows
+    /// the points, else the file length.
+    pub fn point_data_end(&self, file_len: u64) -> u64 {
+        let mut end = file_len;
+        if self.evlr_count > 0 && self.evlr_start >= self.offset_to_point_data as u64 {
+            end = end.min(self.evlr_start);
+        }
+        if self.waveform_start >= self.offset_to_point_data as u64 && self.waveform_start > 0 {
+            end = end.min(self.waveform_start);
+        }
+        end
+    }
+
+    /// The header bytes for an output file: the original bytes with the layout fields replaced.
+    pub fn patched(&self, out: &OutputLayout) -> Vec<u8> {
+        let mut b = self.raw.clone();
+        b[96..100].copy_from_slice(&out.offset_to_point_data.to_le_bytes());
+        b[100..104].copy_from_slice(&out.num_vlrs.to_le_bytes());
+        b[104] = self.point_format | if out.compressed { 0x80 } else { 0 };
+        b[105..107].copy_from_slice(&out.record_length.to_le_bytes());
+        if self.version.1 >= 3 {
+            // Waveform data inside the file moves with the data before it; an external one (0 or
+            // "in an auxiliary file" bit) keeps its value.
+            let wf = if self.waveform_start > 0 { out.waveform_start } else { 0 };
+            b[227..235].copy_from_slice(&wf.to_le_bytes());
+        }
+        if self.version.1 >= 4 {
+            b[235..243].copy_from_slice(&out.evlr_start.to_le_bytes());
+            b[243..247].copy_from_slice(&out.evlr_count.to_le_bytes());
+        }
+        b
+    }
+}
+
+/// Layout fields that change between the input header and the output header.
+#[derive(Debug, Clone, Copy)]
+pub struct OutputLayout {
+    /// Byte offset of the first point record in the output.
+    pub offset_to_point_data: u32,
+    /// Number of VLRs in the output.
+    pub num_vlrs: u32,
+    /// Whether the output points are LAZ-compressed.
+    pub compressed: bool,
+    /// Output bytes per point record.
+    pub record_length: u16,
+    /// Start of the first EVLR in the output (LAS 1.4), 0 if none.
+    pub evlr_start: u64,
+    /// Number of EVLRs in the output.
+    pub evlr_count: u32,
+    /// Start of the waveform data in the output (LAS 1.3+), 0 if none.
+    pub waveform_start: u64,
+}
