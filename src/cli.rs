@@ -1,0 +1,231 @@
+//! The command line: clap definitions, turned once into a validated [`Config`], and the exit
+//! codes. The binary (`main.rs`) only calls [`main_with_args`].
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::{Parser, Subcommand};
+
+use crate::config::{ColumnType, Config, Length};
+use crate::error::{Error, ExitClass};
+use crate::estimate::EstimatorParams;
+use crate::normals::Orientation;
+use crate::progress::TermReporter;
+
+/// Exit codes, as documented in `--help` and the README.
+pub mod exit {
+    /// Success.
+    pub const OK: i32 = 0;
+    /// Internal error (a bug).
+    pub const INTERNAL: i32 = 1;
+    /// Usage error: bad option or value.
+    pub const USAGE: i32 = 2;
+    /// Bad input: unreadable, malformed or unsupported input file.
+    pub const BAD_INPUT: i32 = 3;
+    /// Output failure: the output or work directory could not be written.
+    pub const OUTPUT: i32 = 4;
+    /// Interrupted by SIGINT or SIGTERM; no output was written.
+    pub const INTERRUPTED: i32 = 130;
+}
+
+const EXIT_HELP: &str = "\
+Exit codes:
+  0    success: the output is complete
+  1    internal error (a bug: please report it with the command line)
+  2    usage error: a bad option or value
+  3    bad input: the input is unreadable, malformed or unsupported (the message names the file and byte offset)
+  4    output failure: the output or the work directory could not be written
+  130  interrupted (SIGINT/SIGTERM): nothing was written, the output is untouched
+
+The output is written to a temporary file beside it and renamed only on success: it is complete or absent.";
+
+#[derive(Parser, Debug)]
+#[command(name = "tilecurv", version, about = "Per-point normals and mean, Gaussian and principal curvature for LIDAR point clouds (LAS/LAZ in, LAS/LAZ out)", after_help = EXIT_HELP)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Compute normals and curvature for every point and write them as new extra-bytes columns.
+    #[command(after_help = EXIT_HELP)]
+    Process(ProcessArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct ProcessArgs {
+    /// Input LAS or LAZ file (LAS 1.0-1.4, point formats 0-10, COPC-LAZ). Never modified.
+    input: PathBuf,
+
+    /// Output file; the extension chooses the format: .las or .laz. Holds every input point in
+    /// the same order with all original fields, VLRs and EVLRs, plus the columns NormalX/Y/Z,
+    /// H (mean curvature), K (Gaussian), k1 <= k2 (principal), CurvatureFlags and, with
+    /// --directions, d1x..d2z. Curvature is positive where the surface bends away from its
+    /// normal (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
+    #[arg(short, long)]
+    output: PathBuf,
+
+    /// Tile edge length, with a unit: 50m, 0.1km, 150ft (international foot), 150usft (US
+    /// survey foot), or a bare number in file units. Converted with the file's CRS unit (e.g.
+    /// 50m is 164.04 in a file in international feet). Results do not depend on it; it trades
+    /// memory for halo overhead.
+    #[arg(long, default_value = "50m", value_parser = Length::parse)]
+    tile: Length,
+
+    /// Neighbours per point, the point itself included (as in the CNC authors' code). 30 suits
+    /// aerial LIDAR (the CNC paper finds 15-50 very accurate on clean data; noisy scans want more).
+    #[arg(short = 'k', long = "neighbours", alias = "neighbors", default_value_t = 30)]
+    k: usize,
+
+    /// Curvature estimator.
+    #[arg(long, default_value = "cnc-avg-hexagram")]
+    estimator: String,
+
+    /// Orientation of PCA normals: `up` (towards +Z, aerial scans) or `viewpoint:X,Y,Z` (towards a
+    /// terrestrial scanner, in file coordinates). Normals stored in the file (NormalX/Y/Z) are
+    /// used as they are unless --ignore-file-normals.
+    #[arg(long, default_value = "up", value_parser = parse_orientation)]
+    orient: Orientation,
+
+    /// Estimate normals by PCA even when the input has NormalX/Y/Z.
+    #[arg(long)]
+    ignore_file_normals: bool,
+
+    /// Also write the principal directions d1 (of k1) and d2 (of k2) as unit vectors.
+    #[arg(long)]
+    directions: bool,
+
+    /// Store the new columns as 64-bit floats (default: 32-bit).
+    #[arg(long = "f64")]
+    f64_columns: bool,
+
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+
+    /// Points read per chunk when streaming the input. Results do not depend on it.
+    #[arg(long = "chunk-size", default_value_t = 1_000_000)]
+    chunk_points: usize,
+
+    /// Seed of randomised estimators (each point's stream comes from the seed and its index).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+
+    /// Triangles per point for cnc-uniform.
+    #[arg(long, default_value_t = 100)]
+    triangles: usize,
+
+    /// Directory for temporary per-tile results (default: beside the output). Removed at the end.
+    #[arg(long)]
+    work_dir: Option<PathBuf>,
+
+    /// Print only warnings and errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn parse_orientation(s: &str) -> Result<Orientation, String> {
+    if s == "up" {
+        return Ok(Orientation::Up);
+    }
+    if let Some(rest) = s.strip_prefix("viewpoint:") {
+        let v: Vec<f64> = rest.split(',').map(|c| c.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("{s:?}: expected viewpoint:X,Y,Z with three numbers"))?;
+        if let [x, y, z] = v[..] {
+            if [x, y, z].iter().all(|c| c.is_finite()) {
+                return Ok(Orientation::Viewpoint([x, y, z]));
+            }
+        }
+        return Err(format!("{s:?}: expected viewpoint:X,Y,Z with three finite numbers"));
+    }
+    Err(format!("{s:?}: expected `up` or `viewpoint:X,Y,Z`"))
+}
+
+impl ProcessArgs {
+    fn into_config(self) -> Config {
+        let threads = self.threads.unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1));
+        Config {
+            input: self.input,
+            output: self.output,
+            tile: self.tile,
+            k: self.k,
+            estimator: self.estimator,
+            params: EstimatorParams { seed: self.seed, triangles: self.triangles, ..EstimatorParams::default() },
+            orientation: self.orient,
+            ignore_file_normals: self.ignore_file_normals,
+            directions: self.directions,
+            column_type: if self.f64_columns { ColumnType::F64 } else { ColumnType::F32 },
+            threads,
+            chunk_points: self.chunk_points,
+            work_dir: self.work_dir,
+        }
+    }
+}
+
+static CANCEL: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    CANCEL.store(true, Ordering::SeqCst);
+}
+
+fn install_signal_handlers() {
+    // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+    unsafe {
+        libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
+    }
+}
+
+fn exit_code(e: &Error) -> i32 {
+    match e.exit_class() {
+        ExitClass::Usage => exit::USAGE,
+        ExitClass::BadInput => exit::BAD_INPUT,
+        ExitClass::Output => exit::OUTPUT,
+        ExitClass::Interrupted => exit::INTERRUPTED,
+        ExitClass::Internal => exit::INTERNAL,
+    }
+}
+
+/// Parses the process arguments, runs the command, prints the outcome, and returns the exit code.
+pub fn main_with_args() -> i32 {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { exit::USAGE } else { exit::OK };
+        }
+    };
+    match cli.command {
+        Command::Process(args) => {
+            let quiet = args.quiet;
+            let cfg = args.into_config();
+            install_signal_handlers();
+            let reporter = TermReporter::new(quiet);
+            match crate::pipeline::run(&cfg, &reporter, &CANCEL) {
+                Ok(s) => {
+                    if !quiet {
+                        eprintln!(
+                            "done: {} points in {:.1} s ({:.0} points/s), {} tiles, {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
+                            s.points,
+                            s.seconds,
+                            s.points as f64 / s.seconds.max(1e-9),
+                            s.tiles,
+                            s.undefined,
+                            100.0 * s.undefined as f64 / s.points.max(1) as f64,
+                            s.retried,
+                            cfg.output.display()
+                        );
+                    }
+                    exit::OK
+                }
+                Err(e) => {
+                    eprintln!("tilecurv: error: {e}");
+                    if e.exit_class() == ExitClass::Interrupted {
+                        eprintln!("tilecurv: run the same command again to start over");
+                    }
+                    exit_code(&e)
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,82 @@
+//! The columns tilecurv adds to every point: their names, types, descriptions (with the file's
+//! unit) and their byte encoding. One definition used by the result files, the LAS/LAZ writer's
+//! extra-bytes VLR, and the tests.
+
+use crate::compute::PointResult;
+use crate::config::ColumnType;
+use crate::las::extra_bytes::{NewColumn, ScalarType};
+
+/// Name of the quality-flag column.
+pub const FLAGS_NAME: &str = "CurvatureFlags";
+
+/// The set of new columns of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColumnSet {
+    /// Storage type of the float columns.
+    pub ty: ColumnType,
+    /// Whether the principal directions are written.
+    pub directions: bool,
+    /// Unit symbol of the coordinates, for the descriptions ("m", "ft", or "unit").
+    pub unit: String,
+}
+
+impl ColumnSet {
+    /// The float columns' names, in record order (the flag column follows them).
+    pub fn float_names(&self) -> Vec<&'static str> {
+        let mut v = vec!["NormalX", "NormalY", "NormalZ", "H", "K", "k1", "k2"];
+        if self.directions {
+            v.extend(["d1x", "d1y", "d1z", "d2x", "d2y", "d2z"]);
+        }
+        v
+    }
+
+    /// Descriptors of all new columns, in record order.
+    pub fn columns(&self) -> Vec<NewColumn> {
+        let u = &self.unit;
+        let ty = match self.ty {
+            ColumnType::F32 => ScalarType::F32,
+            ColumnType::F64 => ScalarType::F64,
+        };
+        let describe = |name: &str| match name {
+            "NormalX" | "NormalY" | "NormalZ" => format!("unit normal {}", &name[6..].to_lowercase()),
+            "H" => format!("mean curvature (1/{u})"),
+            "K" => format!("Gaussian curvature (1/{u}^2)"),
+            "k1" => format!("min principal curvature (1/{u})"),
+            "k2" => format!("max principal curvature (1/{u})"),
+            d => format!("direction of k{} ({})", &d[1..2], &d[2..3]),
+        };
+        let mut cols: Vec<NewColumn> = self.float_names().into_iter().map(|n| NewColumn { name: n.to_string(), ty, description: describe(n) }).collect();
+        cols.push(NewColumn { name: FLAGS_NAME.into(), ty: ScalarType::U8, description: "1few 2nrm 4degen 8bnd 16umb 32file".into() });
+        cols
+    }
+
+    /// Bytes per point of the new columns.
+    pub fn record_size(&self) -> usize {
+        let w = match self.ty {
+            ColumnType::F32 => 4,
+            ColumnType::F64 => 8,
+        };
+        self.float_names().len() * w + 1
+    }
+
+    /// Appends the encoded columns of one point to `out` (little-endian, record order).
+    pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
+        let c = &r.curvature;
+        let mut put = |v: f64| match self.ty {
+            ColumnType::F32 => out.extend_from_slice(&(v as f32).to_le_bytes()),
+            ColumnType::F64 => out.extend_from_slice(&v.to_le_bytes()),
+        };
+        for v in r.normal {
+            put(v);
+        }
+        for v in [c.h, c.k, c.k1, c.k2] {
+            put(v);
+        }
+        if self.directions {
+            for v in c.d1.into_iter().chain(c.d2) {
+                put(v);
+            }
+        }
+        out.push(c.flags);
+    }
+}

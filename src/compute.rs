@@ -1,0 +1,154 @@
+//! One tile's computation: k-NN for the core points and for the halo points they reach, normals
+//! (the file's, or PCA oriented), halo verification, and the estimator for the core points whose
+//! whole neighbourhood is verified complete. Parallel over points with rayon; no I/O.
+
+use rayon::prelude::*;
+
+use crate::estimate::{flags, Curvature, Estimator, Neighbourhood};
+use crate::geometry::{sub, V3};
+use crate::neighbors::{KnnScratch, NeighbourIndex};
+use crate::normals::{orient, pca_normal, Orientation};
+use crate::plan::Rect;
+use crate::tile::TilePoints;
+
+/// What to compute per point.
+#[derive(Clone, Copy)]
+pub struct ComputeParams<'e> {
+    /// Neighbours per point, the point itself included.
+    pub k: usize,
+    /// Orientation of PCA normals.
+    pub orientation: Orientation,
+    /// Use the file's normals where present.
+    pub use_file_normals: bool,
+    /// The estimator.
+    pub estimator: &'e dyn Estimator,
+}
+
+/// One point's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointResult {
+    /// Original point id.
+    pub id: u64,
+    /// Oriented unit normal (NaN when undefined).
+    pub normal: V3,
+    /// Curvature and flags.
+    pub curvature: Curvature,
+}
+
+/// The outcome of one pass over a loaded tile.
+#[derive(Debug, Default)]
+pub struct TileOutcome {
+    /// Results of the core points whose neighbourhoods were verified complete.
+    pub done: Vec<PointResult>,
+    /// Ids of core points whose neighbourhood (or a neighbour's) may reach past the loaded
+    /// region: to be recomputed with a wider halo.
+    pub retry: Vec<u64>,
+}
+
+struct Knn {
+    list: Vec<u32>,
+    complete: bool,
+}
+
+fn knn_of(t: &TilePoints, index: &NeighbourIndex<'_>, scene: &Rect, k: usize, i: usize, scratch: &mut KnnScratch) -> Knn {
+    let mut list = Vec::with_capacity(k);
+    let far = index.knn(i, k, scratch, &mut list);
+    let p = t.xyz[i];
+    let room = t.region.distance_to_open_side(p[0], p[1], scene);
+    // Any point not loaded is strictly farther than `room`; with fewer than k points loaded,
+    // only a region covering the whole scene proves the list complete.
+    let complete = if list.len() < k { room.is_infinite() } else { far <= room };
+    Knn { list, complete }
+}
+
+/// Computes the core points of `t`. `scene` is the x/y extent of the whole cloud.
+pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> TileOutcome {
+    let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids) else {
+        return TileOutcome::default();
+    };
+    let n = t.xyz.len();
+    let k = p.k;
+    // 1. k-NN of the core points.
+    let mut knn: Vec<Option<Knn>> = (0..t.n_core)
+        .into_par_iter()
+        .map_init(KnnScratch::default, |s, i| Some(knn_of(t, &index, scene, k, i, s)))
+        .collect();
+    // 2. k-NN of the halo points that core neighbourhoods reach (their normals are used).
+    let mut needed = vec![false; n];
+    for l in knn.iter().flatten() {
+        for &j in &l.list {
+            needed[j as usize] = true;
+        }
+    }
+    let halo: Vec<usize> = (t.n_core..n).filter(|&j| needed[j]).collect();
+    let halo_knn: Vec<(usize, Knn)> = halo.par_iter().map_init(KnnScratch::default, |s, &j| (j, knn_of(t, &index, scene, k, j, s))).collect();
+    knn.resize_with(n, || None);
+    for (j, l) in halo_knn {
+        knn[j] = Some(l);
+    }
+    // 3. Normals of every point with a neighbour list.
+    let normals: Vec<Option<V3>> = knn
+        .par_iter()
+        .enumerate()
+        .map(|(i, l)| {
+            let l = l.as_ref()?;
+            if p.use_file_normals {
+                if let Some(fnorm) = t.file_normals[i] {
+                    return crate::geometry::normalize(fnorm);
+                }
+            }
+            pca_normal(&t.xyz, &l.list).map(|nrm| orient(nrm, t.xyz[i], p.orientation))
+        })
+        .collect();
+    // 4. Estimator for the verified core points.
+    struct Scratch {
+        pos: Vec<V3>,
+        nrm: Vec<V3>,
+        ids: Vec<u64>,
+    }
+    let results: Vec<Result<PointResult, u64>> = (0..t.n_core)
+        .into_par_iter()
+        .map_init(
+            || Scratch { pos: Vec::with_capacity(k), nrm: Vec::with_capacity(k), ids: Vec::with_capacity(k) },
+            |s, i| {
+                let Some(l) = knn[i].as_ref() else { return Err(t.ids[i]) };
+                let verified = l.complete && l.list.iter().all(|&j| knn[j as usize].as_ref().is_some_and(|m| m.complete));
+                if !verified {
+                    return Err(t.ids[i]);
+                }
+                let file_flag = if p.use_file_normals && t.file_normals[i].is_some() { flags::FILE_NORMAL } else { 0 };
+                let Some(n0) = normals[i] else {
+                    return Ok(PointResult { id: t.ids[i], normal: [f64::NAN; 3], curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag) });
+                };
+                s.pos.clear();
+                s.nrm.clear();
+                s.ids.clear();
+                let q = t.xyz[i];
+                for &j in &l.list {
+                    // Neighbours without a defined normal cannot contribute to a measure.
+                    if let Some(nj) = normals[j as usize] {
+                        s.pos.push(sub(t.xyz[j as usize], q));
+                        s.nrm.push(nj);
+                        s.ids.push(t.ids[j as usize]);
+                    }
+                }
+                let curvature = if s.pos.len() < 3 {
+                    Curvature::undefined(flags::FEW_NEIGHBOURS)
+                } else {
+                    p.estimator.estimate(&Neighbourhood { positions: &s.pos, normals: &s.nrm, ids: &s.ids })
+                };
+                let mut curvature = curvature;
+                curvature.flags |= file_flag;
+                Ok(PointResult { id: t.ids[i], normal: n0, curvature })
+            },
+        )
+        .collect();
+    let mut out = TileOutcome::default();
+    for r in results {
+        match r {
+            Ok(pr) => out.done.push(pr),
+            Err(id) => out.retry.push(id),
+        }
+    }
+    out
+}

@@ -1,0 +1,152 @@
+//! The tiling plan: square tiles of the requested size anchored at multiples of the size in file
+//! coordinates, each point in exactly one tile's core, and an initial halo per tile from its
+//! density. Pure: works on counts and bounds gathered by the scan.
+
+use std::collections::BTreeMap;
+
+/// Integer tile coordinates (floor(x / size), floor(y / size)).
+pub type TileKey = (i64, i64);
+
+/// An axis-aligned rectangle in x/y.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Rect {
+    /// Minimum x, y.
+    pub min: [f64; 2],
+    /// Maximum x, y.
+    pub max: [f64; 2],
+}
+
+impl Rect {
+    /// The rectangle grown by `d` on every side.
+    pub fn grown(&self, d: f64) -> Rect {
+        Rect { min: [self.min[0] - d, self.min[1] - d], max: [self.max[0] + d, self.max[1] + d] }
+    }
+
+    /// Whether (x, y) lies in the closed rectangle.
+    pub fn contains(&self, x: f64, y: f64) -> bool {
+        x >= self.min[0] && x <= self.max[0] && y >= self.min[1] && y <= self.max[1]
+    }
+
+    /// Whether this rectangle contains all of `other`.
+    pub fn covers(&self, other: &Rect) -> bool {
+        self.min[0] <= other.min[0] && self.min[1] <= other.min[1] && self.max[0] >= other.max[0] && self.max[1] >= other.max[1]
+    }
+
+    /// Distance from (x, y) inside this loaded region to the nearest side behind which points
+    /// may exist that were not loaded. Sides at or beyond the scene's bounds hide nothing and are
+    /// ignored (infinite distance). Any point not loaded is strictly farther than this.
+    pub fn distance_to_open_side(&self, x: f64, y: f64, scene: &Rect) -> f64 {
+        let mut d = f64::INFINITY;
+        if self.min[0] > scene.min[0] {
+            d = d.min(x - self.min[0]);
+        }
+        if self.max[0] < scene.max[0] {
+            d = d.min(self.max[0] - x);
+        }
+        if self.min[1] > scene.min[1] {
+            d = d.min(y - self.min[1]);
+        }
+        if self.max[1] < scene.max[1] {
+            d = d.min(self.max[1] - y);
+        }
+        d
+    }
+}
+
+/// The tile grid: tiles of edge `size` anchored at multiples of `size`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TileGrid {
+    /// Tile edge length in file units.
+    pub size: f64,
+}
+
+impl TileGrid {
+    /// The tile whose core holds (x, y). The one function that decides core membership.
+    pub fn key(&self, x: f64, y: f64) -> TileKey {
+        ((x / self.size).floor() as i64, (y / self.size).floor() as i64)
+    }
+
+    /// The core rectangle of a tile.
+    pub fn rect(&self, key: TileKey) -> Rect {
+        let s = self.size;
+        Rect { min: [key.0 as f64 * s, key.1 as f64 * s], max: [(key.0 + 1) as f64 * s, (key.1 + 1) as f64 * s] }
+    }
+}
+
+/// What the scan pass learned about the cloud.
+#[derive(Debug, Clone, Default)]
+pub struct ScanStats {
+    /// Number of points.
+    pub count: u64,
+    /// Minimum x, y, z of the points.
+    pub min: [f64; 3],
+    /// Maximum x, y, z of the points.
+    pub max: [f64; 3],
+    /// Points per tile core.
+    pub per_tile: BTreeMap<TileKey, u64>,
+}
+
+/// One tile of the plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileSpec {
+    /// Tile coordinates.
+    pub key: TileKey,
+    /// Number of core points.
+    pub count: u64,
+    /// Initial halo width (file units); widened per point when verification fails.
+    pub halo: f64,
+}
+
+/// The tiling plan.
+#[derive(Debug, Clone)]
+pub struct TilePlan {
+    /// The grid.
+    pub grid: TileGrid,
+    /// Non-empty tiles, in key order.
+    pub tiles: Vec<TileSpec>,
+    /// The x/y bounds of all points.
+    pub scene: Rect,
+}
+
+/// Initial halo for a tile of `count` points: three times the radius that holds `k` points at
+/// the tile's mean density, enough for a point's neighbours and their neighbours (whose normals
+/// the estimator uses) on an evenly sampled surface. Verification catches the rest.
+pub fn initial_halo(count: u64, size: f64, k: usize) -> f64 {
+    let density = count.max(1) as f64 / (size * size);
+    3.0 * (k as f64 / (std::f64::consts::PI * density)).sqrt()
+}
+
+/// Plans the tiles for `stats` with tile edge `size` (file units) and `k` neighbours.
+pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
+    let grid = TileGrid { size };
+    let tiles = stats.per_tile.iter().map(|(&key, &count)| TileSpec { key, count, halo: initial_halo(count, size, k) }).collect();
+    TilePlan { grid, tiles, scene: Rect { min: [stats.min[0], stats.min[1]], max: [stats.max[0], stats.max[1]] } }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_partition_and_open_sides() {
+        let g = TileGrid { size: 10.0 };
+        assert_eq!(g.key(-0.0001, 9.9999), (-1, 0));
+        assert_eq!(g.key(10.0, 0.0), (1, 0));
+        let r = g.rect((0, 0));
+        assert!(r.contains(0.0, 0.0) && r.contains(10.0, 10.0));
+        let scene = Rect { min: [0.0, -100.0], max: [100.0, 100.0] };
+        // The x = 0 side is the scene's edge: only the other three sides count.
+        assert_eq!(r.distance_to_open_side(1.0, 3.0, &scene), 3.0);
+        assert_eq!(r.grown(5.0).distance_to_open_side(1.0, 3.0, &scene), 8.0);
+        let all = Rect { min: [-1.0, -200.0], max: [200.0, 200.0] };
+        assert!(all.distance_to_open_side(1.0, 3.0, &scene).is_infinite());
+    }
+
+    #[test]
+    fn halo_grows_with_k_and_shrinks_with_density() {
+        assert!(initial_halo(1000, 10.0, 30) > initial_halo(4000, 10.0, 30));
+        let h = initial_halo(10_000, 100.0, 30);
+        // density 1 pt/unit^2: r_k = sqrt(30/pi) = 3.09, halo = 9.27
+        assert!((h - 3.0 * (30.0 / std::f64::consts::PI).sqrt()).abs() < 1e-12);
+    }
+}
