@@ -8,16 +8,33 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::columns::ColumnSet;
 use crate::error::{Error, Result};
-use crate::las_out::LasWriter;
 use crate::progress::Reporter;
 use crate::results::TileResults;
-use crate::source::LasSource;
+use crate::sink::{create_sink, PointSink};
+use crate::source::PointSource;
 
 /// Writes `output` from `source` and the tile result files. The output appears only if every
 /// point was matched with its result; otherwise the temporary file is removed.
-pub fn assemble(source: &LasSource, result_files: &[PathBuf], cols: &ColumnSet, output: &Path, provenance: &str, chunk_points: usize, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result<()> {
-    let mut writer = LasWriter::create(source, output, cols, provenance)?;
-    match merge_into(&mut writer, source, result_files, cols, chunk_points, reporter, cancel) {
+pub fn assemble(
+    source: &dyn PointSource,
+    result_files: &[PathBuf],
+    cols: &ColumnSet,
+    output: &Path,
+    provenance: &str,
+    chunk_points: usize,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<()> {
+    let mut writer = create_sink(source, output, cols, provenance)?;
+    match merge_into(
+        writer.as_mut(),
+        source,
+        result_files,
+        cols,
+        chunk_points,
+        reporter,
+        cancel,
+    ) {
         Ok(()) => writer.finish(),
         Err(e) => {
             writer.abandon();
@@ -26,8 +43,19 @@ pub fn assemble(source: &LasSource, result_files: &[PathBuf], cols: &ColumnSet, 
     }
 }
 
-fn merge_into(writer: &mut LasWriter, source: &LasSource, result_files: &[PathBuf], cols: &ColumnSet, chunk_points: usize, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result<()> {
-    let mut readers = result_files.iter().map(|p| TileResults::open(p, cols)).collect::<Result<Vec<_>>>()?;
+fn merge_into(
+    writer: &mut dyn PointSink,
+    source: &dyn PointSource,
+    result_files: &[PathBuf],
+    cols: &ColumnSet,
+    chunk_points: usize,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<()> {
+    let mut readers = result_files
+        .iter()
+        .map(|p| TileResults::open(p, cols))
+        .collect::<Result<Vec<_>>>()?;
     let mut heads: Vec<Vec<u8>> = vec![Vec::new(); readers.len()];
     let mut heap = BinaryHeap::new();
     for (i, r) in readers.iter_mut().enumerate() {
@@ -35,9 +63,9 @@ fn merge_into(writer: &mut LasWriter, source: &LasSource, result_files: &[PathBu
             heap.push(Reverse((id, i)));
         }
     }
-    let rl = source.header.record_length as usize;
+    let rl = source.record_length();
     let mut out = Vec::new();
-    source.for_each_chunk(chunk_points, |first, records| {
+    source.for_each_chunk(chunk_points, &mut |first, records| {
         if cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
         }
@@ -48,7 +76,9 @@ fn merge_into(writer: &mut LasWriter, source: &LasSource, result_files: &[PathBu
                 return Err(Error::Internal(format!("no result for point {id}")));
             };
             if rid != id {
-                return Err(Error::Internal(format!("result for point {rid} where point {id} was expected")));
+                return Err(Error::Internal(format!(
+                    "result for point {rid} where point {id} was expected"
+                )));
             }
             out.extend_from_slice(rec);
             out.extend_from_slice(&heads[i]);
@@ -61,7 +91,9 @@ fn merge_into(writer: &mut LasWriter, source: &LasSource, result_files: &[PathBu
         Ok(())
     })?;
     if let Some(Reverse((id, _))) = heap.pop() {
-        return Err(Error::Internal(format!("result for point {id}, past the last point")));
+        return Err(Error::Internal(format!(
+            "result for point {id}, past the last point"
+        )));
     }
     Ok(())
 }

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use crate::error::Result;
 use crate::plan::{Rect, ScanStats, TileGrid, TileKey};
-use crate::source::{LasSource, SourcePoint};
+use crate::source::{PointSource, SourcePoint};
 
 /// Points of every tile core.
 pub struct Buckets {
@@ -19,18 +19,30 @@ impl Buckets {
     /// Streams the source once, appending every point to its core tile's bucket, and gathers the
     /// scan statistics. `progress(n)` is called with the number of points read after each chunk;
     /// returning an error from it (e.g. on cancellation) stops the scan.
-    pub fn scan(source: &LasSource, grid: TileGrid, chunk_points: usize, mut progress: impl FnMut(u64) -> Result<()>) -> Result<(Self, ScanStats)> {
-        let rl = source.header.record_length as usize;
+    pub fn scan(
+        source: &dyn PointSource,
+        grid: TileGrid,
+        chunk_points: usize,
+        mut progress: impl FnMut(u64) -> Result<()>,
+    ) -> Result<(Self, ScanStats)> {
+        let rl = source.record_length();
         let mut tiles: HashMap<TileKey, Vec<SourcePoint>> = HashMap::new();
-        let mut stats = ScanStats { min: [f64::INFINITY; 3], max: [f64::NEG_INFINITY; 3], ..Default::default() };
-        source.for_each_chunk(chunk_points, |first, records| {
+        let mut stats = ScanStats {
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+            ..Default::default()
+        };
+        source.for_each_chunk(chunk_points, &mut |first, records| {
             for (i, rec) in records.chunks_exact(rl).enumerate() {
                 let p = source.decode(first + i as u64, rec);
                 for a in 0..3 {
                     stats.min[a] = stats.min[a].min(p.xyz[a]);
                     stats.max[a] = stats.max[a].max(p.xyz[a]);
                 }
-                tiles.entry(grid.key(p.xyz[0], p.xyz[1])).or_default().push(p);
+                tiles
+                    .entry(grid.key(p.xyz[0], p.xyz[1]))
+                    .or_default()
+                    .push(p);
             }
             stats.count += (records.len() / rl) as u64;
             progress((records.len() / rl) as u64)
@@ -61,7 +73,12 @@ impl Buckets {
         };
         if span > self.tiles.len() as i64 {
             // A halo wider than the scene: visit the existing tiles rather than every key.
-            let mut keys: Vec<TileKey> = self.tiles.keys().copied().filter(|k| k.0 >= lo.0 && k.0 <= hi.0 && k.1 >= lo.1 && k.1 <= hi.1).collect();
+            let mut keys: Vec<TileKey> = self
+                .tiles
+                .keys()
+                .copied()
+                .filter(|k| k.0 >= lo.0 && k.0 <= hi.0 && k.1 >= lo.1 && k.1 <= hi.1)
+                .collect();
             keys.sort_unstable();
             keys.into_iter().for_each(visit);
         } else {

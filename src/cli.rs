@@ -75,7 +75,12 @@ struct ProcessArgs {
 
     /// Neighbours per point, the point itself included (as in the CNC authors' code). 30 suits
     /// aerial LIDAR (the CNC paper finds 15-50 very accurate on clean data; noisy scans want more).
-    #[arg(short = 'k', long = "neighbours", alias = "neighbors", default_value_t = 30)]
+    #[arg(
+        short = 'k',
+        long = "neighbours",
+        alias = "neighbors",
+        default_value_t = 30
+    )]
     k: usize,
 
     /// Curvature estimator.
@@ -130,31 +135,49 @@ fn parse_orientation(s: &str) -> Result<Orientation, String> {
         return Ok(Orientation::Up);
     }
     if let Some(rest) = s.strip_prefix("viewpoint:") {
-        let v: Vec<f64> = rest.split(',').map(|c| c.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("{s:?}: expected viewpoint:X,Y,Z with three numbers"))?;
+        let v: Vec<f64> = rest
+            .split(',')
+            .map(|c| c.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| format!("{s:?}: expected viewpoint:X,Y,Z with three numbers"))?;
         if let [x, y, z] = v[..] {
             if [x, y, z].iter().all(|c| c.is_finite()) {
                 return Ok(Orientation::Viewpoint([x, y, z]));
             }
         }
-        return Err(format!("{s:?}: expected viewpoint:X,Y,Z with three finite numbers"));
+        return Err(format!(
+            "{s:?}: expected viewpoint:X,Y,Z with three finite numbers"
+        ));
     }
     Err(format!("{s:?}: expected `up` or `viewpoint:X,Y,Z`"))
 }
 
 impl ProcessArgs {
     fn into_config(self) -> Config {
-        let threads = self.threads.unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1));
+        let threads = self.threads.unwrap_or_else(|| {
+            std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1)
+        });
         Config {
             input: self.input,
             output: self.output,
             tile: self.tile,
             k: self.k,
             estimator: self.estimator,
-            params: EstimatorParams { seed: self.seed, triangles: self.triangles, ..EstimatorParams::default() },
+            params: EstimatorParams {
+                seed: self.seed,
+                triangles: self.triangles,
+                ..EstimatorParams::default()
+            },
             orientation: self.orient,
             ignore_file_normals: self.ignore_file_normals,
             directions: self.directions,
-            column_type: if self.f64_columns { ColumnType::F64 } else { ColumnType::F32 },
+            column_type: if self.f64_columns {
+                ColumnType::F64
+            } else {
+                ColumnType::F32
+            },
             threads,
             chunk_points: self.chunk_points,
             work_dir: self.work_dir,
@@ -192,7 +215,11 @@ pub fn main_with_args() -> i32 {
         Ok(c) => c,
         Err(e) => {
             let _ = e.print();
-            return if e.use_stderr() { exit::USAGE } else { exit::OK };
+            return if e.use_stderr() {
+                exit::USAGE
+            } else {
+                exit::OK
+            };
         }
     };
     match cli.command {

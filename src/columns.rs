@@ -38,15 +38,29 @@ impl ColumnSet {
             ColumnType::F64 => ScalarType::F64,
         };
         let describe = |name: &str| match name {
-            "NormalX" | "NormalY" | "NormalZ" => format!("unit normal {}", &name[6..].to_lowercase()),
+            "NormalX" | "NormalY" | "NormalZ" => {
+                format!("unit normal {}", &name[6..].to_lowercase())
+            }
             "H" => format!("mean curvature (1/{u})"),
             "K" => format!("Gaussian curvature (1/{u}^2)"),
             "k1" => format!("min principal curvature (1/{u})"),
             "k2" => format!("max principal curvature (1/{u})"),
             d => format!("direction of k{} ({})", &d[1..2], &d[2..3]),
         };
-        let mut cols: Vec<NewColumn> = self.float_names().into_iter().map(|n| NewColumn { name: n.to_string(), ty, description: describe(n) }).collect();
-        cols.push(NewColumn { name: FLAGS_NAME.into(), ty: ScalarType::U8, description: "1few 2nrm 4degen 8bnd 16umb 32file".into() });
+        let mut cols: Vec<NewColumn> = self
+            .float_names()
+            .into_iter()
+            .map(|n| NewColumn {
+                name: n.to_string(),
+                ty,
+                description: describe(n),
+            })
+            .collect();
+        cols.push(NewColumn {
+            name: FLAGS_NAME.into(),
+            ty: ScalarType::U8,
+            description: "1few 2nrm 4degen 8bnd 16umb 32file".into(),
+        });
         cols
     }
 

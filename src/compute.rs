@@ -50,14 +50,25 @@ struct Knn {
     complete: bool,
 }
 
-fn knn_of(t: &TilePoints, index: &NeighbourIndex<'_>, scene: &Rect, k: usize, i: usize, scratch: &mut KnnScratch) -> Knn {
+fn knn_of(
+    t: &TilePoints,
+    index: &NeighbourIndex<'_>,
+    scene: &Rect,
+    k: usize,
+    i: usize,
+    scratch: &mut KnnScratch,
+) -> Knn {
     let mut list = Vec::with_capacity(k);
     let far = index.knn(i, k, scratch, &mut list);
     let p = t.xyz[i];
     let room = t.region.distance_to_open_side(p[0], p[1], scene);
     // Any point not loaded is strictly farther than `room`; with fewer than k points loaded,
     // only a region covering the whole scene proves the list complete.
-    let complete = if list.len() < k { room.is_infinite() } else { far <= room };
+    let complete = if list.len() < k {
+        room.is_infinite()
+    } else {
+        far <= room
+    };
     Knn { list, complete }
 }
 
@@ -71,7 +82,9 @@ pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> Tile
     // 1. k-NN of the core points.
     let mut knn: Vec<Option<Knn>> = (0..t.n_core)
         .into_par_iter()
-        .map_init(KnnScratch::default, |s, i| Some(knn_of(t, &index, scene, k, i, s)))
+        .map_init(KnnScratch::default, |s, i| {
+            Some(knn_of(t, &index, scene, k, i, s))
+        })
         .collect();
     // 2. k-NN of the halo points that core neighbourhoods reach (their normals are used).
     let mut needed = vec![false; n];
@@ -81,7 +94,12 @@ pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> Tile
         }
     }
     let halo: Vec<usize> = (t.n_core..n).filter(|&j| needed[j]).collect();
-    let halo_knn: Vec<(usize, Knn)> = halo.par_iter().map_init(KnnScratch::default, |s, &j| (j, knn_of(t, &index, scene, k, j, s))).collect();
+    let halo_knn: Vec<(usize, Knn)> = halo
+        .par_iter()
+        .map_init(KnnScratch::default, |s, &j| {
+            (j, knn_of(t, &index, scene, k, j, s))
+        })
+        .collect();
     knn.resize_with(n, || None);
     for (j, l) in halo_knn {
         knn[j] = Some(l);
@@ -109,16 +127,33 @@ pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> Tile
     let results: Vec<Result<PointResult, u64>> = (0..t.n_core)
         .into_par_iter()
         .map_init(
-            || Scratch { pos: Vec::with_capacity(k), nrm: Vec::with_capacity(k), ids: Vec::with_capacity(k) },
+            || Scratch {
+                pos: Vec::with_capacity(k),
+                nrm: Vec::with_capacity(k),
+                ids: Vec::with_capacity(k),
+            },
             |s, i| {
-                let Some(l) = knn[i].as_ref() else { return Err(t.ids[i]) };
-                let verified = l.complete && l.list.iter().all(|&j| knn[j as usize].as_ref().is_some_and(|m| m.complete));
+                let Some(l) = knn[i].as_ref() else {
+                    return Err(t.ids[i]);
+                };
+                let verified = l.complete
+                    && l.list
+                        .iter()
+                        .all(|&j| knn[j as usize].as_ref().is_some_and(|m| m.complete));
                 if !verified {
                     return Err(t.ids[i]);
                 }
-                let file_flag = if p.use_file_normals && t.file_normals[i].is_some() { flags::FILE_NORMAL } else { 0 };
+                let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
+                    flags::FILE_NORMAL
+                } else {
+                    0
+                };
                 let Some(n0) = normals[i] else {
-                    return Ok(PointResult { id: t.ids[i], normal: [f64::NAN; 3], curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag) });
+                    return Ok(PointResult {
+                        id: t.ids[i],
+                        normal: [f64::NAN; 3],
+                        curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag),
+                    });
                 };
                 s.pos.clear();
                 s.nrm.clear();
@@ -135,11 +170,19 @@ pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> Tile
                 let curvature = if s.pos.len() < 3 {
                     Curvature::undefined(flags::FEW_NEIGHBOURS)
                 } else {
-                    p.estimator.estimate(&Neighbourhood { positions: &s.pos, normals: &s.nrm, ids: &s.ids })
+                    p.estimator.estimate(&Neighbourhood {
+                        positions: &s.pos,
+                        normals: &s.nrm,
+                        ids: &s.ids,
+                    })
                 };
                 let mut curvature = curvature;
                 curvature.flags |= file_flag;
-                Ok(PointResult { id: t.ids[i], normal: n0, curvature })
+                Ok(PointResult {
+                    id: t.ids[i],
+                    normal: n0,
+                    curvature,
+                })
             },
         )
         .collect();

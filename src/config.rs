@@ -26,7 +26,9 @@ impl Length {
     /// Parses `50m`, `50 m`, `164.04ft`, `150usft`, `0.05km` or `50` (file units).
     pub fn parse(s: &str) -> std::result::Result<Self, String> {
         let t = s.trim().to_ascii_lowercase();
-        let split = t.find(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-' || c == '+')).unwrap_or(t.len());
+        let split = t
+            .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-' || c == '+'))
+            .unwrap_or(t.len());
         let (num, unit) = t.split_at(split);
         let v: f64 = num.parse().map_err(|_| format!("{s:?} is not a length: expected a number with an optional unit (m, km, ft, usft), e.g. 50m"))?;
         if !(v.is_finite() && v > 0.0) {
@@ -124,7 +126,10 @@ impl Config {
             return Err(Error::Usage(format!("-k {} is too small: curvature needs at least 6 neighbours (the point itself included); 20 to 50 is typical", self.k)));
         }
         if self.k > 10_000 {
-            return Err(Error::Usage(format!("-k {} is too large (at most 10000)", self.k)));
+            return Err(Error::Usage(format!(
+                "-k {} is too large (at most 10000)",
+                self.k
+            )));
         }
         if self.threads == 0 {
             return Err(Error::Usage("--threads must be at least 1".into()));
@@ -133,7 +138,11 @@ impl Config {
             return Err(Error::Usage("--chunk-size must be at least 1 point".into()));
         }
         if crate::estimate::build(&self.estimator, &self.params).is_none() {
-            return Err(Error::Usage(format!("unknown estimator {:?}; choose one of: {}", self.estimator, crate::estimate::NAMES.join(", "))));
+            return Err(Error::Usage(format!(
+                "unknown estimator {:?}; choose one of: {}",
+                self.estimator,
+                crate::estimate::NAMES.join(", ")
+            )));
         }
         Ok(())
     }
@@ -145,11 +154,28 @@ mod tests {
 
     #[test]
     fn fifty_metres_in_international_feet() {
-        let ft = LengthUnit { name: "foot".into(), metres: 0.3048 };
-        let v = Length::parse("50m").expect("length").in_file_units(Some(&ft));
+        let ft = LengthUnit {
+            name: "foot".into(),
+            metres: 0.3048,
+        };
+        let v = Length::parse("50m")
+            .expect("length")
+            .in_file_units(Some(&ft));
         assert!((v - 164.041_994_75).abs() < 1e-6, "{v}");
-        assert_eq!(Length::parse("150ft").expect("length").in_file_units(Some(&ft)), 150.0);
-        assert_eq!(Length::parse("12.5").expect("length"), Length::FileUnits(12.5));
-        assert!(Length::parse("-3m").is_err() && Length::parse("5 parsecs").is_err() && Length::parse("m").is_err());
+        assert_eq!(
+            Length::parse("150ft")
+                .expect("length")
+                .in_file_units(Some(&ft)),
+            150.0
+        );
+        assert_eq!(
+            Length::parse("12.5").expect("length"),
+            Length::FileUnits(12.5)
+        );
+        assert!(
+            Length::parse("-3m").is_err()
+                && Length::parse("5 parsecs").is_err()
+                && Length::parse("m").is_err()
+        );
     }
 }

@@ -15,7 +15,10 @@ pub struct LengthUnit {
 impl LengthUnit {
     /// The metre.
     pub fn metre() -> Self {
-        LengthUnit { name: "metre".into(), metres: 1.0 }
+        LengthUnit {
+            name: "metre".into(),
+            metres: 1.0,
+        }
     }
 
     /// A short symbol for messages and column descriptions ("m", "ft", "ftUS" or the name).
@@ -63,7 +66,10 @@ pub fn horizontal_unit<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> UnitSo
         }
     }
     if let Some(v) = records.iter().find(|v| v.is("LASF_Projection", 34735)) {
-        let doubles = records.iter().find(|v| v.is("LASF_Projection", 34736)).map(|v| v.data.as_slice());
+        let doubles = records
+            .iter()
+            .find(|v| v.is("LASF_Projection", 34736))
+            .map(|v| v.data.as_slice());
         match geotiff_unit(&v.data, doubles) {
             Ok(u) => return UnitSource::GeoTiff(u),
             Err(why) => return UnitSource::Unknown(why),
@@ -94,8 +100,23 @@ fn group_end(s: &[u8], open: usize) -> Option<usize> {
 
 /// The linear unit of the projected CRS in an OGC WKT (1 or 2) string.
 pub fn wkt_unit(wkt: &str) -> Option<LengthUnit> {
+    // Writers put spaces anywhere ("UNIT [ ..."): drop whitespace outside quoted names.
+    let mut in_str = false;
+    let wkt: String = wkt
+        .chars()
+        .filter(|&c| {
+            if c == '"' {
+                in_str = !in_str;
+            }
+            in_str || !c.is_whitespace()
+        })
+        .collect();
+    let wkt = wkt.as_str();
     let upper = wkt.to_ascii_uppercase();
-    let start = ["PROJCRS[", "PROJCS[", "PROJECTEDCRS["].iter().filter_map(|k| upper.find(k)).min()?;
+    let start = ["PROJCRS[", "PROJCS[", "PROJECTEDCRS["]
+        .iter()
+        .filter_map(|k| upper.find(k))
+        .min()?;
     let bytes = upper.as_bytes();
     let open = start + upper[start..].find('[')?;
     let end = group_end(bytes, open)?;
@@ -103,7 +124,15 @@ pub fn wkt_unit(wkt: &str) -> Option<LengthUnit> {
     // WKT2 conversion parameters).
     let mut body: Vec<u8> = bytes[open + 1..end].to_vec();
     let mut orig: Vec<u8> = wkt.as_bytes()[open + 1..end].to_vec();
-    for key in ["GEOGCS[", "BASEGEOGCRS[", "BASEGEODCRS[", "GEOGCRS[", "CONVERSION[", "VERT_CS[", "VERTCRS["] {
+    for key in [
+        "GEOGCS[",
+        "BASEGEOGCRS[",
+        "BASEGEODCRS[",
+        "GEOGCRS[",
+        "CONVERSION[",
+        "VERT_CS[",
+        "VERTCRS[",
+    ] {
         while let Some(p) = find(&body, key.as_bytes()) {
             let o = p + key.len() - 1;
             let e = group_end(&body, o)?;
@@ -113,7 +142,10 @@ pub fn wkt_unit(wkt: &str) -> Option<LengthUnit> {
             }
         }
     }
-    let p = ["LENGTHUNIT[", "UNIT["].iter().filter_map(|k| find(&body, k.as_bytes()).map(|p| (p, k.len()))).min()?;
+    let p = ["LENGTHUNIT[", "UNIT["]
+        .iter()
+        .filter_map(|k| find(&body, k.as_bytes()).map(|p| (p, k.len())))
+        .min()?;
     let inner_start = p.0 + p.1;
     let inner_end = group_end(&body, inner_start - 1)?;
     let inner = String::from_utf8_lossy(&orig[inner_start..inner_end]).into_owned();
@@ -130,12 +162,17 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
 /// The linear unit from a GeoTIFF key directory (ProjLinearUnitsGeoKey 3076, or
 /// ProjLinearUnitSizeGeoKey 3077 for a user-defined unit).
 pub fn geotiff_unit(keys: &[u8], doubles: Option<&[u8]>) -> Result<LengthUnit, String> {
-    let w: Vec<u16> = keys.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+    let w: Vec<u16> = keys
+        .chunks_exact(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect();
     if w.len() < 4 {
         return Err("the GeoTIFF key directory is shorter than its 8-byte header".into());
     }
     let n = w[3] as usize;
-    let entries = w.get(4..4 + 4 * n).ok_or("the GeoTIFF key directory is shorter than its key count says")?;
+    let entries = w
+        .get(4..4 + 4 * n)
+        .ok_or("the GeoTIFF key directory is shorter than its key count says")?;
     let mut units = None;
     let mut size = None;
     let mut projected = None;
@@ -143,16 +180,24 @@ pub fn geotiff_unit(keys: &[u8], doubles: Option<&[u8]>) -> Result<LengthUnit, S
         match e[0] {
             3076 if e[1] == 0 => units = Some(e[3]),
             3077 if e[1] == 34736 => {
-                let d = doubles.ok_or("ProjLinearUnitSizeGeoKey points to a missing GeoDoubleParams VLR")?;
+                let d = doubles
+                    .ok_or("ProjLinearUnitSizeGeoKey points to a missing GeoDoubleParams VLR")?;
                 let o = e[3] as usize * 8;
-                let b = d.get(o..o + 8).ok_or("ProjLinearUnitSizeGeoKey points past the GeoDoubleParams VLR")?;
+                let b = d
+                    .get(o..o + 8)
+                    .ok_or("ProjLinearUnitSizeGeoKey points past the GeoDoubleParams VLR")?;
                 size = Some(f64::from_le_bytes(b.try_into().map_err(|_| "bad double")?));
             }
             3072 if e[1] == 0 => projected = Some(e[3]),
             _ => {}
         }
     }
-    let named = |name: &str, metres: f64| Ok(LengthUnit { name: name.into(), metres });
+    let named = |name: &str, metres: f64| {
+        Ok(LengthUnit {
+            name: name.into(),
+            metres,
+        })
+    };
     match units {
         Some(9001) => named("metre", 1.0),
         Some(9002) => named("foot", 0.3048),
@@ -172,7 +217,8 @@ pub fn geotiff_unit(keys: &[u8], doubles: Option<&[u8]>) -> Result<LengthUnit, S
 /// The unit of common projected EPSG codes whose GeoTIFF keys often omit the unit key: the UTM
 /// zones (WGS 84, NAD83, ETRS89) are in metres.
 fn projected_unit(code: u16) -> Option<LengthUnit> {
-    let metre = matches!(code, 32601..=32660 | 32701..=32760 | 26901..=26923 | 25828..=25838 | 3005 | 2949);
+    let metre =
+        matches!(code, 32601..=32660 | 32701..=32760 | 26901..=26923 | 25828..=25838 | 3005 | 2949);
     metre.then(LengthUnit::metre)
 }
 
@@ -186,6 +232,17 @@ mod tests {
         let u = wkt_unit(wkt).expect("unit");
         assert_eq!(u.metres, 0.3048);
         assert_eq!(u.symbol(), "ft");
+    }
+
+    #[test]
+    fn wkt1_with_spaces_inside_compound_crs() {
+        // As written by a Leica pipeline (las14_pdrf6.laz).
+        let wkt = r#"COMPD_CS["Projected", PROJCS["UTM_10N", GEOGCS [ "WGS84", DATUM [ "WGS84", SPHEROID ["WGS 84", 6378137.000, 298.257223563 ] ], UNIT [ "degree", 0.0174532925] ], PROJECTION["Transverse_Mercator"], UNIT [ "US survey foot", 0.30480060960]] ], VERT_CS["NAVD88", UNIT [ "metres", 1.00000000] ] ]"#;
+        let u = wkt_unit(wkt).expect("unit");
+        assert_eq!(
+            (u.name.as_str(), u.metres),
+            ("US survey foot", 0.3048006096)
+        );
     }
 
     #[test]

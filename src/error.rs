@@ -93,7 +93,9 @@ impl Error {
         let hint = match source.kind() {
             std::io::ErrorKind::PermissionDenied => " (check the directory's permissions)",
             std::io::ErrorKind::NotFound => " (does the output directory exist?)",
-            _ if source.raw_os_error() == Some(28) => " (the disk is full: free space or use --work-dir elsewhere)",
+            _ if source.raw_os_error() == Some(28) => {
+                " (the disk is full: free space or use --work-dir elsewhere)"
+            }
             _ => "",
         };
         Error::WriteIo {

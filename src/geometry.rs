@@ -29,7 +29,11 @@ pub fn dot(a: V3, b: V3) -> f64 {
 /// a x b
 #[inline]
 pub fn cross(a: V3, b: V3) -> V3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 /// |a|
 #[inline]
@@ -71,7 +75,11 @@ pub fn sym2_eigen(a: f64, b: f64, c: f64) -> ([f64; 2], [[f64; 2]; 2]) {
         return ([l1, l2], [[1.0, 0.0], [0.0, 1.0]]);
     }
     // Eigenvector of the larger eigenvalue, computed by the better-conditioned formula.
-    let v2 = if diff >= 0.0 { [diff + r, b] } else { [b, r - diff] };
+    let v2 = if diff >= 0.0 {
+        [diff + r, b]
+    } else {
+        [b, r - diff]
+    };
     let n = (v2[0] * v2[0] + v2[1] * v2[1]).sqrt();
     let v2 = [v2[0] / n, v2[1] / n];
     let v1 = [-v2[1], v2[0]];
@@ -81,7 +89,9 @@ pub fn sym2_eigen(a: f64, b: f64, c: f64) -> ([f64; 2], [[f64; 2]; 2]) {
 /// Eigen-decomposition of a symmetric 3x3 matrix: eigenvalues ascending and the matching unit
 /// eigenvectors (nalgebra returns them unsorted; we sort).
 pub fn sym3_eigen(m: &M3) -> ([f64; 3], [V3; 3]) {
-    let mat = nalgebra::Matrix3::new(m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2]);
+    let mat = nalgebra::Matrix3::new(
+        m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2],
+    );
     let e = nalgebra::SymmetricEigen::new(mat);
     let mut idx = [0usize, 1, 2];
     idx.sort_by(|&i, &j| e.eigenvalues[i].total_cmp(&e.eigenvalues[j]));
@@ -99,12 +109,22 @@ mod tests {
 
     #[test]
     fn sym2_matches_definition() {
-        for &(a, b, c) in &[(1.0, 0.0, 2.0), (2.0, 0.0, 1.0), (0.3, -0.7, 0.1), (1.0, 1.0, 1.0), (-5.0, 1e-9, 3.0)] {
+        for &(a, b, c) in &[
+            (1.0, 0.0, 2.0),
+            (2.0, 0.0, 1.0),
+            (0.3, -0.7, 0.1),
+            (1.0, 1.0, 1.0),
+            (-5.0, 1e-9, 3.0),
+        ] {
             let (l, v) = sym2_eigen(a, b, c);
             assert!(l[0] <= l[1]);
             for k in 0..2 {
                 let mv = [a * v[k][0] + b * v[k][1], b * v[k][0] + c * v[k][1]];
-                assert!((mv[0] - l[k] * v[k][0]).abs() < 1e-12 && (mv[1] - l[k] * v[k][1]).abs() < 1e-12, "{a} {b} {c}");
+                assert!(
+                    (mv[0] - l[k] * v[k][0]).abs() < 1e-12
+                        && (mv[1] - l[k] * v[k][1]).abs() < 1e-12,
+                    "{a} {b} {c}"
+                );
             }
         }
     }
@@ -115,6 +135,10 @@ mod tests {
         assert_eq!(l, [1.0, 2.0, 3.0]);
         assert!((v[0][1].abs() - 1.0).abs() < 1e-12);
         let (e1, e2) = tangent_basis([0.0, 0.6, 0.8]);
-        assert!(dot(e1, [0.0, 0.6, 0.8]).abs() < 1e-15 && dot(e2, [0.0, 0.6, 0.8]).abs() < 1e-15 && dot(e1, e2).abs() < 1e-15);
+        assert!(
+            dot(e1, [0.0, 0.6, 0.8]).abs() < 1e-15
+                && dot(e2, [0.0, 0.6, 0.8]).abs() < 1e-15
+                && dot(e1, e2).abs() < 1e-15
+        );
     }
 }

@@ -25,5 +25,6 @@ pub mod pipeline;
 pub mod plan;
 pub mod progress;
 pub mod results;
+pub mod sink;
 pub mod source;
 pub mod tile;

@@ -41,14 +41,27 @@ impl<'a> NeighbourIndex<'a> {
                 hi[a] = hi[a].max(p[a]);
             }
         }
-        let origin = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])];
+        let origin = [
+            0.5 * (lo[0] + hi[0]),
+            0.5 * (lo[1] + hi[1]),
+            0.5 * (lo[2] + hi[2]),
+        ];
         let extent = (0..3).map(|a| (hi[a] - lo[a]) * 0.5).fold(0.0, f64::max);
         // Each local coordinate is off by at most half an f32 ulp of the extent; a distance
         // between two points by at most sqrt(3) * 2 of those. Doubled for safety.
         let slack = 4.0 * 3f64.sqrt() * (extent * f32::EPSILON as f64) + f64::MIN_POSITIVE;
-        let local: Vec<[f32; 3]> = xyz.iter().map(|p| sub(*p, origin).map(|c| c as f32)).collect();
+        let local: Vec<[f32; 3]> = xyz
+            .iter()
+            .map(|p| sub(*p, origin).map(|c| c as f32))
+            .collect();
         let tree = ImmutableKdTree::new_from_slice(&local).ok()?;
-        Some(NeighbourIndex { tree, xyz, ids, origin, slack })
+        Some(NeighbourIndex {
+            tree,
+            xyz,
+            ids,
+            origin,
+            slack,
+        })
     }
 
     /// Number of indexed points.
@@ -73,7 +86,13 @@ impl<'a> NeighbourIndex<'a> {
         let ql = sub(q, self.origin).map(|c| c as f32);
         // A few spare candidates usually settle ties and rounding at the k-th place at once.
         let want = (k + 4).min(n);
-        let cand = self.tree.query(&ql).nearest_n::<SquaredEuclidean<f32>>(NonZeroUsize::new(want).unwrap_or(NonZeroUsize::MIN)).execute();
+        let cand = self
+            .tree
+            .query(&ql)
+            .nearest_n::<SquaredEuclidean<f32>>(
+                NonZeroUsize::new(want).unwrap_or(NonZeroUsize::MIN),
+            )
+            .execute();
         let ranked = &mut scratch.ranked;
         ranked.clear();
         let mut f_max = 0f64;
@@ -88,7 +107,11 @@ impl<'a> NeighbourIndex<'a> {
         // exact k-th distance plus the rounding slack, no outside point can enter the top k.
         if cand.len() < n && f_max.sqrt() <= d_k + self.slack {
             let r = d_k + self.slack;
-            let all = self.tree.query(&ql).within::<SquaredEuclidean<f32>>((r * r) as f32 * (1.0 + 4.0 * f32::EPSILON)).execute();
+            let all = self
+                .tree
+                .query(&ql)
+                .within::<SquaredEuclidean<f32>>((r * r) as f32 * (1.0 + 4.0 * f32::EPSILON))
+                .execute();
             ranked.clear();
             for c in &all {
                 let j = c.item as usize;
@@ -118,12 +141,17 @@ mod tests {
 
     /// Brute force: self first, then by (distance, id).
     fn brute(xyz: &[V3], ids: &[u64], i: usize, k: usize) -> Vec<u32> {
-        let mut v: Vec<(f64, u64, u32)> = (0..xyz.len()).filter(|&j| j != i).map(|j| {
-            let d = sub(xyz[j], xyz[i]);
-            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2], ids[j], j as u32)
-        }).collect();
+        let mut v: Vec<(f64, u64, u32)> = (0..xyz.len())
+            .filter(|&j| j != i)
+            .map(|j| {
+                let d = sub(xyz[j], xyz[i]);
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2], ids[j], j as u32)
+            })
+            .collect();
         v.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        std::iter::once(i as u32).chain(v.into_iter().take(k - 1).map(|t| t.2)).collect()
+        std::iter::once(i as u32)
+            .chain(v.into_iter().take(k - 1).map(|t| t.2))
+            .collect()
     }
 
     #[test]
@@ -133,16 +161,24 @@ mod tests {
         let mut state = 12345u64;
         for gx in 0..20 {
             for gy in 0..20 {
-                let p = [500_000.0 + gx as f64 * 0.5, 5_000_000.0 + gy as f64 * 0.5, 100.0];
+                let p = [
+                    500_000.0 + gx as f64 * 0.5,
+                    5_000_000.0 + gy as f64 * 0.5,
+                    100.0,
+                ];
                 xyz.push(p);
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 if state >> 61 == 0 {
                     xyz.push(p); // exact duplicate return
                 }
             }
         }
         // Ids deliberately not in storage order.
-        let ids: Vec<u64> = (0..xyz.len() as u64).map(|i| (i * 7919) % 100_003).collect();
+        let ids: Vec<u64> = (0..xyz.len() as u64)
+            .map(|i| (i * 7919) % 100_003)
+            .collect();
         let index = NeighbourIndex::build(&xyz, &ids).expect("index");
         let mut scratch = KnnScratch::default();
         let mut out = Vec::new();

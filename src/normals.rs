@@ -57,7 +57,11 @@ pub fn orient(n: V3, p: V3, how: Orientation) -> V3 {
         Orientation::Viewpoint(v) => sub(v, p),
     };
     let s = dot(n, reference);
-    let flip = if s != 0.0 { s < 0.0 } else { n.iter().find(|c| **c != 0.0).is_some_and(|c| *c < 0.0) };
+    let flip = if s != 0.0 {
+        s < 0.0
+    } else {
+        n.iter().find(|c| **c != 0.0).is_some_and(|c| *c < 0.0)
+    };
     if flip {
         scale(n, -1.0)
     } else {
@@ -80,10 +84,18 @@ mod tests {
             }
         }
         let nb: Vec<u32> = (0..xyz.len() as u32).collect();
-        let n = orient(pca_normal(&xyz, &nb).expect("normal"), xyz[0], Orientation::Up);
+        let n = orient(
+            pca_normal(&xyz, &nb).expect("normal"),
+            xyz[0],
+            Orientation::Up,
+        );
         let want = normalize([-0.5, -0.25, 1.0]).expect("unit");
         assert!(dot(n, want) > 1.0 - 1e-12, "{n:?}");
-        let down = orient(n, xyz[0], Orientation::Viewpoint([600_000.0, 4_000_000.0, -1000.0]));
+        let down = orient(
+            n,
+            xyz[0],
+            Orientation::Viewpoint([600_000.0, 4_000_000.0, -1000.0]),
+        );
         assert!(dot(down, want) < -1.0 + 1e-12);
     }
 

@@ -21,7 +21,7 @@ use crate::estimate::flags;
 use crate::normals::Orientation;
 use crate::plan::{plan, TileGrid, TileKey, TileSpec};
 use crate::progress::Reporter;
-use crate::source::LasSource;
+
 use crate::tile::{load_tile, TilePoints};
 
 /// What a finished run reports.
@@ -60,16 +60,23 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
     let started = Instant::now();
     cfg.validate()?;
     if same_file(&cfg.input, &cfg.output) {
-        return Err(Error::Usage(format!("{}: the output would overwrite the input; choose another output path", cfg.output.display())));
+        return Err(Error::Usage(format!(
+            "{}: the output would overwrite the input; choose another output path",
+            cfg.output.display()
+        )));
     }
-    crate::las_out::output_is_laz(&cfg.output)?;
-    let source = LasSource::open(&cfg.input)?;
+    crate::sink::check_output_path(&cfg.output)?;
+    let source = crate::source::open(&cfg.input)?;
     let unit = source.unit();
     let (unit_name, metres) = match &unit {
         UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => (u.symbol(), Some(u)),
         UnitSource::Unknown(why) => {
             if cfg.tile.has_unit() {
-                reporter.warn(&format!("{}: {why}; --tile {} is taken in file units", cfg.input.display(), cfg.tile));
+                reporter.warn(&format!(
+                    "{}: {why}; --tile {} is taken in file units",
+                    cfg.input.display(),
+                    cfg.tile
+                ));
             }
             ("unit".to_string(), None)
         }
@@ -77,25 +84,34 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
     let tile_size = cfg.tile.in_file_units(metres);
     let use_file_normals = source.has_normals() && !cfg.ignore_file_normals;
     reporter.info(&format!(
-        "{}: {} points, LAS {}.{} format {}{}, unit {unit_name}; tile {} = {tile_size:.3} {unit_name}; normals {}",
+        "{}: {} points, {}, unit {unit_name}; tile {} = {tile_size:.3} {unit_name}; normals {}",
         cfg.input.display(),
         source.len(),
-        source.header.version.0,
-        source.header.version.1,
-        source.header.point_format,
-        if source.header.compressed { " (LAZ)" } else { "" },
+        source.describe(),
         cfg.tile,
-        if use_file_normals { "from the file (NormalX/Y/Z)" } else { "by PCA" },
+        if use_file_normals {
+            "from the file (NormalX/Y/Z)"
+        } else {
+            "by PCA"
+        },
     ));
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(cfg.threads).build().map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
-    let estimator = crate::estimate::build(&cfg.estimator, &cfg.params).ok_or_else(|| Error::Usage(format!("unknown estimator {:?}", cfg.estimator)))?;
-    let cols = ColumnSet { ty: cfg.column_type, directions: cfg.directions, unit: unit_name.clone() };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(cfg.threads)
+        .build()
+        .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
+    let estimator = crate::estimate::build(&cfg.estimator, &cfg.params)
+        .ok_or_else(|| Error::Usage(format!("unknown estimator {:?}", cfg.estimator)))?;
+    let cols = ColumnSet {
+        ty: cfg.column_type,
+        directions: cfg.directions,
+        unit: unit_name.clone(),
+    };
 
     // Pass 1: scan into buckets.
     reporter.phase("scan", source.len());
     let grid = TileGrid { size: tile_size };
     let (buckets, stats) = pool.install(|| {
-        Buckets::scan(&source, grid, cfg.chunk_points, |n| {
+        Buckets::scan(source.as_ref(), grid, cfg.chunk_points, |n| {
             reporter.advance(n);
             if cancel.load(Ordering::Relaxed) {
                 Err(Error::Interrupted)
@@ -106,60 +122,81 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
     })?;
     reporter.finish_phase();
     let tplan = plan(&stats, tile_size, cfg.k);
-    reporter.info(&format!("plan: {} tiles of {tile_size:.3} {unit_name}", tplan.tiles.len()));
+    reporter.info(&format!(
+        "plan: {} tiles of {tile_size:.3} {unit_name}",
+        tplan.tiles.len()
+    ));
 
     let work = WorkDir(make_work_dir(cfg)?);
-    let params = ComputeParams { k: cfg.k, orientation: cfg.orientation, use_file_normals, estimator: estimator.as_ref() };
+    let params = ComputeParams {
+        k: cfg.k,
+        orientation: cfg.orientation,
+        use_file_normals,
+        estimator: estimator.as_ref(),
+    };
 
     // Pass 2: tiles through the pipeline.
     reporter.phase("curvature", source.len());
-    let (result_files, undefined, retried) = std::thread::scope(|s| -> Result<(Vec<PathBuf>, u64, u64)> {
-        let (tile_tx, tile_rx) = bounded::<(TileSpec, TilePoints)>(2);
-        let (res_tx, res_rx) = bounded::<(TileKey, Vec<PointResult>)>(2);
-        let (buckets, grid, tplan) = (&buckets, &grid, &tplan);
-        let loader = s.spawn(move || {
-            for spec in &tplan.tiles {
+    let (result_files, undefined, retried) =
+        std::thread::scope(|s| -> Result<(Vec<PathBuf>, u64, u64)> {
+            let (tile_tx, tile_rx) = bounded::<(TileSpec, TilePoints)>(2);
+            let (res_tx, res_rx) = bounded::<(TileKey, Vec<PointResult>)>(2);
+            let (buckets, grid, tplan) = (&buckets, &grid, &tplan);
+            let loader = s.spawn(move || {
+                for spec in &tplan.tiles {
+                    if cancel.load(Ordering::Relaxed) {
+                        return;
+                    }
+                    let t = load_tile(buckets, grid, spec.key, spec.halo, None);
+                    if tile_tx.send((spec.clone(), t)).is_err() {
+                        return; // the compute stage stopped
+                    }
+                }
+            });
+            let writer = s.spawn(|| -> Result<Vec<PathBuf>> {
+                let mut files = Vec::new();
+                for (key, mut results) in res_rx {
+                    files.push(crate::results::write_tile(
+                        &work.0,
+                        key,
+                        &mut results,
+                        &cols,
+                    )?);
+                }
+                Ok(files)
+            });
+            let mut undefined = 0u64;
+            let mut retried = 0u64;
+            let mut failure = None;
+            for (spec, tile) in tile_rx.iter() {
                 if cancel.load(Ordering::Relaxed) {
-                    return;
+                    failure = Some(Error::Interrupted);
+                    break;
                 }
-                let t = load_tile(buckets, grid, spec.key, spec.halo, None);
-                if tile_tx.send((spec.clone(), t)).is_err() {
-                    return; // the compute stage stopped
+                let (results, again) = pool.install(|| {
+                    compute_verified(buckets, grid, &tplan.scene, &spec, tile, &params)
+                });
+                retried += again;
+                undefined += results
+                    .iter()
+                    .filter(|r| r.curvature.flags & flags::UNDEFINED != 0)
+                    .count() as u64;
+                reporter.advance(results.len() as u64);
+                if res_tx.send((spec.key, results)).is_err() {
+                    break; // the writer failed; its error is reported below
                 }
             }
-        });
-        let writer = s.spawn(|| -> Result<Vec<PathBuf>> {
-            let mut files = Vec::new();
-            for (key, mut results) in res_rx {
-                files.push(crate::results::write_tile(&work.0, key, &mut results, &cols)?);
+            drop(tile_rx);
+            drop(res_tx);
+            let _ = loader.join();
+            let files = writer
+                .join()
+                .map_err(|_| Error::Internal("result writer panicked".into()))?;
+            if let Some(e) = failure {
+                return Err(e);
             }
-            Ok(files)
-        });
-        let mut undefined = 0u64;
-        let mut retried = 0u64;
-        let mut failure = None;
-        for (spec, tile) in tile_rx.iter() {
-            if cancel.load(Ordering::Relaxed) {
-                failure = Some(Error::Interrupted);
-                break;
-            }
-            let (results, again) = pool.install(|| compute_verified(buckets, grid, &tplan.scene, &spec, tile, &params));
-            retried += again;
-            undefined += results.iter().filter(|r| r.curvature.flags & flags::UNDEFINED != 0).count() as u64;
-            reporter.advance(results.len() as u64);
-            if res_tx.send((spec.key, results)).is_err() {
-                break; // the writer failed; its error is reported below
-            }
-        }
-        drop(tile_rx);
-        drop(res_tx);
-        let _ = loader.join();
-        let files = writer.join().map_err(|_| Error::Internal("result writer panicked".into()))?;
-        if let Some(e) = failure {
-            return Err(e);
-        }
-        Ok((files?, undefined, retried))
-    })?;
+            Ok((files?, undefined, retried))
+        })?;
     reporter.finish_phase();
     if cancel.load(Ordering::Relaxed) {
         return Err(Error::Interrupted);
@@ -168,16 +205,38 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
     // Pass 3: assemble in file order.
     reporter.phase("write", source.len());
     let provenance = provenance(cfg, &unit_name, tile_size, use_file_normals);
-    assemble(&source, &result_files, &cols, &cfg.output, &provenance, cfg.chunk_points, reporter, cancel)?;
+    assemble(
+        source.as_ref(),
+        &result_files,
+        &cols,
+        &cfg.output,
+        &provenance,
+        cfg.chunk_points,
+        reporter,
+        cancel,
+    )?;
     reporter.finish_phase();
     drop(work);
-    Ok(Summary { points: source.len(), undefined, tiles: tplan.tiles.len(), retried, seconds: started.elapsed().as_secs_f64() })
+    Ok(Summary {
+        points: source.len(),
+        undefined,
+        tiles: tplan.tiles.len(),
+        retried,
+        seconds: started.elapsed().as_secs_f64(),
+    })
 }
 
 /// Computes a tile, recomputing with a doubled halo the core points whose neighbourhoods were
 /// not verified complete, until none is left (the loaded region eventually covers the scene,
 /// where every neighbourhood is complete). Returns the results and the number of retried points.
-fn compute_verified(buckets: &Buckets, grid: &TileGrid, scene: &crate::plan::Rect, spec: &TileSpec, tile: TilePoints, params: &ComputeParams<'_>) -> (Vec<PointResult>, u64) {
+fn compute_verified(
+    buckets: &Buckets,
+    grid: &TileGrid,
+    scene: &crate::plan::Rect,
+    spec: &TileSpec,
+    tile: TilePoints,
+    params: &ComputeParams<'_>,
+) -> (Vec<PointResult>, u64) {
     let mut outcome = compute_tile(&tile, scene, params);
     let mut results = std::mem::take(&mut outcome.done);
     let mut retry = outcome.retry;
@@ -192,7 +251,10 @@ fn compute_verified(buckets: &Buckets, grid: &TileGrid, scene: &crate::plan::Rec
         let mut o = compute_tile(&t, scene, params);
         results.append(&mut o.done);
         retry = o.retry;
-        debug_assert!(!covers || retry.is_empty(), "a region covering the scene must verify");
+        debug_assert!(
+            !covers || retry.is_empty(),
+            "a region covering the scene must verify"
+        );
     }
     (results, retried)
 }
@@ -200,9 +262,18 @@ fn compute_verified(buckets: &Buckets, grid: &TileGrid, scene: &crate::plan::Rec
 fn make_work_dir(cfg: &Config) -> Result<PathBuf> {
     let base = match &cfg.work_dir {
         Some(d) => d.clone(),
-        None => cfg.output.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from(".")),
+        None => cfg
+            .output
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from(".")),
     };
-    let name = cfg.output.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "output".into());
+    let name = cfg
+        .output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "output".into());
     let dir = base.join(format!(".{name}.tilecurv-work-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
     Ok(dir)
@@ -214,7 +285,11 @@ fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> S
         Orientation::Up => "up".to_string(),
         Orientation::Viewpoint(v) => format!("viewpoint:{},{},{}", v[0], v[1], v[2]),
     };
-    let input = cfg.input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let input = cfg
+        .input
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     format!(
         "tilecurv {}\ninput={input}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\nsign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
         env!("CARGO_PKG_VERSION"),

@@ -19,7 +19,10 @@ pub struct Rect {
 impl Rect {
     /// The rectangle grown by `d` on every side.
     pub fn grown(&self, d: f64) -> Rect {
-        Rect { min: [self.min[0] - d, self.min[1] - d], max: [self.max[0] + d, self.max[1] + d] }
+        Rect {
+            min: [self.min[0] - d, self.min[1] - d],
+            max: [self.max[0] + d, self.max[1] + d],
+        }
     }
 
     /// Whether (x, y) lies in the closed rectangle.
@@ -29,7 +32,10 @@ impl Rect {
 
     /// Whether this rectangle contains all of `other`.
     pub fn covers(&self, other: &Rect) -> bool {
-        self.min[0] <= other.min[0] && self.min[1] <= other.min[1] && self.max[0] >= other.max[0] && self.max[1] >= other.max[1]
+        self.min[0] <= other.min[0]
+            && self.min[1] <= other.min[1]
+            && self.max[0] >= other.max[0]
+            && self.max[1] >= other.max[1]
     }
 
     /// Distance from (x, y) inside this loaded region to the nearest side behind which points
@@ -63,13 +69,19 @@ pub struct TileGrid {
 impl TileGrid {
     /// The tile whose core holds (x, y). The one function that decides core membership.
     pub fn key(&self, x: f64, y: f64) -> TileKey {
-        ((x / self.size).floor() as i64, (y / self.size).floor() as i64)
+        (
+            (x / self.size).floor() as i64,
+            (y / self.size).floor() as i64,
+        )
     }
 
     /// The core rectangle of a tile.
     pub fn rect(&self, key: TileKey) -> Rect {
         let s = self.size;
-        Rect { min: [key.0 as f64 * s, key.1 as f64 * s], max: [(key.0 + 1) as f64 * s, (key.1 + 1) as f64 * s] }
+        Rect {
+            min: [key.0 as f64 * s, key.1 as f64 * s],
+            max: [(key.0 + 1) as f64 * s, (key.1 + 1) as f64 * s],
+        }
     }
 }
 
@@ -119,8 +131,23 @@ pub fn initial_halo(count: u64, size: f64, k: usize) -> f64 {
 /// Plans the tiles for `stats` with tile edge `size` (file units) and `k` neighbours.
 pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
     let grid = TileGrid { size };
-    let tiles = stats.per_tile.iter().map(|(&key, &count)| TileSpec { key, count, halo: initial_halo(count, size, k) }).collect();
-    TilePlan { grid, tiles, scene: Rect { min: [stats.min[0], stats.min[1]], max: [stats.max[0], stats.max[1]] } }
+    let tiles = stats
+        .per_tile
+        .iter()
+        .map(|(&key, &count)| TileSpec {
+            key,
+            count,
+            halo: initial_halo(count, size, k),
+        })
+        .collect();
+    TilePlan {
+        grid,
+        tiles,
+        scene: Rect {
+            min: [stats.min[0], stats.min[1]],
+            max: [stats.max[0], stats.max[1]],
+        },
+    }
 }
 
 #[cfg(test)]
@@ -134,11 +161,17 @@ mod tests {
         assert_eq!(g.key(10.0, 0.0), (1, 0));
         let r = g.rect((0, 0));
         assert!(r.contains(0.0, 0.0) && r.contains(10.0, 10.0));
-        let scene = Rect { min: [0.0, -100.0], max: [100.0, 100.0] };
+        let scene = Rect {
+            min: [0.0, -100.0],
+            max: [100.0, 100.0],
+        };
         // The x = 0 side is the scene's edge: only the other three sides count.
         assert_eq!(r.distance_to_open_side(1.0, 3.0, &scene), 3.0);
         assert_eq!(r.grown(5.0).distance_to_open_side(1.0, 3.0, &scene), 8.0);
-        let all = Rect { min: [-1.0, -200.0], max: [200.0, 200.0] };
+        let all = Rect {
+            min: [-1.0, -200.0],
+            max: [200.0, 200.0],
+        };
         assert!(all.distance_to_open_side(1.0, 3.0, &scene).is_infinite());
     }
 

@@ -62,7 +62,13 @@ impl TermReporter {
             );
             b
         });
-        TermReporter { quiet, bar, done: AtomicU64::new(0), phase: Mutex::new(None), line_every: Duration::from_secs(10) }
+        TermReporter {
+            quiet,
+            bar,
+            done: AtomicU64::new(0),
+            phase: Mutex::new(None),
+            line_every: Duration::from_secs(10),
+        }
     }
 
     fn line(&self, msg: &str) {
@@ -86,7 +92,12 @@ impl Reporter for TermReporter {
             b.set_prefix(name.to_string());
         }
         if let Ok(mut p) = self.phase.lock() {
-            *p = Some(Phase { name: name.into(), total, started: Instant::now(), last_line: Instant::now() });
+            *p = Some(Phase {
+                name: name.into(),
+                total,
+                started: Instant::now(),
+                last_line: Instant::now(),
+            });
         }
     }
 
@@ -104,8 +115,19 @@ impl Reporter for TermReporter {
                 if p.last_line.elapsed() >= self.line_every {
                     p.last_line = Instant::now();
                     let r = rate(done, p.started.elapsed());
-                    let eta = if r > 0.0 { (p.total.saturating_sub(done)) as f64 / r } else { f64::NAN };
-                    eprintln!("{}: {done}/{} points ({:.1}%), {:.0} points/s, ETA {:.0} s", p.name, p.total, 100.0 * done as f64 / p.total.max(1) as f64, r, eta);
+                    let eta = if r > 0.0 {
+                        (p.total.saturating_sub(done)) as f64 / r
+                    } else {
+                        f64::NAN
+                    };
+                    eprintln!(
+                        "{}: {done}/{} points ({:.1}%), {:.0} points/s, ETA {:.0} s",
+                        p.name,
+                        p.total,
+                        100.0 * done as f64 / p.total.max(1) as f64,
+                        r,
+                        eta
+                    );
                 }
             }
         }
@@ -121,7 +143,13 @@ impl Reporter for TermReporter {
         if let Ok(mut guard) = self.phase.lock() {
             if let Some(p) = guard.take() {
                 let t = p.started.elapsed();
-                self.line(&format!("{}: {} points in {:.1} s ({:.0} points/s)", p.name, p.total, t.as_secs_f64(), rate(p.total, t)));
+                self.line(&format!(
+                    "{}: {} points in {:.1} s ({:.0} points/s)",
+                    p.name,
+                    p.total,
+                    t.as_secs_f64(),
+                    rate(p.total, t)
+                ));
             }
         }
     }

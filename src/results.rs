@@ -14,7 +14,12 @@ use crate::plan::TileKey;
 const MAGIC: &[u8; 8] = b"TCRES001";
 
 /// Writes one tile's results (sorted here by id) and returns the file's path.
-pub fn write_tile(dir: &Path, key: TileKey, results: &mut [PointResult], cols: &ColumnSet) -> Result<PathBuf> {
+pub fn write_tile(
+    dir: &Path,
+    key: TileKey,
+    results: &mut [PointResult],
+    cols: &ColumnSet,
+) -> Result<PathBuf> {
     results.sort_unstable_by_key(|r| r.id);
     let path = dir.join(format!("tile_{}_{}.res", key.0, key.1));
     let tmp = path.with_extension("res.tmp");
@@ -50,19 +55,34 @@ impl TileResults {
     /// Opens a result file written by [`write_tile`] with the same column set.
     pub fn open(path: &Path, cols: &ColumnSet) -> Result<Self> {
         let bad = |what: String| Error::Internal(format!("{}: {what}", path.display()));
-        let file = File::open(path).map_err(|e| Error::ReadIo { path: path.to_path_buf(), source: e })?;
+        let file = File::open(path).map_err(|e| Error::ReadIo {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
         let mut reader = BufReader::with_capacity(256 << 10, file);
         let mut head = [0u8; 24];
-        reader.read_exact(&mut head).map_err(|e| bad(format!("result header unreadable: {e}")))?;
+        reader
+            .read_exact(&mut head)
+            .map_err(|e| bad(format!("result header unreadable: {e}")))?;
         if &head[..8] != MAGIC {
             return Err(bad("not a tilecurv result file".into()));
         }
-        let remaining = u64::from_le_bytes(head[8..16].try_into().map_err(|_| bad("header".into()))?);
-        let record = u64::from_le_bytes(head[16..24].try_into().map_err(|_| bad("header".into()))?) as usize;
+        let remaining =
+            u64::from_le_bytes(head[8..16].try_into().map_err(|_| bad("header".into()))?);
+        let record =
+            u64::from_le_bytes(head[16..24].try_into().map_err(|_| bad("header".into()))?) as usize;
         if record != cols.record_size() {
-            return Err(bad(format!("records of {record} bytes, expected {}", cols.record_size())));
+            return Err(bad(format!(
+                "records of {record} bytes, expected {}",
+                cols.record_size()
+            )));
         }
-        Ok(TileResults { path: path.to_path_buf(), reader, remaining, record })
+        Ok(TileResults {
+            path: path.to_path_buf(),
+            reader,
+            remaining,
+            record,
+        })
     }
 
     /// Reads the next record's id and column bytes into `cols` (resized); None at the end.
@@ -75,7 +95,12 @@ impl TileResults {
         self.reader
             .read_exact(&mut id)
             .and_then(|_| self.reader.read_exact(cols))
-            .map_err(|e| Error::Internal(format!("{}: result file ends early: {e}", self.path.display())))?;
+            .map_err(|e| {
+                Error::Internal(format!(
+                    "{}: result file ends early: {e}",
+                    self.path.display()
+                ))
+            })?;
         self.remaining -= 1;
         Ok(Some(u64::from_le_bytes(id)))
     }

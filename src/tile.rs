@@ -33,10 +33,19 @@ impl TilePoints {
 
 /// Loads tile `key` with a halo of width `halo`. With `only`, just those core points (by id)
 /// are to be computed and the rest of the core is context (a wider-halo retry).
-pub fn load_tile(buckets: &Buckets, grid: &TileGrid, key: TileKey, halo: f64, only: Option<&HashSet<u64>>) -> TilePoints {
+pub fn load_tile(
+    buckets: &Buckets,
+    grid: &TileGrid,
+    key: TileKey,
+    halo: f64,
+    only: Option<&HashSet<u64>>,
+) -> TilePoints {
     let region = grid.rect(key).grown(halo);
     let core = buckets.core(key);
-    let mut t = TilePoints { region, ..Default::default() };
+    let mut t = TilePoints {
+        region,
+        ..Default::default()
+    };
     let selected = |p: &&crate::source::SourcePoint| only.is_none_or(|s| s.contains(&p.id));
     for p in core.iter().filter(selected) {
         t.push(p);

@@ -37,7 +37,10 @@ impl CncMeasures {
         }
         let s = mu0.signum();
         // mu1 with c1 = 1/4 (section 1.3: the paper's 1/2 gives k1 + k2).
-        let m1 = add(add(cross(sub(uk, uj), xi), cross(sub(ui, uk), xj)), cross(sub(uj, ui), xk));
+        let m1 = add(
+            add(cross(sub(uk, uj), xi), cross(sub(ui, uk), xj)),
+            cross(sub(uj, ui), xk),
+        );
         let mu1 = 0.25 * dot(ubar, m1);
         let mu2 = 0.5 * dot(ui, cross(uj, uk));
         // M = 1/2 [ (eij x ubar) (x) (uk - ui) - (eik x ubar) (x) (uj - ui) ]   (section 1.3)
@@ -76,7 +79,15 @@ impl CncMeasures {
         // Minus the tangent block, so that its eigenvalues are the curvatures k1 <= k2.
         let s = [[-sym(e1, e1), -sym(e1, e2)], [-sym(e2, e1), -sym(e2, e2)]];
         let (k1, k2, d1, d2, umb) = principal_from_tangent(s, e1, e2);
-        Curvature { h: self.a1 / self.a0, k: self.a2 / self.a0, k1, k2, d1, d2, flags: umb | extra_flags }
+        Curvature {
+            h: self.a1 / self.a0,
+            k: self.a2 / self.a0,
+            k1,
+            k2,
+            d1,
+            d2,
+            flags: umb | extra_flags,
+        }
     }
 }
 
@@ -193,7 +204,13 @@ mod tests {
     fn sphere_identity_any_triangles() {
         let r = 2.5;
         let c = [0.3, -1.0, 4.0];
-        let dirs: [V3; 5] = [[0.2, 0.1, 1.0], [0.5, -0.3, 0.9], [-0.4, 0.2, 0.95], [0.1, 0.6, 0.7], [-0.2, -0.5, 0.8]];
+        let dirs: [V3; 5] = [
+            [0.2, 0.1, 1.0],
+            [0.5, -0.3, 0.9],
+            [-0.4, 0.2, 0.95],
+            [0.1, 0.6, 0.7],
+            [-0.2, -0.5, 0.8],
+        ];
         let dirs = dirs.map(|d| normalize(d).unwrap_or([0.0, 0.0, 1.0]));
         let q = dirs[0];
         let base = add(c, scale(q, r));
@@ -205,7 +222,11 @@ mod tests {
         }
         let out = m.finish(q, 0);
         assert!((out.h - 1.0 / r).abs() < 1e-9 * (1.0 / r), "H = {}", out.h);
-        assert!((out.k - 1.0 / (r * r)).abs() < 1e-9 / (r * r), "K = {}", out.k);
+        assert!(
+            (out.k - 1.0 / (r * r)).abs() < 1e-9 / (r * r),
+            "K = {}",
+            out.k
+        );
     }
 
     /// Flipping every normal negates H and keeps K (section 0.1).
@@ -227,7 +248,10 @@ mod tests {
     #[test]
     fn degenerate_triangles_give_flag_not_nan_without_flag() {
         let mut m = CncMeasures::default();
-        m.add_triangle([[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], [[0.0, 0.0, 1.0]; 3]);
+        m.add_triangle(
+            [[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]],
+            [[0.0, 0.0, 1.0]; 3],
+        );
         let out = m.finish([0.0, 0.0, 1.0], 0);
         assert!(out.h.is_nan() && out.flags & flags::DEGENERATE != 0);
     }

@@ -60,7 +60,15 @@ pub struct Curvature {
 impl Curvature {
     /// An undefined result carrying `flags`: NaN values, zero directions.
     pub fn undefined(flags: u8) -> Self {
-        Curvature { h: f64::NAN, k: f64::NAN, k1: f64::NAN, k2: f64::NAN, d1: [0.0; 3], d2: [0.0; 3], flags }
+        Curvature {
+            h: f64::NAN,
+            k: f64::NAN,
+            k1: f64::NAN,
+            k2: f64::NAN,
+            d1: [0.0; 3],
+            d2: [0.0; 3],
+            flags,
+        }
     }
 }
 
@@ -77,10 +85,19 @@ pub trait Estimator: Sync + Send {
 /// they are indistinguishable.
 pub fn principal_from_tangent(s: [[f64; 2]; 2], e1: V3, e2: V3) -> (f64, f64, V3, V3, u8) {
     let (l, w) = crate::geometry::sym2_eigen(s[0][0], 0.5 * (s[0][1] + s[1][0]), s[1][1]);
-    let dir = |w: [f64; 2]| crate::geometry::add(crate::geometry::scale(e1, w[0]), crate::geometry::scale(e2, w[1]));
+    let dir = |w: [f64; 2]| {
+        crate::geometry::add(
+            crate::geometry::scale(e1, w[0]),
+            crate::geometry::scale(e2, w[1]),
+        )
+    };
     let spread = (l[1] - l[0]).abs();
     let level = l[0].abs().max(l[1].abs());
-    let umbilic = if spread <= 1e-6 * level || level == 0.0 { flags::UMBILIC } else { 0 };
+    let umbilic = if spread <= 1e-6 * level || level == 0.0 {
+        flags::UMBILIC
+    } else {
+        0
+    };
     (l[0], l[1], dir(w[0]), dir(w[1]), umbilic)
 }
 
@@ -95,7 +112,10 @@ pub struct EstimatorParams {
 
 impl Default for EstimatorParams {
     fn default() -> Self {
-        EstimatorParams { seed: 0, triangles: 100 }
+        EstimatorParams {
+            seed: 0,
+            triangles: 100,
+        }
     }
 }
 

@@ -121,7 +121,10 @@ impl Descriptor {
 /// specification says for type 0.
 pub fn parse(data: &[u8]) -> Result<Vec<Descriptor>, String> {
     if data.len() % DESCRIPTOR_SIZE != 0 {
-        return Err(format!("extra-bytes VLR is {} bytes, not a multiple of {DESCRIPTOR_SIZE}", data.len()));
+        return Err(format!(
+            "extra-bytes VLR is {} bytes, not a multiple of {DESCRIPTOR_SIZE}",
+            data.len()
+        ));
     }
     let mut out = Vec::new();
     let mut offset = 0usize;
@@ -132,17 +135,32 @@ pub fn parse(data: &[u8]) -> Result<Vec<Descriptor>, String> {
         let name = String::from_utf8_lossy(&d[4..4 + name_end]).into_owned();
         let size = match data_type {
             0 => options as usize,
-            1..=10 => ScalarType::from_code(data_type).map(|t| t.size()).unwrap_or(0),
+            1..=10 => ScalarType::from_code(data_type)
+                .map(|t| t.size())
+                .unwrap_or(0),
             11..=30 => {
-                let base = ScalarType::from_code((data_type - 1) % 10 + 1).map(|t| t.size()).unwrap_or(0);
+                let base = ScalarType::from_code((data_type - 1) % 10 + 1)
+                    .map(|t| t.size())
+                    .unwrap_or(0);
                 base * (((data_type - 1) / 10) as usize + 1)
             }
-            other => return Err(format!("extra dimension {name:?} has unknown data type {other}")),
+            other => {
+                return Err(format!(
+                    "extra dimension {name:?} has unknown data type {other}"
+                ))
+            }
         };
         let f = |o: usize| f64::from_le_bytes(d[o..o + 8].try_into().unwrap_or([0; 8]));
         let scale = if options & 0x08 != 0 { f(112) } else { 1.0 };
         let value_offset = if options & 0x10 != 0 { f(136) } else { 0.0 };
-        out.push(Descriptor { name, data_type, offset, size, scale, value_offset });
+        out.push(Descriptor {
+            name,
+            data_type,
+            offset,
+            size,
+            scale,
+            value_offset,
+        });
         offset += size;
     }
     Ok(out)

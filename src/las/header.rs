@@ -69,18 +69,36 @@ impl LasHeader {
     pub fn parse(path: &Path, bytes: &[u8], file_len: u64) -> Result<Self> {
         let bad = |off: usize, what: String| Error::bad_input(path, Some(off as u64), what);
         if file_len == 0 {
-            return Err(Error::bad_input(path, None, "the file is empty (0 bytes); expected a LAS or LAZ file"));
+            return Err(Error::bad_input(
+                path,
+                None,
+                "the file is empty (0 bytes); expected a LAS or LAZ file",
+            ));
         }
         if bytes.len() < 227 || &bytes[0..4] != b"LASF" {
-            let got = if bytes.len() >= 4 { format!("{:?}", String::from_utf8_lossy(&bytes[0..4])) } else { format!("{} bytes", bytes.len()) };
+            let got = if bytes.len() >= 4 {
+                format!("{:?}", String::from_utf8_lossy(&bytes[0..4]))
+            } else {
+                format!("{} bytes", bytes.len())
+            };
             return Err(bad(0, format!("not a LAS/LAZ file: expected the signature \"LASF\" and a header of at least 227 bytes, found {got}")));
         }
         let version = (bytes[24], bytes[25]);
         if version.0 != 1 || version.1 > 4 {
-            return Err(bad(24, format!("unsupported LAS version {}.{}; tilecurv reads LAS 1.0 to 1.4", version.0, version.1)));
+            return Err(bad(
+                24,
+                format!(
+                    "unsupported LAS version {}.{}; tilecurv reads LAS 1.0 to 1.4",
+                    version.0, version.1
+                ),
+            ));
         }
         let header_size = u16_at(bytes, 94);
-        let min_header = match version.1 { 0..=2 => 227, 3 => 235, _ => 375 };
+        let min_header = match version.1 {
+            0..=2 => 227,
+            3 => 235,
+            _ => 375,
+        };
         if (header_size as usize) < min_header {
             return Err(bad(94, format!("header size {header_size} is smaller than the {min_header} bytes LAS 1.{} requires", version.1)));
         }
@@ -98,7 +116,12 @@ impl LasHeader {
         let compressed = raw_format & 0x80 != 0;
         let point_format = raw_format & 0x3f;
         if point_format > 10 {
-            return Err(bad(104, format!("unknown point data record format {point_format}; LAS defines formats 0 to 10")));
+            return Err(bad(
+                104,
+                format!(
+                    "unknown point data record format {point_format}; LAS defines formats 0 to 10"
+                ),
+            ));
         }
         let record_length = u16_at(bytes, 105);
         let base = POINT_FORMAT_SIZES[point_format as usize];
@@ -110,15 +133,32 @@ impl LasHeader {
         let offset = [f64_at(bytes, 155), f64_at(bytes, 163), f64_at(bytes, 171)];
         for (i, s) in scale.iter().enumerate() {
             if !(s.is_finite() && *s != 0.0) {
-                return Err(bad(131 + 8 * i, format!("{} scale factor is {s}; it must be finite and non-zero", ["x", "y", "z"][i])));
+                return Err(bad(
+                    131 + 8 * i,
+                    format!(
+                        "{} scale factor is {s}; it must be finite and non-zero",
+                        ["x", "y", "z"][i]
+                    ),
+                ));
             }
             if !offset[i].is_finite() {
-                return Err(bad(155 + 8 * i, format!("{} offset is {}; it must be finite", ["x", "y", "z"][i], offset[i])));
+                return Err(bad(
+                    155 + 8 * i,
+                    format!(
+                        "{} offset is {}; it must be finite",
+                        ["x", "y", "z"][i],
+                        offset[i]
+                    ),
+                ));
             }
         }
         let max = [f64_at(bytes, 179), f64_at(bytes, 195), f64_at(bytes, 211)];
         let min = [f64_at(bytes, 187), f64_at(bytes, 203), f64_at(bytes, 219)];
-        let waveform_start = if version.1 >= 3 { u64_at(bytes, 227) } else { 0 };
+        let waveform_start = if version.1 >= 3 {
+            u64_at(bytes, 227)
+        } else {
+            0
+        };
         let (evlr_start, evlr_count, point_count) = if version.1 >= 4 {
             let c64 = u64_at(bytes, 247);
             let count = if c64 != 0 { c64 } else { legacy_count };
@@ -178,7 +218,11 @@ impl LasHeader {
         if self.version.1 >= 3 {
             // Waveform data inside the file moves with the data before it; an external one (0 or
             // "in an auxiliary file" bit) keeps its value.
-            let wf = if self.waveform_start > 0 { out.waveform_start } else { 0 };
+            let wf = if self.waveform_start > 0 {
+                out.waveform_start
+            } else {
+                0
+            };
             b[227..235].copy_from_slice(&wf.to_le_bytes());
         }
         if self.version.1 >= 4 {

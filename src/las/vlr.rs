@@ -64,8 +64,14 @@ impl Vlr {
 
     /// Appends this record as a VLR to `out`. Fails if the payload does not fit a u16 length.
     pub fn write_vlr(&self, out: &mut Vec<u8>) -> std::result::Result<(), String> {
-        let len = u16::try_from(self.data.len())
-            .map_err(|_| format!("VLR {}:{} has {} bytes, more than a VLR can hold (65535)", self.user_id, self.record_id, self.data.len()))?;
+        let len = u16::try_from(self.data.len()).map_err(|_| {
+            format!(
+                "VLR {}:{} has {} bytes, more than a VLR can hold (65535)",
+                self.user_id,
+                self.record_id,
+                self.data.len()
+            )
+        })?;
         out.extend_from_slice(&self.reserved.to_le_bytes());
         out.extend_from_slice(&padded::<16>(&self.user_id));
         out.extend_from_slice(&self.record_id.to_le_bytes());
@@ -140,7 +146,10 @@ pub fn read_evlrs(path: &Path, file: &[u8], header: &LasHeader) -> Result<Vec<(u
         l.copy_from_slice(&h[20..28]);
         let len = u64::from_le_bytes(l);
         let data_start = pos + 60;
-        if (data_start as u64).checked_add(len).is_none_or(|e| e > file.len() as u64) {
+        if (data_start as u64)
+            .checked_add(len)
+            .is_none_or(|e| e > file.len() as u64)
+        {
             return Err(Error::bad_input(path, Some(pos as u64), format!(
                 "EVLR {} of {count} ({}) declares {len} bytes of data past the end of the file ({} bytes): the file is truncated",
                 i + 1, trimmed(&h[2..18]), file.len())));
@@ -148,13 +157,16 @@ pub fn read_evlrs(path: &Path, file: &[u8], header: &LasHeader) -> Result<Vec<(u
         let len = len as usize;
         let mut description = [0u8; 32];
         description.copy_from_slice(&h[28..60]);
-        out.push((pos as u64, Vlr {
-            user_id: trimmed(&h[2..18]),
-            record_id: u16::from_le_bytes([h[18], h[19]]),
-            description,
-            reserved: u16::from_le_bytes([h[0], h[1]]),
-            data: file[data_start..data_start + len].to_vec(),
-        }));
+        out.push((
+            pos as u64,
+            Vlr {
+                user_id: trimmed(&h[2..18]),
+                record_id: u16::from_le_bytes([h[18], h[19]]),
+                description,
+                reserved: u16::from_le_bytes([h[0], h[1]]),
+                data: file[data_start..data_start + len].to_vec(),
+            },
+        ));
         pos = data_start + len;
     }
     Ok(out)

@@ -1,7 +1,7 @@
-//! Reading points: a LAS/LAZ file opened once, memory-mapped, validated against its size, and
+//! LAS and LAZ input: a file opened once, memory-mapped, validated against its size, and
 //! streamed in file order as chunks of raw point records. Uncompressed LAS is decoded straight from
 //! the map; LAZ is decompressed chunk by chunk (in parallel over LAZ chunks). The raw records are
-//! what `assemble` copies to the output untouched; `points` decodes the coordinates from them.
+//! what `assemble` copies to the output untouched.
 
 use std::fs::File;
 use std::io::{Cursor, Seek, SeekFrom};
@@ -15,16 +15,7 @@ use crate::las::extra_bytes::{self, Descriptor};
 use crate::las::header::{LasHeader, POINT_FORMAT_SIZES};
 use crate::las::vlr::{read_evlrs, read_vlrs, Vlr};
 
-/// One point as the engine sees it: original index, coordinates, and the file's normal if any.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SourcePoint {
-    /// Index of the point in its file (file order).
-    pub id: u64,
-    /// Coordinates in file units (scaled integers applied).
-    pub xyz: [f64; 3],
-    /// The normal stored in the file (NormalX/Y/Z extra bytes), if any.
-    pub normal: Option<[f64; 3]>,
-}
+use super::{PointSource, SourcePoint};
 
 /// An opened LAS or LAZ file.
 pub struct LasSource {
@@ -45,21 +36,47 @@ pub struct LasSource {
 impl LasSource {
     /// Opens, maps and validates a LAS/LAZ file. Nothing is decoded yet.
     pub fn open(path: &Path) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::ReadIo { path: path.to_path_buf(), source: e })?;
-        let len = file.metadata().map_err(|e| Error::ReadIo { path: path.to_path_buf(), source: e })?.len();
+        let file = File::open(path).map_err(|e| Error::ReadIo {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+        let len = file
+            .metadata()
+            .map_err(|e| Error::ReadIo {
+                path: path.to_path_buf(),
+                source: e,
+            })?
+            .len();
         if len == 0 {
-            return Err(Error::bad_input(path, None, "the file is empty (0 bytes); expected a LAS or LAZ file"));
+            return Err(Error::bad_input(
+                path,
+                None,
+                "the file is empty (0 bytes); expected a LAS or LAZ file",
+            ));
         }
         // SAFETY: the map is read-only and tilecurv never writes its inputs. Another process
         // truncating the file while we run would fault; that is the usual mmap contract, and the
         // CLI documents that inputs must not change during a run.
-        let map = unsafe { Mmap::map(&file) }.map_err(|e| Error::ReadIo { path: path.to_path_buf(), source: e })?;
+        let map = unsafe { Mmap::map(&file) }.map_err(|e| Error::ReadIo {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
         let header = LasHeader::parse(path, &map, len)?;
         let vlrs = read_vlrs(path, &map, &header)?;
         let evlrs = read_evlrs(path, &map, &header)?;
         let mut extra = Vec::new();
-        if let Some(v) = vlrs.iter().chain(evlrs.iter().map(|(_, v)| v)).find(|v| extra_bytes::is_extra_bytes(v)) {
-            extra = extra_bytes::parse(&v.data).map_err(|why| Error::bad_input(path, None, format!("{why}; fix or remove the extra-bytes VLR")))?;
+        if let Some(v) = vlrs
+            .iter()
+            .chain(evlrs.iter().map(|(_, v)| v))
+            .find(|v| extra_bytes::is_extra_bytes(v))
+        {
+            extra = extra_bytes::parse(&v.data).map_err(|why| {
+                Error::bad_input(
+                    path,
+                    None,
+                    format!("{why}; fix or remove the extra-bytes VLR"),
+                )
+            })?;
             let total: usize = extra.iter().map(|d| d.size).sum();
             if total > header.extra_bytes_len() as usize {
                 return Err(Error::bad_input(path, Some(105), format!(
@@ -68,7 +85,12 @@ impl LasSource {
             }
         }
         let normal_dims = {
-            let find = |n: &str| extra.iter().find(|d| d.name.eq_ignore_ascii_case(n) && d.scalar().is_some()).cloned();
+            let find = |n: &str| {
+                extra
+                    .iter()
+                    .find(|d| d.name.eq_ignore_ascii_case(n) && d.scalar().is_some())
+                    .cloned()
+            };
             match (find("NormalX"), find("NormalY"), find("NormalZ")) {
                 (Some(x), Some(y), Some(z)) => Some([x, y, z]),
                 _ => None,
@@ -77,10 +99,19 @@ impl LasSource {
         let laz = if header.compressed {
             let v = vlrs.iter().find(|v| v.is("laszip encoded", 22204)).ok_or_else(|| Error::bad_input(path, Some(104),
                 "the point format says LAZ-compressed but there is no LASzip VLR (\"laszip encoded\", 22204)"))?;
-            let lv = laz::LazVlr::from_buffer(&v.data).map_err(|e| Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}")))?;
+            let lv = laz::LazVlr::from_buffer(&v.data).map_err(|e| {
+                Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}"))
+            })?;
             if lv.items_size() != header.record_length as u64 {
-                return Err(Error::bad_input(path, Some(105), format!(
-                    "the LASzip VLR describes {}-byte points but the header says {}", lv.items_size(), header.record_length)));
+                return Err(Error::bad_input(
+                    path,
+                    Some(105),
+                    format!(
+                        "the LASzip VLR describes {}-byte points but the header says {}",
+                        lv.items_size(),
+                        header.record_length
+                    ),
+                ));
             }
             Some(lv)
         } else {
@@ -89,7 +120,8 @@ impl LasSource {
                 .and_then(|b| b.checked_add(header.offset_to_point_data as u64));
             let end = header.point_data_end(len);
             if need.is_none_or(|n| n > end) {
-                let whole = (end.saturating_sub(header.offset_to_point_data as u64)) / header.record_length as u64;
+                let whole = (end.saturating_sub(header.offset_to_point_data as u64))
+                    / header.record_length as u64;
                 return Err(Error::bad_input(path, Some(header.offset_to_point_data as u64), format!(
                     "the header says {} points of {} bytes, but the point data ends at byte {end}: only {whole} whole points are present. The file is truncated (re-copy it) or its point count is wrong",
                     header.point_count, header.record_length)));
@@ -97,51 +129,55 @@ impl LasSource {
             None
         };
         if header.point_count == 0 {
-            return Err(Error::bad_input(path, Some(107), "the file contains no points; there is nothing to compute"));
+            return Err(Error::bad_input(
+                path,
+                Some(107),
+                "the file contains no points; there is nothing to compute",
+            ));
         }
-        Ok(LasSource { path: path.to_path_buf(), map, header, vlrs, evlrs, extra, normal_dims, laz })
+        Ok(LasSource {
+            path: path.to_path_buf(),
+            map,
+            header,
+            vlrs,
+            evlrs,
+            extra,
+            normal_dims,
+            laz,
+        })
     }
+}
 
+impl PointSource for LasSource {
     /// The file's path.
-    pub fn path(&self) -> &Path {
+    fn path(&self) -> &Path {
         &self.path
     }
 
     /// Number of points.
-    pub fn len(&self) -> u64 {
+    fn len(&self) -> u64 {
         self.header.point_count
     }
 
-    /// Always false: `open` rejects files without points.
-    pub fn is_empty(&self) -> bool {
-        self.header.point_count == 0
-    }
-
     /// Whether the file carries NormalX/Y/Z extra dimensions.
-    pub fn has_normals(&self) -> bool {
+    fn has_normals(&self) -> bool {
         self.normal_dims.is_some()
     }
 
     /// The horizontal unit of the file's CRS.
-    pub fn unit(&self) -> UnitSource {
+    fn unit(&self) -> UnitSource {
         horizontal_unit(self.vlrs.iter().chain(self.evlrs.iter().map(|(_, v)| v)))
     }
 
-    /// The LASzip VLR for compressed input.
-    pub fn laz_vlr(&self) -> Option<&laz::LazVlr> {
-        self.laz.as_ref()
-    }
-
-    /// The whole file as bytes (for copying trailing records).
-    pub fn bytes(&self) -> &[u8] {
-        &self.map
-    }
-
     /// Decodes one raw record into a [`SourcePoint`].
-    pub fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
+    fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
         let h = &self.header;
         let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as f64;
-        let xyz = [c(0) * h.scale[0] + h.offset[0], c(4) * h.scale[1] + h.offset[1], c(8) * h.scale[2] + h.offset[2]];
+        let xyz = [
+            c(0) * h.scale[0] + h.offset[0],
+            c(4) * h.scale[1] + h.offset[1],
+            c(8) * h.scale[2] + h.offset[2],
+        ];
         let normal = self.normal_dims.as_ref().and_then(|d| {
             let extra = &rec[POINT_FORMAT_SIZES[h.point_format as usize] as usize..];
             Some([d[0].read(extra)?, d[1].read(extra)?, d[2].read(extra)?])
@@ -151,7 +187,11 @@ impl LasSource {
 
     /// Streams the raw point records in file order, about `chunk_points` at a time, calling
     /// `f(first_point_index, records)`. Stops at the first error `f` returns.
-    pub fn for_each_chunk(&self, chunk_points: usize, mut f: impl FnMut(u64, &[u8]) -> Result<()>) -> Result<()> {
+    fn for_each_chunk(
+        &self,
+        chunk_points: usize,
+        f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+    ) -> Result<()> {
         let rl = self.header.record_length as usize;
         let n = self.header.point_count;
         let start = self.header.offset_to_point_data as usize;
@@ -170,10 +210,19 @@ impl LasSource {
             Some(vlr) => {
                 // Decode whole LAZ chunks at a time so the parallel decompressor has work for
                 // every thread; variable-size chunks fall back to the requested size.
-                let laz_chunk = if vlr.uses_variable_size_chunks() { 50_000 } else { vlr.chunk_size().max(1) as usize };
+                let laz_chunk = if vlr.uses_variable_size_chunks() {
+                    50_000
+                } else {
+                    vlr.chunk_size().max(1) as usize
+                };
                 let per_call = chunk_points.max(1).div_ceil(laz_chunk) * laz_chunk;
                 let mut cursor = Cursor::new(&self.map[..]);
-                cursor.seek(SeekFrom::Start(start as u64)).map_err(|e| Error::ReadIo { path: self.path.clone(), source: e })?;
+                cursor
+                    .seek(SeekFrom::Start(start as u64))
+                    .map_err(|e| Error::ReadIo {
+                        path: self.path.clone(),
+                        source: e,
+                    })?;
                 let mut dec = laz::ParLasZipDecompressor::new(cursor, vlr.clone())
                     .map_err(|e| Error::bad_input(&self.path, Some(start as u64), format!("cannot start LAZ decompression: {e}; the file may be truncated or not a valid LAZ file")))?;
                 let mut buf = vec![0u8; per_call.min(n as usize) * rl];
@@ -189,5 +238,24 @@ impl LasSource {
                 Ok(())
             }
         }
+    }
+
+    fn record_length(&self) -> usize {
+        self.header.record_length as usize
+    }
+
+    fn describe(&self) -> String {
+        let h = &self.header;
+        format!(
+            "LAS {}.{} format {}{}",
+            h.version.0,
+            h.version.1,
+            h.point_format,
+            if h.compressed { " (LAZ)" } else { "" }
+        )
+    }
+
+    fn as_las(&self) -> Option<&LasSource> {
+        Some(self)
     }
 }
