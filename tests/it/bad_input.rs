@@ -1,0 +1,103 @@
+//! Bad input gets a clear error naming the file (and the byte offset where it applies), a
+//! documented non-zero exit code, never a panic, and never an output file or a leftover
+//! temporary file.
+
+use std::path::Path;
+
+use crate::common::{root, tilecurv};
+
+fn sample() -> Vec<u8> {
+    std::fs::read(root().join("data/Haystack_Rock.las")).expect("shipped sample")
+}
+
+/// Runs on `bytes` written as `name`; asserts exit code `code`, that stderr contains every
+/// `needles` string, and that the output directory holds nothing but the input afterwards.
+fn expect_failure(name: &str, bytes: &[u8], code: i32, needles: &[&str]) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join(name);
+    std::fs::write(&input, bytes).expect("write input");
+    let output = dir.path().join("out.laz");
+    let out = tilecurv(&["process", input.to_str().expect("utf-8"), "-o", output.to_str().expect("utf-8")]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(code), "{name}: {err}");
+    assert!(!err.contains("panicked"), "{name} panicked: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{name}: expected {n:?} in: {err}");
+    }
+    let left: Vec<_> = std::fs::read_dir(dir.path()).expect("list").map(|e| e.expect("entry").file_name()).collect();
+    assert_eq!(left.len(), 1, "{name}: files left behind: {left:?}");
+    assert_eq!(std::fs::read(&input).expect("input still there"), bytes, "the input was modified");
+}
+
+fn set(b: &mut [u8], at: usize, v: &[u8]) {
+    b[at..at + v.len()].copy_from_slice(v);
+}
+
+#[test]
+fn truncated_file() {
+    let b = sample();
+    expect_failure("trunc.las", &b[..b.len() - 1000], 3, &["trunc.las", "truncated", "21932 points"]);
+}
+
+#[test]
+fn header_count_larger_than_file() {
+    let mut b = sample();
+    set(&mut b, 107, &30_000u32.to_le_bytes());
+    expect_failure("count.las", &b, 3, &["count.las", "30000 points", "only 21932 whole points"]);
+}
+
+#[test]
+fn unknown_point_format() {
+    let mut b = sample();
+    b[104] = 11;
+    expect_failure("fmt.las", &b, 3, &["fmt.las", "byte offset 104", "unknown point data record format 11"]);
+}
+
+#[test]
+fn zero_scale() {
+    let mut b = sample();
+    set(&mut b, 139, &0f64.to_le_bytes());
+    expect_failure("scale.las", &b, 3, &["scale.las", "byte offset 139", "y scale factor is 0"]);
+}
+
+#[test]
+fn empty_and_foreign_files() {
+    expect_failure("empty.las", &[], 3, &["empty.las", "empty"]);
+    expect_failure("text.las", b"x y z\n1 2 3\n", 3, &["text.las", "not a LAS/LAZ file"]);
+    let b = sample();
+    expect_failure("hdr.las", &b[..200], 3, &["hdr.las", "not a LAS/LAZ file"]);
+}
+
+#[test]
+fn corrupt_laz_is_an_error_not_a_panic() {
+    let Some(laz) = crate::common::shared("las/autzen_trim.laz") else { return };
+    let mut b = std::fs::read(laz).expect("read");
+    let n = b.len();
+    b.truncate(n / 2);
+    expect_failure("half.laz", &b, 3, &["half.laz"]);
+}
+
+#[test]
+fn refuses_to_overwrite_the_input_and_bad_usage() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("in.las");
+    std::fs::write(&input, sample()).expect("write");
+    let p = input.to_str().expect("utf-8");
+    let out = tilecurv(&["process", p, "-o", p]);
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("overwrite the input"));
+    for args in [
+        vec!["process", p, "-o", "x.txt"],
+        vec!["process", p, "-o", "x.las", "--tile", "5 parsecs"],
+        vec!["process", p, "-o", "x.las", "-k", "2"],
+        vec!["process", p, "-o", "x.las", "--estimator", "magic"],
+        vec!["process", p, "-o", "x.las", "--orient", "down"],
+    ] {
+        let out = tilecurv(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    assert!(!Path::new("x.las").exists());
+    let missing = tilecurv(&["process", "/nonexistent/in.las", "-o", "x.las"]);
+    assert_eq!(missing.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("/nonexistent/in.las"));
+}

@@ -1,0 +1,134 @@
+//! Shared helpers of the integration tests: locating shared data, running the binary, reading
+//! outputs back with the library's own LAS reader, and writing synthetic LAS inputs.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use tilecurv::source::{LasSource, PointSource};
+
+/// The project root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A file from `../shared/data`, or None with a loud message. Under CI=true a missing file
+/// fails the test instead: CI may not skip the tests that matter.
+pub fn shared(rel: &str) -> Option<PathBuf> {
+    let p = root().join("../shared/data").join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{} is missing and CI=true: the shared test data must be present", p.display());
+    }
+    eprintln!("SKIPPED: {} not found (shared test data absent); this test did not run", p.display());
+    None
+}
+
+/// Runs `tilecurv` with `args`.
+pub fn tilecurv(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tilecurv")).args(args).output().expect("the tilecurv binary runs")
+}
+
+/// Runs `tilecurv process` and asserts success.
+pub fn process(input: &Path, output: &Path, extra: &[&str]) {
+    let mut args = vec!["process", input.to_str().expect("utf-8 path"), "-o", output.to_str().expect("utf-8 path"), "-q"];
+    args.extend_from_slice(extra);
+    let out = tilecurv(&args);
+    assert!(out.status.success(), "tilecurv {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// All raw point records of a LAS/LAZ file, in file order.
+pub fn records(path: &Path) -> (LasSource, Vec<u8>) {
+    let s = LasSource::open(path).expect("readable LAS");
+    let mut all = Vec::new();
+    s.for_each_chunk(100_000, &mut |_, r| {
+        all.extend_from_slice(r);
+        Ok(())
+    })
+    .expect("decodes");
+    (s, all)
+}
+
+/// One named extra-bytes column of every point of a tilecurv output, as f64.
+pub fn column(path: &Path, name: &str) -> Vec<f64> {
+    let (s, all) = records(path);
+    let d = s.extra.iter().find(|d| d.name == name).unwrap_or_else(|| panic!("{} has no column {name}", path.display())).clone();
+    let base = tilecurv::las::header::POINT_FORMAT_SIZES[s.header.point_format as usize] as usize;
+    all.chunks_exact(s.header.record_length as usize).map(|r| d.read(&r[base..]).expect("in range")).collect()
+}
+
+/// The raw bytes of one column (for bit-identity checks).
+pub fn column_bytes(path: &Path, name: &str) -> Vec<u8> {
+    let (s, all) = records(path);
+    let d = s.extra.iter().find(|d| d.name == name).unwrap_or_else(|| panic!("no column {name}")).clone();
+    let base = tilecurv::las::header::POINT_FORMAT_SIZES[s.header.point_format as usize] as usize;
+    all.chunks_exact(s.header.record_length as usize).flat_map(|r| r[base + d.offset..base + d.offset + d.size].to_vec()).collect()
+}
+
+/// Names of the columns tilecurv adds by default.
+pub const COLUMNS: [&str; 8] = ["NormalX", "NormalY", "NormalZ", "H", "K", "k1", "k2", "CurvatureFlags"];
+
+/// Writes a minimal LAS 1.2 file, point format 0, with the given coordinate scale, and, when
+/// `normals` is given, NormalX/Y/Z as f64 extra bytes described by an extra-bytes VLR. Written
+/// here byte by byte from the LAS 1.2 specification, independently of the library's writer.
+pub fn write_las(path: &Path, xyz: &[[f64; 3]], normals: Option<&[[f64; 3]]>, scale: f64) {
+    let n_extra = if normals.is_some() { 24 } else { 0 };
+    let mut vlr = Vec::new();
+    if normals.is_some() {
+        vlr.extend_from_slice(&0u16.to_le_bytes());
+        let mut uid = [0u8; 16];
+        uid[..9].copy_from_slice(b"LASF_Spec");
+        vlr.extend_from_slice(&uid);
+        vlr.extend_from_slice(&4u16.to_le_bytes());
+        vlr.extend_from_slice(&(3 * 192u16).to_le_bytes());
+        vlr.extend_from_slice(&[0u8; 32]);
+        for name in ["NormalX", "NormalY", "NormalZ"] {
+            let mut d = [0u8; 192];
+            d[2] = 10; // f64
+            d[4..4 + name.len()].copy_from_slice(name.as_bytes());
+            vlr.extend_from_slice(&d);
+        }
+    }
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in xyz {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let offset: [f64; 3] = [0, 1, 2].map(|a| ((lo[a] + hi[a]) / 2.0).round());
+    let mut h = vec![0u8; 227];
+    h[0..4].copy_from_slice(b"LASF");
+    h[24] = 1;
+    h[25] = 2;
+    h[94..96].copy_from_slice(&227u16.to_le_bytes());
+    h[96..100].copy_from_slice(&(227 + vlr.len() as u32).to_le_bytes());
+    h[100..104].copy_from_slice(&(if normals.is_some() { 1u32 } else { 0 }).to_le_bytes());
+    h[104] = 0;
+    h[105..107].copy_from_slice(&(20 + n_extra as u16).to_le_bytes());
+    h[107..111].copy_from_slice(&(xyz.len() as u32).to_le_bytes());
+    for a in 0..3 {
+        h[131 + 8 * a..139 + 8 * a].copy_from_slice(&scale.to_le_bytes());
+        h[155 + 8 * a..163 + 8 * a].copy_from_slice(&offset[a].to_le_bytes());
+        h[179 + 16 * a..187 + 16 * a].copy_from_slice(&hi[a].to_le_bytes());
+        h[187 + 16 * a..195 + 16 * a].copy_from_slice(&lo[a].to_le_bytes());
+    }
+    let mut data = h;
+    data.extend_from_slice(&vlr);
+    for (i, p) in xyz.iter().enumerate() {
+        for a in 0..3 {
+            let v = ((p[a] - offset[a]) / scale).round();
+            assert!(v.abs() < i32::MAX as f64, "coordinate does not fit the scale");
+            data.extend_from_slice(&(v as i32).to_le_bytes());
+        }
+        data.extend_from_slice(&[0u8; 8]);
+        if let Some(n) = normals {
+            for c in n[i] {
+                data.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, data).expect("write synthetic LAS");
+}
