@@ -14,6 +14,9 @@ pub const FLAGS_NAME: &str = "CurvatureFlags";
 pub struct ColumnSet {
     /// Storage type of the float columns.
     pub ty: ColumnType,
+    /// Whether the normal columns are written (not when the input already has NormalX/Y/Z:
+    /// those are the normals used, and they are kept as they are).
+    pub normals: bool,
     /// Whether the principal directions are written.
     pub directions: bool,
     /// Unit symbol of the coordinates, for the descriptions ("m", "ft", or "unit").
@@ -23,7 +26,8 @@ pub struct ColumnSet {
 impl ColumnSet {
     /// The float columns' names, in record order (the flag column follows them).
     pub fn float_names(&self) -> Vec<&'static str> {
-        let mut v = vec!["NormalX", "NormalY", "NormalZ", "H", "K", "k1", "k2"];
+        let mut v = if self.normals { vec!["NormalX", "NormalY", "NormalZ"] } else { Vec::new() };
+        v.extend(["H", "K", "k1", "k2"]);
         if self.directions {
             v.extend(["d1x", "d1y", "d1z", "d2x", "d2y", "d2z"]);
         }
@@ -80,8 +84,10 @@ impl ColumnSet {
             ColumnType::F32 => out.extend_from_slice(&(v as f32).to_le_bytes()),
             ColumnType::F64 => out.extend_from_slice(&v.to_le_bytes()),
         };
-        for v in r.normal {
-            put(v);
+        if self.normals {
+            for v in r.normal {
+                put(v);
+            }
         }
         for v in [c.h, c.k, c.k1, c.k2] {
             put(v);

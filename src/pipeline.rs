@@ -101,8 +101,15 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
         .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
     let estimator = crate::estimate::build(&cfg.estimator, &cfg.params)
         .ok_or_else(|| Error::Usage(format!("unknown estimator {:?}", cfg.estimator)))?;
+    if source.has_normals() && cfg.ignore_file_normals {
+        return Err(Error::Usage(format!(
+            "{}: --ignore-file-normals: the input already has NormalX/Y/Z columns, and the estimated normals cannot be written under the same names; drop the option to use the file's normals",
+            cfg.input.display()
+        )));
+    }
     let cols = ColumnSet {
         ty: cfg.column_type,
+        normals: !source.has_normals(),
         directions: cfg.directions,
         unit: unit_name.clone(),
     };
