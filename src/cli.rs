@@ -35,7 +35,7 @@ Exit codes:
   2    usage error: a bad option or value
   3    bad input: the input is unreadable, malformed or unsupported (the message names the file and byte offset)
   4    output failure: the output or the work directory could not be written
-  130  interrupted (SIGINT/SIGTERM): nothing was written, the output is untouched
+  130  interrupted (SIGINT/SIGTERM): no output was written; run the same command again to resume
 
 The output is written to a temporary file beside it and renamed only on success: it is complete or absent.";
 
@@ -55,16 +55,36 @@ enum Command {
 
 #[derive(clap::Args, Debug)]
 struct ProcessArgs {
-    /// Input LAS or LAZ file (LAS 1.0-1.4, point formats 0-10, COPC-LAZ). Never modified.
-    input: PathBuf,
+    /// Input LAS or LAZ files (LAS 1.0-1.4, point formats 0-10, COPC-LAZ). Several inputs are
+    /// one scene (adjacent tiles of a survey: neighbourhoods cross file borders) and give one
+    /// output each. Never modified.
+    #[arg(required = true, num_args = 1..)]
+    inputs: Vec<PathBuf>,
 
-    /// Output file; the extension chooses the format: .las or .laz. Holds every input point in
-    /// the same order with all original fields, VLRs and EVLRs, plus the columns NormalX/Y/Z,
-    /// H (mean curvature), K (Gaussian), k1 <= k2 (principal), CurvatureFlags and, with
-    /// --directions, d1x..d2z. Curvature is positive where the surface bends away from its
+    /// Output file, or a directory (end it with /) for several inputs, where each output gets
+    /// its input's file name. The extension chooses the format: .las or .laz. Holds every input
+    /// point in the same order with all original fields, VLRs and EVLRs, plus the columns
+    /// NormalX/Y/Z, H (mean curvature), K (Gaussian), k1 <= k2 (principal), CurvatureFlags and,
+    /// with --directions, d1x..d2z. Curvature is positive where the surface bends away from its
     /// normal (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
     #[arg(short, long)]
     output: PathBuf,
+
+    /// Memory budget for buckets and tiles in flight: 2G, 512M, ... (K, M, G = powers of 1024).
+    /// Past it, buckets spill to the work directory (zstd). Default: half the machine's memory,
+    /// at most 4G. The program itself adds about 60M.
+    #[arg(long, value_parser = crate::config::parse_bytes)]
+    memory: Option<u64>,
+
+    /// Print the plan (tiles, expected peak memory, work-directory disk, estimated run time from
+    /// timing the median tile) and stop. Scans the inputs once.
+    #[arg(long)]
+    dry_run: bool,
+
+    /// Append one JSON line per tile and per phase to FILE (phase, done and total points,
+    /// points/s, ETA in seconds), for a scheduler or a dashboard.
+    #[arg(long, value_name = "FILE")]
+    progress_json: Option<PathBuf>,
 
     /// Tile edge length, with a unit: 50m, 0.1km, 150ft (international foot), 150usft (US
     /// survey foot), or a bare number in file units. Converted with the file's CRS unit (e.g.
@@ -121,7 +141,10 @@ struct ProcessArgs {
     #[arg(long, default_value_t = 100)]
     triangles: usize,
 
-    /// Directory for temporary per-tile results (default: beside the output). Removed at the end.
+    /// Work directory for buckets and per-tile results (default: .<output name>.tilecurv beside
+    /// the output). Kept when a run is interrupted or fails, so that the same command resumes
+    /// from the finished tiles; removed after success. Work from other inputs or parameters is
+    /// detected and discarded.
     #[arg(long)]
     work_dir: Option<PathBuf>,
 
@@ -160,8 +183,11 @@ impl ProcessArgs {
                 .unwrap_or(1)
         });
         Config {
-            input: self.input,
+            inputs: self.inputs,
             output: self.output,
+            memory_bytes: self.memory.unwrap_or_else(crate::config::default_memory),
+            dry_run: self.dry_run,
+            progress_json: self.progress_json,
             tile: self.tile,
             k: self.k,
             estimator: self.estimator,
@@ -227,28 +253,37 @@ pub fn main_with_args() -> i32 {
             let quiet = args.quiet;
             let cfg = args.into_config();
             install_signal_handlers();
-            let reporter = TermReporter::new(quiet);
+            let reporter = match TermReporter::new(quiet, cfg.progress_json.as_deref()) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("tilecurv: error: {e}");
+                    return exit_code(&e);
+                }
+            };
             match crate::pipeline::run(&cfg, &reporter, &CANCEL) {
                 Ok(s) => {
                     if !quiet {
-                        eprintln!(
-                            "done: {} points in {:.1} s ({:.0} points/s), {} tiles, {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
-                            s.points,
-                            s.seconds,
-                            s.points as f64 / s.seconds.max(1e-9),
-                            s.tiles,
-                            s.undefined,
-                            100.0 * s.undefined as f64 / s.points.max(1) as f64,
-                            s.retried,
-                            cfg.output.display()
-                        );
+                        if !cfg.dry_run {
+                            eprintln!(
+                                "done: {} points in {:.1} s ({:.0} points/s), {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
+                                s.points,
+                                s.seconds,
+                                s.points as f64 / s.seconds.max(1e-9),
+                                s.tiles,
+                                s.tiles_resumed,
+                                s.undefined,
+                                100.0 * s.undefined as f64 / s.points.max(1) as f64,
+                                s.retried,
+                                cfg.output.display()
+                            );
+                        }
                     }
                     exit::OK
                 }
                 Err(e) => {
                     eprintln!("tilecurv: error: {e}");
                     if e.exit_class() == ExitClass::Interrupted {
-                        eprintln!("tilecurv: run the same command again to start over");
+                        eprintln!("tilecurv: run the same command again to resume from the finished tiles");
                     }
                     exit_code(&e)
                 }

@@ -26,7 +26,11 @@ pub struct ColumnSet {
 impl ColumnSet {
     /// The float columns' names, in record order (the flag column follows them).
     pub fn float_names(&self) -> Vec<&'static str> {
-        let mut v = if self.normals { vec!["NormalX", "NormalY", "NormalZ"] } else { Vec::new() };
+        let mut v = if self.normals {
+            vec!["NormalX", "NormalY", "NormalZ"]
+        } else {
+            Vec::new()
+        };
         v.extend(["H", "K", "k1", "k2"]);
         if self.directions {
             v.extend(["d1x", "d1y", "d1z", "d2x", "d2y", "d2z"]);

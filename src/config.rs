@@ -79,6 +79,52 @@ impl std::fmt::Display for Length {
     }
 }
 
+/// Parses a byte size: `2G`, `512M`, `1.5GiB`, `4096` (bytes). K, M, G, T are powers of 1024.
+pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
+    let t = s.trim().to_ascii_lowercase();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let v: f64 = num.parse().map_err(|_| {
+        format!("{s:?} is not a size: expected a number with an optional unit, e.g. 2G or 512M")
+    })?;
+    let mult = match unit.trim().trim_end_matches("ib").trim_end_matches('b') {
+        "" => 1u64,
+        "k" => 1 << 10,
+        "m" => 1 << 20,
+        "g" => 1 << 30,
+        "t" => 1 << 40,
+        other => {
+            return Err(format!(
+                "{s:?}: unknown size unit {other:?}; use K, M, G or T"
+            ))
+        }
+    };
+    let bytes = v * mult as f64;
+    if !(bytes.is_finite() && bytes >= 1.0) {
+        return Err(format!("{s:?}: a size must be positive"));
+    }
+    Ok(bytes as u64)
+}
+
+/// The default memory budget: half the machine's memory, at most 4 GiB, at least 256 MiB.
+pub fn default_memory() -> u64 {
+    // SAFETY: sysconf has no preconditions.
+    let (pages, page) = unsafe {
+        (
+            libc::sysconf(libc::_SC_PHYS_PAGES),
+            libc::sysconf(libc::_SC_PAGESIZE),
+        )
+    };
+    let total = if pages > 0 && page > 0 {
+        pages as u64 * page as u64
+    } else {
+        8 << 30
+    };
+    (total / 2).clamp(256 << 20, 4 << 30)
+}
+
 /// Storage type of the new columns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColumnType {
@@ -91,10 +137,16 @@ pub enum ColumnType {
 /// Everything a `process` run needs.
 #[derive(Debug, Clone)]
 pub struct Config {
-    /// The input file.
-    pub input: PathBuf,
-    /// The output file (.las or .laz).
+    /// The input files: one scene (halos cross file borders), one output per input.
+    pub inputs: Vec<PathBuf>,
+    /// The output file (.las or .laz) for one input, or a directory for several.
     pub output: PathBuf,
+    /// Memory budget in bytes for buckets and tiles in flight.
+    pub memory_bytes: u64,
+    /// Print the plan and estimates, compute nothing.
+    pub dry_run: bool,
+    /// Append JSON progress lines to this file.
+    pub progress_json: Option<PathBuf>,
     /// Tile edge length.
     pub tile: Length,
     /// Neighbours per point, the point itself included.
@@ -115,7 +167,8 @@ pub struct Config {
     pub threads: usize,
     /// Points per read chunk.
     pub chunk_points: usize,
-    /// Where temporary per-tile results go (default: beside the output).
+    /// Work directory for buckets and per-tile results (default: beside the output); kept after
+    /// an interruption so that the same command resumes.
     pub work_dir: Option<PathBuf>,
 }
 
@@ -133,6 +186,15 @@ impl Config {
         }
         if self.threads == 0 {
             return Err(Error::Usage("--threads must be at least 1".into()));
+        }
+        if self.inputs.is_empty() {
+            return Err(Error::Usage("no input file given".into()));
+        }
+        if self.memory_bytes < 64 << 20 {
+            return Err(Error::Usage(format!(
+                "--memory {} bytes is too small: at least 64M",
+                self.memory_bytes
+            )));
         }
         if self.chunk_points == 0 {
             return Err(Error::Usage("--chunk-size must be at least 1 point".into()));
@@ -176,6 +238,16 @@ mod tests {
             Length::parse("-3m").is_err()
                 && Length::parse("5 parsecs").is_err()
                 && Length::parse("m").is_err()
+        );
+    }
+
+    #[test]
+    fn byte_sizes() {
+        assert_eq!(parse_bytes("2G"), Ok(2 << 30));
+        assert_eq!(parse_bytes("1.5GiB"), Ok(3 << 29));
+        assert_eq!(parse_bytes("512m"), Ok(512 << 20));
+        assert!(
+            parse_bytes("lots").is_err() && parse_bytes("3X").is_err() && parse_bytes("0").is_err()
         );
     }
 }

@@ -28,3 +28,4 @@ pub mod results;
 pub mod sink;
 pub mod source;
 pub mod tile;
+pub mod workdir;

@@ -1,7 +1,8 @@
-//! The run: scan the input into buckets, plan the tiles, push them through a bounded pipeline
-//! (loader -> compute -> result writer, in scoped threads joined by crossbeam channels, one
-//! rayon pool for the per-point work), then assemble the output. The first error cancels the
-//! run; the work directory is removed whatever happens.
+//! The run: scan the inputs into buckets, plan the tiles, push the tiles not yet done through a
+//! bounded pipeline (loader -> compute -> result writer, in scoped threads joined by crossbeam
+//! channels, one rayon pool for the per-point work), then assemble one output per input. The
+//! work directory keeps buckets and finished tiles, so an interrupted run resumes where it
+//! stopped; it is removed only after every output is written.
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -11,7 +12,7 @@ use std::time::Instant;
 use crossbeam_channel::bounded;
 
 use crate::assemble::assemble;
-use crate::bucket::Buckets;
+use crate::bucket::{Buckets, ScanInput, POINT_BYTES};
 use crate::columns::ColumnSet;
 use crate::compute::{compute_tile, ComputeParams, PointResult};
 use crate::config::{ColumnType, Config};
@@ -19,24 +20,35 @@ use crate::crs::UnitSource;
 use crate::error::{Error, Result};
 use crate::estimate::flags;
 use crate::normals::Orientation;
-use crate::plan::{plan, TileGrid, TileKey, TileSpec};
+use crate::plan::{plan, ScanStats, TileGrid, TileKey, TilePlan, TileSpec};
 use crate::progress::Reporter;
-
+use crate::results::{is_complete, tile_path, Merger};
+use crate::source::PointSource;
 use crate::tile::{load_tile, TilePoints};
+use crate::workdir::{Fingerprint, Resume, WorkDir};
 
 /// What a finished run reports.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Summary {
     /// Points written.
     pub points: u64,
-    /// Points whose curvature is undefined (flag in `flags::UNDEFINED`).
+    /// Points whose curvature is undefined (flag in `flags::UNDEFINED`), among those computed
+    /// in this run.
     pub undefined: u64,
-    /// Tiles processed.
+    /// Tiles in the plan.
     pub tiles: usize,
+    /// Tiles found finished from an earlier, interrupted run.
+    pub tiles_resumed: usize,
     /// Points recomputed with a wider halo after verification.
     pub retried: u64,
     /// Wall time in seconds.
     pub seconds: f64,
+}
+
+/// Bytes a loaded tile needs per point (coordinates, ids, neighbour list, normal, result), for
+/// the budget; measured layout of `TilePoints` and `compute_tile`'s buffers, rounded up.
+fn tile_point_bytes(k: usize) -> usize {
+    300 + 4 * k
 }
 
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -46,35 +58,124 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Removes the work directory when dropped, so no run leaves one behind.
-struct WorkDir(PathBuf);
-
-impl Drop for WorkDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
+/// The output path of each input: the output itself for one input (or a file in it if it is a
+/// directory), `<output dir>/<input file name>` for several.
+pub fn output_paths(cfg: &Config) -> Result<Vec<PathBuf>> {
+    let is_dir = cfg.output.is_dir() || cfg.output.as_os_str().to_string_lossy().ends_with('/');
+    if cfg.inputs.len() == 1 && !is_dir {
+        return Ok(vec![cfg.output.clone()]);
     }
+    if !is_dir {
+        return Err(Error::Usage(format!(
+            "{}: with {} inputs the output must be a directory (one output per input, same file name); end it with / to create it",
+            cfg.output.display(),
+            cfg.inputs.len()
+        )));
+    }
+    std::fs::create_dir_all(&cfg.output).map_err(|e| Error::write(&cfg.output, e))?;
+    let mut outs: Vec<PathBuf> = Vec::new();
+    for input in &cfg.inputs {
+        let name = input
+            .file_name()
+            .ok_or_else(|| Error::Usage(format!("{}: not a file name", input.display())))?;
+        let out = cfg.output.join(name);
+        if outs.contains(&out) {
+            return Err(Error::Usage(format!(
+                "two inputs are named {}: their outputs would collide in {}",
+                name.to_string_lossy(),
+                cfg.output.display()
+            )));
+        }
+        outs.push(out);
+    }
+    Ok(outs)
+}
+
+/// The manifest of a run: a fingerprint of the inputs (path, size, modification time, header)
+/// and of every parameter that changes the output, then the same in words for a person.
+fn manifest(cfg: &Config, sources: &[Box<dyn PointSource>], tile_size: f64) -> String {
+    let mut fp = Fingerprint::default();
+    let mut text = String::new();
+    fp.text(env!("CARGO_PKG_VERSION"));
+    for s in sources {
+        let p = s.path();
+        let meta = std::fs::metadata(p).ok();
+        let size = meta.as_ref().map(|m| m.len()).unwrap_or(0);
+        let mtime = meta
+            .and_then(|m| m.modified().ok())
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+            .map(|d| d.as_nanos())
+            .unwrap_or(0);
+        let canon = p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
+        fp.text(&canon.to_string_lossy())
+            .text(&size.to_string())
+            .text(&mtime.to_string())
+            .text(&s.len().to_string());
+        text.push_str(&format!(
+            "input {} ({size} bytes, {} points)\n",
+            canon.display(),
+            s.len()
+        ));
+    }
+    let params = format!(
+        "estimator={} k={} params={:?} orientation={:?} ignore_file_normals={} directions={} columns={:?} tile={}",
+        cfg.estimator,
+        cfg.k,
+        cfg.params,
+        cfg.orientation,
+        cfg.ignore_file_normals,
+        cfg.directions,
+        cfg.column_type,
+        tile_size.to_bits()
+    );
+    fp.text(&params);
+    format!(
+        "tilecurv work directory, fingerprint {:016x}\n{text}{params}\n",
+        fp.value()
+    )
 }
 
 /// Runs `tilecurv process` as configured.
 pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result<Summary> {
     let started = Instant::now();
     cfg.validate()?;
-    if same_file(&cfg.input, &cfg.output) {
-        return Err(Error::Usage(format!(
-            "{}: the output would overwrite the input; choose another output path",
-            cfg.output.display()
-        )));
+    let outputs = output_paths(cfg)?;
+    for (input, output) in cfg.inputs.iter().zip(&outputs) {
+        crate::sink::check_output_path(output)?;
+        if same_file(input, output) || cfg.inputs.iter().any(|i| same_file(i, output)) {
+            return Err(Error::Usage(format!(
+                "{}: the output would overwrite an input; choose another output path",
+                output.display()
+            )));
+        }
     }
-    crate::sink::check_output_path(&cfg.output)?;
-    let source = crate::source::open(&cfg.input)?;
-    let unit = source.unit();
+    let sources = cfg
+        .inputs
+        .iter()
+        .map(|p| crate::source::open(p))
+        .collect::<Result<Vec<_>>>()?;
+
+    // Units: every input must agree, the first one decides.
+    let unit = sources[0].unit();
+    for s in &sources[1..] {
+        let u = s.unit();
+        if u.unit().map(|u| u.metres) != unit.unit().map(|u| u.metres) {
+            return Err(Error::Usage(format!(
+                "{} and {} have different horizontal units ({:?} and {:?}); process them separately",
+                sources[0].path().display(),
+                s.path().display(),
+                unit.unit().map(|u| u.symbol()),
+                u.unit().map(|u| u.symbol())
+            )));
+        }
+    }
     let (unit_name, metres) = match &unit {
         UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => (u.symbol(), Some(u)),
         UnitSource::Unknown(why) => {
             if cfg.tile.has_unit() {
                 reporter.warn(&format!(
                     "{}: {why}; --tile {} is taken in file units",
-                    cfg.input.display(),
+                    sources[0].path().display(),
                     cfg.tile
                 ));
             }
@@ -82,43 +183,328 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
         }
     };
     let tile_size = cfg.tile.in_file_units(metres);
-    let use_file_normals = source.has_normals() && !cfg.ignore_file_normals;
-    reporter.info(&format!(
-        "{}: {} points, {}, unit {unit_name}; tile {} = {tile_size:.3} {unit_name}; normals {}",
-        cfg.input.display(),
-        source.len(),
-        source.describe(),
-        cfg.tile,
-        if use_file_normals {
-            "from the file (NormalX/Y/Z)"
-        } else {
-            "by PCA"
-        },
-    ));
+    let with_normals = sources.iter().filter(|s| s.has_normals()).count();
+    if with_normals != 0 && with_normals != sources.len() {
+        return Err(Error::Usage(
+            "some inputs have NormalX/Y/Z and others do not; process them separately".into(),
+        ));
+    }
+    let file_normals = with_normals > 0;
+    if file_normals && cfg.ignore_file_normals {
+        return Err(Error::Usage(format!(
+            "{}: --ignore-file-normals: the input already has NormalX/Y/Z columns, and the estimated normals cannot be written under the same names; drop the option to use the file's normals",
+            sources[0].path().display()
+        )));
+    }
+    let total: u64 = sources.iter().map(|s| s.len()).sum();
+    for s in &sources {
+        reporter.info(&format!(
+            "{}: {} points, {}, unit {unit_name}; tile {} = {tile_size:.3} {unit_name}; normals {}",
+            s.path().display(),
+            s.len(),
+            s.describe(),
+            cfg.tile,
+            if file_normals {
+                "from the file (NormalX/Y/Z)"
+            } else {
+                "by PCA"
+            },
+        ));
+    }
+    let first_ids: Vec<u64> = sources
+        .iter()
+        .scan(0u64, |acc, s| {
+            let f = *acc;
+            *acc += s.len();
+            Some(f)
+        })
+        .collect();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(cfg.threads)
         .build()
         .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
     let estimator = crate::estimate::build(&cfg.estimator, &cfg.params)
         .ok_or_else(|| Error::Usage(format!("unknown estimator {:?}", cfg.estimator)))?;
-    if source.has_normals() && cfg.ignore_file_normals {
-        return Err(Error::Usage(format!(
-            "{}: --ignore-file-normals: the input already has NormalX/Y/Z columns, and the estimated normals cannot be written under the same names; drop the option to use the file's normals",
-            cfg.input.display()
-        )));
-    }
     let cols = ColumnSet {
         ty: cfg.column_type,
-        normals: !source.has_normals(),
+        normals: !file_normals,
         directions: cfg.directions,
         unit: unit_name.clone(),
     };
-
-    // Pass 1: scan into buckets.
-    reporter.phase("scan", source.len());
+    let params = ComputeParams {
+        k: cfg.k,
+        orientation: cfg.orientation,
+        use_file_normals: file_normals,
+        estimator: estimator.as_ref(),
+    };
+    let manifest = manifest(cfg, &sources, tile_size);
+    let budget = cfg.memory_bytes as usize;
     let grid = TileGrid { size: tile_size };
-    let (buckets, stats) = pool.install(|| {
-        Buckets::scan(source.as_ref(), grid, cfg.chunk_points, |n| {
+    let work_path = cfg
+        .work_dir
+        .clone()
+        .unwrap_or_else(|| crate::workdir::default_path(&outputs[0]));
+
+    if cfg.dry_run {
+        let dry = work_path.with_extension("dryrun");
+        let wd = WorkDir::open(&dry, &manifest)?;
+        let r = dry_run(
+            cfg, &sources, &first_ids, grid, &wd, &pool, &params, reporter, cancel,
+        );
+        wd.remove();
+        return r.map(|_| Summary {
+            points: total,
+            undefined: 0,
+            tiles: 0,
+            tiles_resumed: 0,
+            retried: 0,
+            seconds: started.elapsed().as_secs_f64(),
+        });
+    }
+
+    let work = WorkDir::open(&work_path, &manifest)?;
+    let r = run_in(
+        cfg,
+        reporter,
+        cancel,
+        &work,
+        &sources,
+        &outputs,
+        &first_ids,
+        grid,
+        budget,
+        &cols,
+        &params,
+        &pool,
+        &unit_name,
+        total,
+        file_normals,
+    );
+    match &r {
+        // Interrupted or out of disk: keep the work, the same command resumes.
+        Err(Error::Interrupted) | Err(Error::WriteIo { .. }) => drop(work),
+        // Done, or a failure that a rerun would repeat (bad input, a bug): nothing to keep.
+        _ => work.remove(),
+    }
+    r.map(|(undefined, retried, tiles, tiles_resumed)| Summary {
+        points: total,
+        undefined,
+        tiles,
+        tiles_resumed,
+        retried,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// The part of [`run`] that uses the work directory.
+#[allow(clippy::too_many_arguments)]
+fn run_in(
+    cfg: &Config,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+    work: &WorkDir,
+    sources: &[Box<dyn PointSource>],
+    outputs: &[PathBuf],
+    first_ids: &[u64],
+    grid: TileGrid,
+    budget: usize,
+    cols: &ColumnSet,
+    params: &ComputeParams<'_>,
+    pool: &rayon::ThreadPool,
+    unit_name: &str,
+    total: u64,
+    file_normals: bool,
+) -> Result<(u64, u64, usize, usize)> {
+    let tile_size = grid.size;
+    match work.resume {
+        Resume::Fresh => {}
+        Resume::Resumed => reporter.info(&format!("resuming the interrupted run in {}", work.path().display())),
+        Resume::Discarded => reporter.warn(&format!(
+            "{}: the work left there came from other inputs or parameters: discarded, starting over",
+            work.path().display()
+        )),
+    }
+
+    // Pass 1: scan into buckets (or reuse the buckets of an interrupted run).
+    let spill_dir = work.path().join("buckets");
+    let reopened = if work.resume == Resume::Resumed {
+        Buckets::reopen(&spill_dir, grid)
+    } else {
+        None
+    };
+    let (buckets, stats) = match reopened {
+        Some(b) => {
+            reporter.info("reusing the buckets of the interrupted run");
+            b
+        }
+        None => scan(
+            sources,
+            first_ids,
+            grid,
+            chunk_points(cfg, sources),
+            budget * 2 / 5,
+            &spill_dir,
+            pool,
+            reporter,
+            cancel,
+        )?,
+    };
+    let tplan = plan(&stats, tile_size, cfg.k);
+    let results_dir = work.path().join("results");
+    std::fs::create_dir_all(&results_dir).map_err(|e| Error::write(&results_dir, e))?;
+    let todo: Vec<TileSpec> = tplan
+        .tiles
+        .iter()
+        .filter(|t| !is_complete(&tile_path(&results_dir, t.key), t.count, cols))
+        .cloned()
+        .collect();
+    let resumed_tiles = tplan.tiles.len() - todo.len();
+    let done_points: u64 = stats.count - todo.iter().map(|t| t.count).sum::<u64>();
+    reporter.info(&format!(
+        "plan: {} tiles of {tile_size:.3} {unit_name}{}; buckets {}",
+        tplan.tiles.len(),
+        if resumed_tiles > 0 {
+            format!(", {resumed_tiles} already done")
+        } else {
+            String::new()
+        },
+        if buckets.spilled() {
+            "spilled to the work directory"
+        } else {
+            "in memory"
+        }
+    ));
+
+    // Memory: buckets in memory took up to 2/5 of the budget; spilled ones leave room for a
+    // cache of decoded neighbours. Tiles in flight share the rest.
+    let tile_budget = if buckets.spilled() {
+        buckets.set_cache_budget(budget / 5);
+        budget * 2 / 5
+    } else {
+        budget * 2 / 5
+    };
+    let biggest = todo
+        .iter()
+        .map(|t| estimated_loaded_points(t, tile_size))
+        .max()
+        .unwrap_or(0);
+    let tile_bytes = biggest * tile_point_bytes(cfg.k);
+    if tile_bytes > tile_budget {
+        reporter.warn(&format!(
+            "the densest tile holds about {biggest} points ({} MiB to compute), more than the {} MiB the budget leaves for tiles; memory may exceed --memory: use a smaller --tile or a larger --memory",
+            tile_bytes >> 20,
+            tile_budget >> 20
+        ));
+    }
+    let in_flight = (tile_budget / tile_bytes.max(1)).clamp(1, 3);
+
+    // Pass 2: the tiles not done yet.
+    reporter.phase("curvature", stats.count);
+    reporter.advance(done_points);
+    let outcome = run_tiles(
+        &todo,
+        &tplan,
+        &buckets,
+        &grid,
+        &results_dir,
+        cols,
+        params,
+        pool,
+        in_flight,
+        reporter,
+        cancel,
+    );
+    let (undefined, retried) = match outcome {
+        Ok(v) => v,
+        Err(e) => {
+            if matches!(e, Error::Interrupted) {
+                let done = tplan
+                    .tiles
+                    .iter()
+                    .filter(|t| is_complete(&tile_path(&results_dir, t.key), t.count, cols))
+                    .count();
+                reporter.warn(&format!(
+                    "interrupted after {done} of {} tiles; the work is kept in {}",
+                    tplan.tiles.len(),
+                    work.path().display()
+                ));
+            }
+            return Err(e);
+        }
+    };
+    reporter.finish_phase();
+    drop(buckets);
+
+    // Pass 3: assemble each input in file order.
+    let files: Vec<PathBuf> = tplan
+        .tiles
+        .iter()
+        .map(|t| tile_path(&results_dir, t.key))
+        .collect();
+    let mut merger = Merger::open(&results_dir, &files, cols)?;
+    reporter.phase("write", total);
+    let provenance = provenance(cfg, unit_name, tile_size, file_normals);
+    for ((source, output), first) in sources.iter().zip(outputs).zip(first_ids) {
+        assemble(
+            source.as_ref(),
+            *first,
+            &mut merger,
+            cols,
+            output,
+            &provenance,
+            chunk_points(cfg, sources),
+            reporter,
+            cancel,
+        )?;
+    }
+    reporter.finish_phase();
+    Ok((undefined, retried, tplan.tiles.len(), resumed_tiles))
+}
+
+/// Points per read chunk: the user's choice, capped so that a chunk of raw records takes at
+/// most 1/16 of the memory budget.
+fn chunk_points(cfg: &Config, sources: &[Box<dyn PointSource>]) -> usize {
+    let widest = sources
+        .iter()
+        .map(|s| s.record_length())
+        .max()
+        .unwrap_or(1)
+        .max(1)
+        + 64;
+    cfg.chunk_points
+        .min((cfg.memory_bytes as usize / 16 / widest).max(1024))
+}
+
+/// Points a tile loads: its core plus the halo ring at the same density.
+fn estimated_loaded_points(t: &TileSpec, size: f64) -> usize {
+    let ring = ((size + 2.0 * t.halo) / size).powi(2);
+    (t.count as f64 * ring) as usize
+}
+
+#[allow(clippy::too_many_arguments)]
+fn scan(
+    sources: &[Box<dyn PointSource>],
+    first_ids: &[u64],
+    grid: TileGrid,
+    chunk_points: usize,
+    mem_budget: usize,
+    spill_dir: &Path,
+    pool: &rayon::ThreadPool,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<(Buckets, ScanStats)> {
+    let total = sources.iter().map(|s| s.len()).sum();
+    reporter.phase("scan", total);
+    let inputs: Vec<ScanInput<'_>> = sources
+        .iter()
+        .zip(first_ids)
+        .map(|(s, &first_id)| ScanInput {
+            source: s.as_ref(),
+            first_id,
+        })
+        .collect();
+    let r = pool.install(|| {
+        Buckets::scan(&inputs, grid, chunk_points, mem_budget, spill_dir, |n| {
             reporter.advance(n);
             if cancel.load(Ordering::Relaxed) {
                 Err(Error::Interrupted)
@@ -128,108 +514,95 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
         })
     })?;
     reporter.finish_phase();
-    let tplan = plan(&stats, tile_size, cfg.k);
-    reporter.info(&format!(
-        "plan: {} tiles of {tile_size:.3} {unit_name}",
-        tplan.tiles.len()
-    ));
+    Ok(r)
+}
 
-    let work = WorkDir(make_work_dir(cfg)?);
-    let params = ComputeParams {
-        k: cfg.k,
-        orientation: cfg.orientation,
-        use_file_normals,
-        estimator: estimator.as_ref(),
-    };
-
-    // Pass 2: tiles through the pipeline.
-    reporter.phase("curvature", source.len());
-    let (result_files, undefined, retried) =
-        std::thread::scope(|s| -> Result<(Vec<PathBuf>, u64, u64)> {
-            let (tile_tx, tile_rx) = bounded::<(TileSpec, TilePoints)>(2);
-            let (res_tx, res_rx) = bounded::<(TileKey, Vec<PointResult>)>(2);
-            let (buckets, grid, tplan) = (&buckets, &grid, &tplan);
-            let loader = s.spawn(move || {
-                for spec in &tplan.tiles {
-                    if cancel.load(Ordering::Relaxed) {
-                        return;
-                    }
-                    let t = load_tile(buckets, grid, spec.key, spec.halo, None);
-                    if tile_tx.send((spec.clone(), t)).is_err() {
-                        return; // the compute stage stopped
-                    }
-                }
-            });
-            let writer = s.spawn(|| -> Result<Vec<PathBuf>> {
-                let mut files = Vec::new();
-                for (key, mut results) in res_rx {
-                    files.push(crate::results::write_tile(
-                        &work.0,
-                        key,
-                        &mut results,
-                        &cols,
-                    )?);
-                }
-                Ok(files)
-            });
-            let mut undefined = 0u64;
-            let mut retried = 0u64;
-            let mut failure = None;
-            for (spec, tile) in tile_rx.iter() {
+/// Runs `todo` through loader -> compute -> writer. Returns (undefined points, retried points).
+#[allow(clippy::too_many_arguments)]
+fn run_tiles(
+    todo: &[TileSpec],
+    tplan: &TilePlan,
+    buckets: &Buckets,
+    grid: &TileGrid,
+    results_dir: &Path,
+    cols: &ColumnSet,
+    params: &ComputeParams<'_>,
+    pool: &rayon::ThreadPool,
+    in_flight: usize,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<(u64, u64)> {
+    std::thread::scope(|s| -> Result<(u64, u64)> {
+        let (tile_tx, tile_rx) = bounded::<Result<(TileSpec, TilePoints)>>(in_flight - 1);
+        let (res_tx, res_rx) = bounded::<(TileKey, Vec<PointResult>)>(1);
+        let loader = s.spawn(move || {
+            for spec in todo {
                 if cancel.load(Ordering::Relaxed) {
-                    failure = Some(Error::Interrupted);
+                    return;
+                }
+                let t = load_tile(buckets, grid, spec.key, spec.halo, None, &tplan.per_tile)
+                    .map(|t| (spec.clone(), t));
+                let failed = t.is_err();
+                if tile_tx.send(t).is_err() || failed {
+                    return; // the compute stage stopped, or the error is on its way
+                }
+            }
+        });
+        let writer = s.spawn(move || -> Result<()> {
+            let mut journal = crate::results::Journal::new(results_dir);
+            for (key, mut results) in res_rx {
+                journal.add(key, &mut results, cols)?;
+            }
+            // Also after an interruption: the tiles finished so far become durable.
+            journal.commit()
+        });
+        let mut undefined = 0u64;
+        let mut retried = 0u64;
+        let mut failure = None;
+        for item in tile_rx.iter() {
+            if cancel.load(Ordering::Relaxed) {
+                failure = Some(Error::Interrupted);
+                break;
+            }
+            let (spec, tile) = match item {
+                Ok(v) => v,
+                Err(e) => {
+                    failure = Some(e);
                     break;
                 }
-                let (results, again) = pool.install(|| {
-                    compute_verified(buckets, grid, &tplan.scene, &spec, tile, &params)
-                });
-                retried += again;
-                undefined += results
-                    .iter()
-                    .filter(|r| r.curvature.flags & flags::UNDEFINED != 0)
-                    .count() as u64;
-                reporter.advance(results.len() as u64);
-                if res_tx.send((spec.key, results)).is_err() {
-                    break; // the writer failed; its error is reported below
+            };
+            let r = pool.install(|| compute_verified(buckets, grid, tplan, &spec, tile, params));
+            let (results, again) = match r {
+                Ok(v) => v,
+                Err(e) => {
+                    failure = Some(e);
+                    break;
                 }
+            };
+            retried += again;
+            undefined += results
+                .iter()
+                .filter(|r| r.curvature.flags & flags::UNDEFINED != 0)
+                .count() as u64;
+            reporter.advance(results.len() as u64);
+            if res_tx.send((spec.key, results)).is_err() {
+                break; // the writer failed; its error is reported below
             }
-            drop(tile_rx);
-            drop(res_tx);
-            let _ = loader.join();
-            let files = writer
-                .join()
-                .map_err(|_| Error::Internal("result writer panicked".into()))?;
-            if let Some(e) = failure {
-                return Err(e);
-            }
-            Ok((files?, undefined, retried))
-        })?;
-    reporter.finish_phase();
-    if cancel.load(Ordering::Relaxed) {
-        return Err(Error::Interrupted);
-    }
-
-    // Pass 3: assemble in file order.
-    reporter.phase("write", source.len());
-    let provenance = provenance(cfg, &unit_name, tile_size, use_file_normals);
-    assemble(
-        source.as_ref(),
-        &result_files,
-        &cols,
-        &cfg.output,
-        &provenance,
-        cfg.chunk_points,
-        reporter,
-        cancel,
-    )?;
-    reporter.finish_phase();
-    drop(work);
-    Ok(Summary {
-        points: source.len(),
-        undefined,
-        tiles: tplan.tiles.len(),
-        retried,
-        seconds: started.elapsed().as_secs_f64(),
+        }
+        drop(tile_rx);
+        drop(res_tx);
+        let _ = loader.join();
+        let written = writer
+            .join()
+            .map_err(|_| Error::Internal("result writer panicked".into()))?;
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        written?;
+        if cancel.load(Ordering::Relaxed) {
+            return Err(Error::Interrupted);
+        }
+        Ok((undefined, retried))
     })
 }
 
@@ -239,12 +612,13 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
 fn compute_verified(
     buckets: &Buckets,
     grid: &TileGrid,
-    scene: &crate::plan::Rect,
+    tplan: &TilePlan,
     spec: &TileSpec,
     tile: TilePoints,
     params: &ComputeParams<'_>,
-) -> (Vec<PointResult>, u64) {
-    let mut outcome = compute_tile(&tile, scene, params);
+) -> Result<(Vec<PointResult>, u64)> {
+    let mut outcome = compute_tile(&tile, &tplan.scene, params);
+    drop(tile);
     let mut results = std::mem::take(&mut outcome.done);
     let mut retry = outcome.retry;
     let mut halo = spec.halo;
@@ -253,37 +627,95 @@ fn compute_verified(
         retried += retry.len() as u64;
         halo *= 2.0;
         let only: HashSet<u64> = retry.iter().copied().collect();
-        let t = load_tile(buckets, grid, spec.key, halo, Some(&only));
-        let covers = t.region.covers(scene);
-        let mut o = compute_tile(&t, scene, params);
+        let t = load_tile(buckets, grid, spec.key, halo, Some(&only), &tplan.per_tile)?;
+        let covers = t.region.covers(&tplan.scene);
+        let mut o = compute_tile(&t, &tplan.scene, params);
         results.append(&mut o.done);
         retry = o.retry;
-        debug_assert!(
-            !covers || retry.is_empty(),
-            "a region covering the scene must verify"
-        );
+        if covers && !retry.is_empty() {
+            return Err(Error::Internal(format!(
+                "tile {:?}: {} points unverified with the whole scene loaded",
+                spec.key,
+                retry.len()
+            )));
+        }
     }
-    (results, retried)
+    Ok((results, retried))
 }
 
-fn make_work_dir(cfg: &Config) -> Result<PathBuf> {
-    let base = match &cfg.work_dir {
-        Some(d) => d.clone(),
-        None => cfg
-            .output
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .map(Path::to_path_buf)
-            .unwrap_or_else(|| PathBuf::from(".")),
+/// `--dry-run`: scans the inputs (a full read: the plan needs every point's tile), plans, times
+/// the computation on the median tile, and prints the plan with its estimates.
+#[allow(clippy::too_many_arguments)]
+fn dry_run(
+    cfg: &Config,
+    sources: &[Box<dyn PointSource>],
+    first_ids: &[u64],
+    grid: TileGrid,
+    wd: &WorkDir,
+    pool: &rayon::ThreadPool,
+    params: &ComputeParams<'_>,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<()> {
+    let budget = cfg.memory_bytes as usize;
+    let t0 = Instant::now();
+    let (buckets, stats) = scan(
+        sources,
+        first_ids,
+        grid,
+        chunk_points(cfg, sources),
+        budget * 2 / 5,
+        &wd.path().join("buckets"),
+        pool,
+        reporter,
+        cancel,
+    )?;
+    let scan_s = t0.elapsed().as_secs_f64();
+    let tplan = plan(&stats, grid.size, cfg.k);
+    let mut counts: Vec<u64> = tplan.tiles.iter().map(|t| t.count).collect();
+    counts.sort_unstable();
+    let median = counts[counts.len() / 2];
+    let sample = tplan.tiles.iter().find(|t| t.count == median).cloned();
+    let mut us_per_point = f64::NAN;
+    let mut halo_factor = 1.0;
+    if let Some(spec) = sample {
+        let t = load_tile(&buckets, &grid, spec.key, spec.halo, None, &tplan.per_tile)?;
+        halo_factor = t.xyz.len() as f64 / t.n_core.max(1) as f64;
+        let t1 = Instant::now();
+        let (r, _) =
+            pool.install(|| compute_verified(&buckets, &grid, &tplan, &spec, t, params))?;
+        us_per_point = t1.elapsed().as_secs_f64() * 1e6 / r.len().max(1) as f64;
+    }
+    let n = stats.count as f64;
+    let biggest = tplan
+        .tiles
+        .iter()
+        .map(|t| estimated_loaded_points(t, grid.size))
+        .max()
+        .unwrap_or(0);
+    let in_memory = stats.count as usize * POINT_BYTES <= budget * 2 / 5;
+    let tiles_mem = (biggest * tile_point_bytes(cfg.k)).min(budget * 2 / 5) * 2;
+    let peak = if in_memory {
+        stats.count as usize * POINT_BYTES + tiles_mem
+    } else {
+        budget * 3 / 5 + tiles_mem / 2
     };
-    let name = cfg
-        .output
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "output".into());
-    let dir = base.join(format!(".{name}.tilecurv-work-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
-    Ok(dir)
+    let cols_bytes = 8 + 1 + 4 * if cfg.directions { 13 } else { 7 };
+    let disk = if in_memory { 0.0 } else { n * 45.0 } + n * cols_bytes as f64;
+    let est = 2.0 * scan_s + n * us_per_point * 1e-6;
+    println!("plan: {} points in {} tiles of {:.3} (file units); points per tile: min {}, median {median}, max {}", stats.count, tplan.tiles.len(), grid.size, counts[0], counts[counts.len() - 1]);
+    println!(
+        "halo: {:.1}% extra points loaded on the median tile",
+        100.0 * (halo_factor - 1.0)
+    );
+    println!("memory: budget {} MiB; buckets {}; expected peak about {} MiB plus ~60 MiB for the program", budget >> 20, if in_memory { "in memory" } else { "spilled to disk" }, peak.min(budget) >> 20);
+    println!(
+        "work directory: {} (about {:.0} MiB at the peak)",
+        crate::workdir::default_path(&cfg.output).display(),
+        disk / (1 << 20) as f64
+    );
+    println!("time: scan {scan_s:.1} s; curvature {us_per_point:.2} us/point on the median tile with {} threads; estimated total {est:.0} s", cfg.threads);
+    Ok(())
 }
 
 /// The provenance text stored in the output: tool version, estimator and every parameter.
@@ -292,14 +724,19 @@ fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> S
         Orientation::Up => "up".to_string(),
         Orientation::Viewpoint(v) => format!("viewpoint:{},{},{}", v[0], v[1], v[2]),
     };
-    let input = cfg
-        .input
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let inputs: Vec<String> = cfg
+        .inputs
+        .iter()
+        .map(|p| {
+            p.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        })
+        .collect();
     format!(
-        "tilecurv {}\ninput={input}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\nsign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
+        "tilecurv {}\ninputs={}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\nsign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
         env!("CARGO_PKG_VERSION"),
+        inputs.join(","),
         cfg.estimator,
         cfg.k,
         cfg.params.seed,

@@ -118,6 +118,8 @@ pub struct TilePlan {
     pub tiles: Vec<TileSpec>,
     /// The x/y bounds of all points.
     pub scene: Rect,
+    /// Points per tile core, for every tile that has points.
+    pub per_tile: BTreeMap<TileKey, u64>,
 }
 
 /// Initial halo for a tile of `count` points: three times the radius that holds `k` points at
@@ -143,6 +145,7 @@ pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
     TilePlan {
         grid,
         tiles,
+        per_tile: stats.per_tile.clone(),
         scene: Rect {
             min: [stats.min[0], stats.min[1]],
             max: [stats.max[0], stats.max[1]],

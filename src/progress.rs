@@ -41,9 +41,11 @@ struct Phase {
     last_line: Instant,
 }
 
-/// The terminal reporter: indicatif bar on a TTY, plain lines every few seconds otherwise.
+/// The terminal reporter: indicatif bar on a TTY, plain lines every few seconds otherwise, and
+/// optionally JSON lines to a file.
 pub struct TermReporter {
     quiet: bool,
+    json: Option<Mutex<std::fs::File>>,
     bar: Option<ProgressBar>,
     done: AtomicU64,
     phase: Mutex<Option<Phase>>,
@@ -51,8 +53,19 @@ pub struct TermReporter {
 }
 
 impl TermReporter {
-    /// A reporter writing to stderr; `quiet` keeps only warnings.
-    pub fn new(quiet: bool) -> Self {
+    /// A reporter writing to stderr; `quiet` keeps only warnings. With `json`, one JSON line per
+    /// progress step and per phase is appended to that file.
+    pub fn new(quiet: bool, json: Option<&std::path::Path>) -> crate::error::Result<Self> {
+        let json = match json {
+            Some(p) => Some(Mutex::new(
+                std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(p)
+                    .map_err(|e| crate::error::Error::write(p, e))?,
+            )),
+            None => None,
+        };
         let tty = std::io::stderr().is_terminal() && !quiet;
         let bar = tty.then(|| {
             let b = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
@@ -62,12 +75,33 @@ impl TermReporter {
             );
             b
         });
-        TermReporter {
+        Ok(TermReporter {
             quiet,
+            json,
             bar,
             done: AtomicU64::new(0),
             phase: Mutex::new(None),
             line_every: Duration::from_secs(10),
+        })
+    }
+
+    fn json_line(&self, event: &str, p: &Phase, done: u64) {
+        let Some(j) = &self.json else { return };
+        let elapsed = p.started.elapsed();
+        let r = rate(done, elapsed);
+        let eta = if r > 0.0 {
+            format!("{:.1}", p.total.saturating_sub(done) as f64 / r)
+        } else {
+            "null".into()
+        };
+        let line = format!(
+            "{{\"event\":\"{event}\",\"phase\":\"{}\",\"done\":{done},\"total\":{},\"elapsed_s\":{:.3},\"points_per_s\":{r:.0},\"eta_s\":{eta}}}\n",
+            p.name,
+            p.total,
+            elapsed.as_secs_f64()
+        );
+        if let Ok(mut f) = j.lock() {
+            let _ = std::io::Write::write_all(&mut *f, line.as_bytes());
         }
     }
 
@@ -91,13 +125,15 @@ impl Reporter for TermReporter {
             b.set_length(total);
             b.set_prefix(name.to_string());
         }
-        if let Ok(mut p) = self.phase.lock() {
-            *p = Some(Phase {
+        if let Ok(mut guard) = self.phase.lock() {
+            let p = Phase {
                 name: name.into(),
                 total,
                 started: Instant::now(),
                 last_line: Instant::now(),
-            });
+            };
+            self.json_line("phase_start", &p, 0);
+            *guard = Some(p);
         }
     }
 
@@ -105,52 +141,48 @@ impl Reporter for TermReporter {
         let done = self.done.fetch_add(n, Ordering::Relaxed) + n;
         if let Some(b) = &self.bar {
             b.inc(n);
+        }
+        let Ok(mut guard) = self.phase.lock() else {
+            return;
+        };
+        let Some(p) = guard.as_mut() else { return };
+        self.json_line("progress", p, done);
+        if self.bar.is_some() || self.quiet || p.last_line.elapsed() < self.line_every {
             return;
         }
-        if self.quiet {
-            return;
-        }
-        if let Ok(mut guard) = self.phase.lock() {
-            if let Some(p) = guard.as_mut() {
-                if p.last_line.elapsed() >= self.line_every {
-                    p.last_line = Instant::now();
-                    let r = rate(done, p.started.elapsed());
-                    let eta = if r > 0.0 {
-                        (p.total.saturating_sub(done)) as f64 / r
-                    } else {
-                        f64::NAN
-                    };
-                    eprintln!(
-                        "{}: {done}/{} points ({:.1}%), {:.0} points/s, ETA {:.0} s",
-                        p.name,
-                        p.total,
-                        100.0 * done as f64 / p.total.max(1) as f64,
-                        r,
-                        eta
-                    );
-                }
-            }
-        }
+        p.last_line = Instant::now();
+        let r = rate(done, p.started.elapsed());
+        let eta = if r > 0.0 {
+            p.total.saturating_sub(done) as f64 / r
+        } else {
+            f64::NAN
+        };
+        eprintln!(
+            "{}: {done}/{} points ({:.1}%), {r:.0} points/s, ETA {eta:.0} s",
+            p.name,
+            p.total,
+            100.0 * done as f64 / p.total.max(1) as f64
+        );
     }
 
     fn finish_phase(&self) {
         if let Some(b) = &self.bar {
             b.finish_and_clear();
         }
-        if self.quiet {
+        let Ok(mut guard) = self.phase.lock() else {
             return;
-        }
-        if let Ok(mut guard) = self.phase.lock() {
-            if let Some(p) = guard.take() {
-                let t = p.started.elapsed();
-                self.line(&format!(
-                    "{}: {} points in {:.1} s ({:.0} points/s)",
-                    p.name,
-                    p.total,
-                    t.as_secs_f64(),
-                    rate(p.total, t)
-                ));
-            }
+        };
+        let Some(p) = guard.take() else { return };
+        self.json_line("phase_end", &p, self.done.load(Ordering::Relaxed));
+        if !self.quiet {
+            let t = p.started.elapsed();
+            self.line(&format!(
+                "{}: {} points in {:.1} s ({:.0} points/s)",
+                p.name,
+                p.total,
+                t.as_secs_f64(),
+                rate(p.total, t)
+            ));
         }
     }
 

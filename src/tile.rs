@@ -1,9 +1,10 @@
 //! A loaded tile: its core points (the ones it answers for) followed by the halo points that
 //! their neighbourhoods may reach, gathered from the buckets.
 
-use std::collections::HashSet;
+use std::collections::{BTreeMap, HashSet};
 
 use crate::bucket::Buckets;
+use crate::error::Result;
 use crate::geometry::V3;
 use crate::plan::{Rect, TileGrid, TileKey};
 
@@ -32,16 +33,18 @@ impl TilePoints {
 }
 
 /// Loads tile `key` with a halo of width `halo`. With `only`, just those core points (by id)
-/// are to be computed and the rest of the core is context (a wider-halo retry).
+/// are to be computed and the rest of the core is context (a wider-halo retry). `known` lists
+/// the tiles that hold points (the plan's counts).
 pub fn load_tile(
     buckets: &Buckets,
     grid: &TileGrid,
     key: TileKey,
     halo: f64,
     only: Option<&HashSet<u64>>,
-) -> TilePoints {
+    known: &BTreeMap<TileKey, u64>,
+) -> Result<TilePoints> {
     let region = grid.rect(key).grown(halo);
-    let core = buckets.core(key);
+    let core = buckets.core(key)?;
     let mut t = TilePoints {
         region,
         ..Default::default()
@@ -56,6 +59,6 @@ pub fn load_tile(
             t.push(p);
         }
     }
-    buckets.gather(&region, key, |p| t.push(p));
-    t
+    buckets.gather(&region, key, known, |p| t.push(p))?;
+    Ok(t)
 }

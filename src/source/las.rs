@@ -148,6 +148,26 @@ impl LasSource {
     }
 }
 
+impl LasSource {
+    /// Drops the mapped pages between `from` and `to` (rounded down to a page) from memory;
+    /// returns the new release mark. Only hints the kernel: the data stays readable.
+    fn release(&self, from: usize, to: usize) -> usize {
+        const PAGE: usize = 4096;
+        let to = to / PAGE * PAGE;
+        if to > from {
+            // SAFETY: the map is a private read-only file mapping; MADV_DONTNEED on it only
+            // drops cached pages, which the kernel re-reads from the file if touched again.
+            let _ = unsafe {
+                self.map
+                    .unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, from, to - from)
+            };
+            to
+        } else {
+            from
+        }
+    }
+}
+
 impl PointSource for LasSource {
     /// The file's path.
     fn path(&self) -> &Path {
@@ -195,6 +215,9 @@ impl PointSource for LasSource {
         let rl = self.header.record_length as usize;
         let n = self.header.point_count;
         let start = self.header.offset_to_point_data as usize;
+        // Pages already streamed are handed back to the kernel, so that resident memory does
+        // not grow with the file size (mapped pages count in RSS).
+        let mut released = 0usize;
         match &self.laz {
             None => {
                 let chunk = chunk_points.max(1);
@@ -203,6 +226,7 @@ impl PointSource for LasSource {
                     let m = (n - first).min(chunk as u64) as usize;
                     let a = start + first as usize * rl;
                     f(first, &self.map[a..a + m * rl])?;
+                    released = self.release(released, a + m * rl);
                     first += m as u64;
                 }
                 Ok(())
@@ -233,6 +257,8 @@ impl PointSource for LasSource {
                     dec.decompress_many(out).map_err(|e| Error::bad_input(&self.path, None, format!(
                         "LAZ decompression failed in points {first}..{}: {e}; the file is truncated or corrupt (the header says {n} points)", first + m as u64)))?;
                     f(first, out)?;
+                    let pos = dec.get_mut().position() as usize;
+                    released = self.release(released, pos);
                     first += m as u64;
                 }
                 Ok(())

@@ -17,16 +17,28 @@ fn expect_failure(name: &str, bytes: &[u8], code: i32, needles: &[&str]) {
     let input = dir.path().join(name);
     std::fs::write(&input, bytes).expect("write input");
     let output = dir.path().join("out.laz");
-    let out = tilecurv(&["process", input.to_str().expect("utf-8"), "-o", output.to_str().expect("utf-8")]);
+    let out = tilecurv(&[
+        "process",
+        input.to_str().expect("utf-8"),
+        "-o",
+        output.to_str().expect("utf-8"),
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(code), "{name}: {err}");
     assert!(!err.contains("panicked"), "{name} panicked: {err}");
     for n in needles {
         assert!(err.contains(n), "{name}: expected {n:?} in: {err}");
     }
-    let left: Vec<_> = std::fs::read_dir(dir.path()).expect("list").map(|e| e.expect("entry").file_name()).collect();
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .map(|e| e.expect("entry").file_name())
+        .collect();
     assert_eq!(left.len(), 1, "{name}: files left behind: {left:?}");
-    assert_eq!(std::fs::read(&input).expect("input still there"), bytes, "the input was modified");
+    assert_eq!(
+        std::fs::read(&input).expect("input still there"),
+        bytes,
+        "the input was modified"
+    );
 }
 
 fn set(b: &mut [u8], at: usize, v: &[u8]) {
@@ -36,41 +48,72 @@ fn set(b: &mut [u8], at: usize, v: &[u8]) {
 #[test]
 fn truncated_file() {
     let b = sample();
-    expect_failure("trunc.las", &b[..b.len() - 1000], 3, &["trunc.las", "truncated", "21932 points"]);
+    expect_failure(
+        "trunc.las",
+        &b[..b.len() - 1000],
+        3,
+        &["trunc.las", "truncated", "21932 points"],
+    );
 }
 
 #[test]
 fn header_count_larger_than_file() {
     let mut b = sample();
     set(&mut b, 107, &30_000u32.to_le_bytes());
-    expect_failure("count.las", &b, 3, &["count.las", "30000 points", "only 21932 whole points"]);
+    expect_failure(
+        "count.las",
+        &b,
+        3,
+        &["count.las", "30000 points", "only 21932 whole points"],
+    );
 }
 
 #[test]
 fn unknown_point_format() {
     let mut b = sample();
     b[104] = 11;
-    expect_failure("fmt.las", &b, 3, &["fmt.las", "byte offset 104", "unknown point data record format 11"]);
+    expect_failure(
+        "fmt.las",
+        &b,
+        3,
+        &[
+            "fmt.las",
+            "byte offset 104",
+            "unknown point data record format 11",
+        ],
+    );
 }
 
 #[test]
 fn zero_scale() {
     let mut b = sample();
     set(&mut b, 139, &0f64.to_le_bytes());
-    expect_failure("scale.las", &b, 3, &["scale.las", "byte offset 139", "y scale factor is 0"]);
+    expect_failure(
+        "scale.las",
+        &b,
+        3,
+        &["scale.las", "byte offset 139", "y scale factor is 0"],
+    );
 }
 
 #[test]
 fn empty_and_foreign_files() {
     expect_failure("empty.las", &[], 3, &["empty.las", "empty"]);
-    expect_failure("text.las", b"x y z\n1 2 3\n", 3, &["text.las", "not a LAS/LAZ file"]);
+    expect_failure(
+        "text.las",
+        b"x y z\n1 2 3\n",
+        3,
+        &["text.las", "not a LAS/LAZ file"],
+    );
     let b = sample();
     expect_failure("hdr.las", &b[..200], 3, &["hdr.las", "not a LAS/LAZ file"]);
 }
 
 #[test]
 fn corrupt_laz_is_an_error_not_a_panic() {
-    let Some(laz) = crate::common::shared("las/autzen_trim.laz") else { return };
+    let Some(laz) = crate::common::shared("las/autzen_trim.laz") else {
+        return;
+    };
     let mut b = std::fs::read(laz).expect("read");
     let n = b.len();
     b.truncate(n / 2);
@@ -84,8 +127,13 @@ fn refuses_to_overwrite_the_input_and_bad_usage() {
     std::fs::write(&input, sample()).expect("write");
     let p = input.to_str().expect("utf-8");
     let out = tilecurv(&["process", p, "-o", p]);
-    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("overwrite the input"));
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("overwrite an input"));
     for args in [
         vec!["process", p, "-o", "x.txt"],
         vec!["process", p, "-o", "x.las", "--tile", "5 parsecs"],
@@ -94,7 +142,12 @@ fn refuses_to_overwrite_the_input_and_bad_usage() {
         vec!["process", p, "-o", "x.las", "--orient", "down"],
     ] {
         let out = tilecurv(&args);
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     }
     assert!(!Path::new("x.las").exists());
     let missing = tilecurv(&["process", "/nonexistent/in.las", "-o", "x.las"]);

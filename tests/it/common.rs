@@ -19,23 +19,42 @@ pub fn shared(rel: &str) -> Option<PathBuf> {
         return Some(p);
     }
     if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("{} is missing and CI=true: the shared test data must be present", p.display());
+        panic!(
+            "{} is missing and CI=true: the shared test data must be present",
+            p.display()
+        );
     }
-    eprintln!("SKIPPED: {} not found (shared test data absent); this test did not run", p.display());
+    eprintln!(
+        "SKIPPED: {} not found (shared test data absent); this test did not run",
+        p.display()
+    );
     None
 }
 
 /// Runs `tilecurv` with `args`.
 pub fn tilecurv(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tilecurv")).args(args).output().expect("the tilecurv binary runs")
+    Command::new(env!("CARGO_BIN_EXE_tilecurv"))
+        .args(args)
+        .output()
+        .expect("the tilecurv binary runs")
 }
 
 /// Runs `tilecurv process` and asserts success.
 pub fn process(input: &Path, output: &Path, extra: &[&str]) {
-    let mut args = vec!["process", input.to_str().expect("utf-8 path"), "-o", output.to_str().expect("utf-8 path"), "-q"];
+    let mut args = vec![
+        "process",
+        input.to_str().expect("utf-8 path"),
+        "-o",
+        output.to_str().expect("utf-8 path"),
+        "-q",
+    ];
     args.extend_from_slice(extra);
     let out = tilecurv(&args);
-    assert!(out.status.success(), "tilecurv {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "tilecurv {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 /// All raw point records of a LAS/LAZ file, in file order.
@@ -53,21 +72,44 @@ pub fn records(path: &Path) -> (LasSource, Vec<u8>) {
 /// One named extra-bytes column of every point of a tilecurv output, as f64.
 pub fn column(path: &Path, name: &str) -> Vec<f64> {
     let (s, all) = records(path);
-    let d = s.extra.iter().find(|d| d.name == name).unwrap_or_else(|| panic!("{} has no column {name}", path.display())).clone();
+    let d = s
+        .extra
+        .iter()
+        .find(|d| d.name == name)
+        .unwrap_or_else(|| panic!("{} has no column {name}", path.display()))
+        .clone();
     let base = tilecurv::las::header::POINT_FORMAT_SIZES[s.header.point_format as usize] as usize;
-    all.chunks_exact(s.header.record_length as usize).map(|r| d.read(&r[base..]).expect("in range")).collect()
+    all.chunks_exact(s.header.record_length as usize)
+        .map(|r| d.read(&r[base..]).expect("in range"))
+        .collect()
 }
 
 /// The raw bytes of one column (for bit-identity checks).
 pub fn column_bytes(path: &Path, name: &str) -> Vec<u8> {
     let (s, all) = records(path);
-    let d = s.extra.iter().find(|d| d.name == name).unwrap_or_else(|| panic!("no column {name}")).clone();
+    let d = s
+        .extra
+        .iter()
+        .find(|d| d.name == name)
+        .unwrap_or_else(|| panic!("no column {name}"))
+        .clone();
     let base = tilecurv::las::header::POINT_FORMAT_SIZES[s.header.point_format as usize] as usize;
-    all.chunks_exact(s.header.record_length as usize).flat_map(|r| r[base + d.offset..base + d.offset + d.size].to_vec()).collect()
+    all.chunks_exact(s.header.record_length as usize)
+        .flat_map(|r| r[base + d.offset..base + d.offset + d.size].to_vec())
+        .collect()
 }
 
 /// Names of the columns tilecurv adds by default.
-pub const COLUMNS: [&str; 8] = ["NormalX", "NormalY", "NormalZ", "H", "K", "k1", "k2", "CurvatureFlags"];
+pub const COLUMNS: [&str; 8] = [
+    "NormalX",
+    "NormalY",
+    "NormalZ",
+    "H",
+    "K",
+    "k1",
+    "k2",
+    "CurvatureFlags",
+];
 
 /// Writes a minimal LAS 1.2 file, point format 0, with the given coordinate scale, and, when
 /// `normals` is given, NormalX/Y/Z as f64 extra bytes described by an extra-bytes VLR. Written
@@ -120,7 +162,10 @@ pub fn write_las(path: &Path, xyz: &[[f64; 3]], normals: Option<&[[f64; 3]]>, sc
     for (i, p) in xyz.iter().enumerate() {
         for a in 0..3 {
             let v = ((p[a] - offset[a]) / scale).round();
-            assert!(v.abs() < i32::MAX as f64, "coordinate does not fit the scale");
+            assert!(
+                v.abs() < i32::MAX as f64,
+                "coordinate does not fit the scale"
+            );
             data.extend_from_slice(&(v as i32).to_le_bytes());
         }
         data.extend_from_slice(&[0u8; 8]);

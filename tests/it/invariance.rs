@@ -5,14 +5,22 @@ use crate::common::{column_bytes, process, shared, COLUMNS};
 
 fn assert_same_columns(a: &std::path::Path, b: &std::path::Path) {
     for name in COLUMNS {
-        assert!(column_bytes(a, name) == column_bytes(b, name), "column {name} differs between {} and {}", a.display(), b.display());
+        assert!(
+            column_bytes(a, name) == column_bytes(b, name),
+            "column {name} differs between {} and {}",
+            a.display(),
+            b.display()
+        );
     }
 }
 
 #[test]
 fn tiles_threads_and_chunks_do_not_change_results() {
     let dir = tempfile::tempdir().expect("temp dir");
-    for (file, tiles) in [("las/Topography.las", ["5m", "20m", "100000m"]), ("las/autzen_trim.laz", ["5m", "20m", "100000m"])] {
+    for (file, tiles) in [
+        ("las/Topography.las", ["5m", "20m", "100000m"]),
+        ("las/autzen_trim.laz", ["5m", "20m", "100000m"]),
+    ] {
         let Some(input) = shared(file) else { continue };
         let reference = dir.path().join("ref.las");
         process(&input, &reference, &["--tile", tiles[2], "--threads", "1"]);
@@ -23,7 +31,11 @@ fn tiles_threads_and_chunks_do_not_change_results() {
                         continue;
                     }
                     let out = dir.path().join(format!("t{tile}_{threads}_{chunk}.las"));
-                    process(&input, &out, &["--tile", tile, "--threads", threads, "--chunk-size", chunk]);
+                    process(
+                        &input,
+                        &out,
+                        &["--tile", tile, "--threads", threads, "--chunk-size", chunk],
+                    );
                     assert_same_columns(&reference, &out);
                     std::fs::remove_file(&out).expect("cleanup");
                 }

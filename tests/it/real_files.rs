@@ -29,7 +29,10 @@ const FILES: [&str; 15] = [
 
 /// laspy is available, or None with a loud message (a failure under CI=true).
 fn laspy_available() -> bool {
-    let ok = Command::new("python3").args(["-c", "import laspy, lazrs"]).status().is_ok_and(|s| s.success());
+    let ok = Command::new("python3")
+        .args(["-c", "import laspy, lazrs"])
+        .status()
+        .is_ok_and(|s| s.success());
     if !ok {
         if std::env::var("CI").is_ok_and(|v| v == "true") {
             panic!("python3 with laspy and lazrs is required under CI=true (pip install 'laspy[lazrs]')");
@@ -43,29 +46,75 @@ fn check_preserved(input: &Path, output: &Path) {
     let (a, ra) = records(input);
     let (b, rb) = records(output);
     assert_eq!(a.len(), b.len(), "{}: point count", output.display());
-    let (la, lb) = (a.header.record_length as usize, b.header.record_length as usize);
+    let (la, lb) = (
+        a.header.record_length as usize,
+        b.header.record_length as usize,
+    );
     assert_eq!(lb, la + 29, "7 f32 columns + 1 flag byte are added");
     for (i, (x, y)) in ra.chunks_exact(la).zip(rb.chunks_exact(lb)).enumerate() {
-        assert_eq!(x, &y[..la], "{}: point {i} record differs", output.display());
+        assert_eq!(
+            x,
+            &y[..la],
+            "{}: point {i} record differs",
+            output.display()
+        );
     }
     let (ha, hb) = (&a.header, &b.header);
-    assert_eq!((ha.scale, ha.offset, ha.min, ha.max, ha.point_format, ha.version), (hb.scale, hb.offset, hb.min, hb.max, hb.point_format, hb.version));
+    assert_eq!(
+        (
+            ha.scale,
+            ha.offset,
+            ha.min,
+            ha.max,
+            ha.point_format,
+            ha.version
+        ),
+        (
+            hb.scale,
+            hb.offset,
+            hb.min,
+            hb.max,
+            hb.point_format,
+            hb.version
+        )
+    );
     // Every input VLR is kept in order (the LAZ and COPC ones are rebuilt or dropped; the
     // extra-bytes VLR keeps its descriptors as a prefix).
-    let keep = |v: &&tilecurv::las::vlr::Vlr| !(v.is("laszip encoded", 22204) || v.user_id == "copc");
+    let keep =
+        |v: &&tilecurv::las::vlr::Vlr| !(v.is("laszip encoded", 22204) || v.user_id == "copc");
     let va: Vec<_> = a.vlrs.iter().filter(keep).collect();
     let vb: Vec<_> = b.vlrs.iter().filter(keep).collect();
     for v in &va {
-        let w = vb.iter().find(|w| w.user_id == v.user_id && w.record_id == v.record_id).unwrap_or_else(|| panic!("VLR {} {} lost", v.user_id, v.record_id));
-        assert!(w.data.starts_with(&v.data), "VLR {} {} changed", v.user_id, v.record_id);
+        let w = vb
+            .iter()
+            .find(|w| w.user_id == v.user_id && w.record_id == v.record_id)
+            .unwrap_or_else(|| panic!("VLR {} {} lost", v.user_id, v.record_id));
+        assert!(
+            w.data.starts_with(&v.data),
+            "VLR {} {} changed",
+            v.user_id,
+            v.record_id
+        );
     }
-    assert_eq!(a.evlrs.len(), b.evlrs.len(), "EVLRs kept");
+    let ea: Vec<_> = a.evlrs.iter().map(|(_, v)| v).filter(keep).collect();
+    let eb: Vec<_> = b.evlrs.iter().map(|(_, v)| v).filter(keep).collect();
+    assert_eq!(ea, eb, "EVLRs kept");
     for name in COLUMNS {
-        assert!(b.extra.iter().any(|d| d.name == name), "column {name} missing");
+        assert!(
+            b.extra.iter().any(|d| d.name == name),
+            "column {name} missing"
+        );
     }
     for d in &a.extra {
-        let e = b.extra.iter().find(|e| e.name == d.name).unwrap_or_else(|| panic!("extra dimension {} lost", d.name));
-        assert_eq!((e.offset, e.size, e.data_type), (d.offset, d.size, d.data_type));
+        let e = b
+            .extra
+            .iter()
+            .find(|e| e.name == d.name)
+            .unwrap_or_else(|| panic!("extra dimension {} lost", d.name));
+        assert_eq!(
+            (e.offset, e.size, e.data_type),
+            (d.offset, d.size, d.data_type)
+        );
     }
 }
 
@@ -75,7 +124,9 @@ fn every_shared_las_file_round_trips() {
     let laspy = laspy_available();
     let mut checked = 0;
     for f in FILES {
-        let Some(input) = shared(&format!("las/{f}")) else { continue };
+        let Some(input) = shared(&format!("las/{f}")) else {
+            continue;
+        };
         for ext in ["las", "laz"] {
             let output = dir.path().join(format!("{f}.out.{ext}"));
             process(&input, &output, &[]);
@@ -86,7 +137,12 @@ fn every_shared_las_file_round_trips() {
                     .args([&input, &output])
                     .output()
                     .expect("python3 runs");
-                assert!(out.status.success(), "laspy: {}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+                assert!(
+                    out.status.success(),
+                    "laspy: {}{}",
+                    String::from_utf8_lossy(&out.stdout),
+                    String::from_utf8_lossy(&out.stderr)
+                );
             }
             checked += 1;
         }
@@ -96,7 +152,9 @@ fn every_shared_las_file_round_trips() {
 
 #[test]
 fn existing_extra_bytes_keep_their_values() {
-    let Some(input) = shared("las/MixedConifer.las") else { return };
+    let Some(input) = shared("las/MixedConifer.las") else {
+        return;
+    };
     let dir = tempfile::tempdir().expect("temp dir");
     let output = dir.path().join("mc.laz");
     process(&input, &output, &["--f64", "--directions"]);
@@ -112,30 +170,54 @@ fn existing_extra_bytes_keep_their_values() {
 
 #[test]
 fn copc_input_gives_a_plain_laz_without_the_stale_index() {
-    let Some(las14) = shared("las/autzen_trim_7.las") else { return };
+    let Some(las14) = shared("las/autzen_trim_7.las") else {
+        return;
+    };
     if !laspy_available() {
         return;
     }
     let dir = tempfile::tempdir().expect("temp dir");
     let copc = dir.path().join("autzen.copc.laz");
-    let made = Command::new("python3").arg(crate::common::root().join("scripts/make_copc.py")).args([&las14, &copc]).output().expect("python3 runs");
+    let made = Command::new("python3")
+        .arg(crate::common::root().join("scripts/make_copc.py"))
+        .args([&las14, &copc])
+        .output()
+        .expect("python3 runs");
     if !made.status.success() {
         let why = String::from_utf8_lossy(&made.stderr);
         if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("making the COPC test file failed (copclib from PyPI is required under CI): {why}");
+            panic!(
+                "making the COPC test file failed (copclib from PyPI is required under CI): {why}"
+            );
         }
         eprintln!("SKIPPED: COPC test: scripts/make_copc.py failed (pip install copclib): {why}");
         return;
     }
     let (src, _) = records(&copc);
-    assert!(src.vlrs.iter().any(|v| v.user_id == "copc") && src.evlrs.iter().any(|(_, v)| v.user_id == "copc"), "the test input is COPC");
+    assert!(
+        src.vlrs.iter().any(|v| v.user_id == "copc")
+            && src.evlrs.iter().any(|(_, v)| v.user_id == "copc"),
+        "the test input is COPC"
+    );
     for ext in ["laz", "las"] {
         let out = dir.path().join(format!("out.{ext}"));
         process(&copc, &out, &[]);
         check_preserved(&copc, &out);
         let (o, _) = records(&out);
-        assert!(!o.vlrs.iter().any(|v| v.user_id == "copc") && !o.evlrs.iter().any(|(_, v)| v.user_id == "copc"), "COPC records dropped");
-        let check = Command::new("python3").arg(crate::common::root().join("scripts/laspy_check.py")).args([&copc, &out]).output().expect("python3 runs");
-        assert!(check.status.success(), "laspy: {}", String::from_utf8_lossy(&check.stdout));
+        assert!(
+            !o.vlrs.iter().any(|v| v.user_id == "copc")
+                && !o.evlrs.iter().any(|(_, v)| v.user_id == "copc"),
+            "COPC records dropped"
+        );
+        let check = Command::new("python3")
+            .arg(crate::common::root().join("scripts/laspy_check.py"))
+            .args([&copc, &out])
+            .output()
+            .expect("python3 runs");
+        assert!(
+            check.status.success(),
+            "laspy: {}",
+            String::from_utf8_lossy(&check.stdout)
+        );
     }
 }

@@ -14,11 +14,26 @@ fn haystack_rock_is_plausible() {
     let flags = column(&out, "CurvatureFlags");
     let n = h.len() as f64;
     let defined = nz.iter().filter(|v| v.is_finite()).count();
-    assert!(nz.iter().filter(|v| v.is_finite()).all(|&z| z >= 0.0), "--orient up gives upward normals");
-    let finite = h.iter().zip(&k).filter(|(h, k)| h.is_finite() && k.is_finite()).count() as f64;
-    assert!(finite / n >= 0.99, "finite curvature on {:.2}% of the points", 100.0 * finite / n);
+    assert!(
+        nz.iter().filter(|v| v.is_finite()).all(|&z| z >= 0.0),
+        "--orient up gives upward normals"
+    );
+    let finite = h
+        .iter()
+        .zip(&k)
+        .filter(|(h, k)| h.is_finite() && k.is_finite())
+        .count() as f64;
+    assert!(
+        finite / n >= 0.99,
+        "finite curvature on {:.2}% of the points",
+        100.0 * finite / n
+    );
     assert!(defined as f64 / n >= 0.99);
     for (i, (&hv, &f)) in h.iter().zip(&flags).enumerate() {
-        assert_eq!(hv.is_nan(), (f as u8) & 7 != 0, "point {i}: NaN exactly when flagged undefined");
+        assert_eq!(
+            hv.is_nan(),
+            (f as u8) & 7 != 0,
+            "point {i}: NaN exactly when flagged undefined"
+        );
     }
 }

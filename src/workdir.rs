@@ -1,0 +1,270 @@
+//! The work directory of a run: where buckets and per-tile results live between passes, and the
+//! unit of resumption. Its name is derived from the output, so the same command finds it again
+//! after a crash. It holds a lock file (one run per work directory), a manifest with the
+//! fingerprint of the inputs and of every parameter that changes the result (stale work is
+//! discarded, never mixed in), and the durable-write helper used for everything in it.
+
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// File name of the manifest inside the work directory.
+const MANIFEST: &str = "manifest.txt";
+/// File name of the lock inside the work directory.
+const LOCK: &str = "lock";
+
+/// 64-bit FNV-1a: a fixed, documented hash (unlike `DefaultHasher`, which may change between
+/// Rust releases), for fingerprints that must survive a rebuild of the tool.
+#[derive(Debug, Clone, Copy)]
+pub struct Fingerprint(u64);
+
+impl Default for Fingerprint {
+    fn default() -> Self {
+        Fingerprint(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fingerprint {
+    /// Feeds bytes.
+    pub fn bytes(&mut self, b: &[u8]) -> &mut Self {
+        for &c in b {
+            self.0 ^= c as u64;
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        // A separator, so that ("ab", "c") and ("a", "bc") differ.
+        self.0 ^= 0xff;
+        self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        self
+    }
+
+    /// Feeds a string.
+    pub fn text(&mut self, s: &str) -> &mut Self {
+        self.bytes(s.as_bytes())
+    }
+
+    /// The hash value.
+    pub fn value(&self) -> u64 {
+        self.0
+    }
+}
+
+/// Writes `bytes` to `path` durably: a temporary name in the same directory, fsync, rename,
+/// fsync of the directory. Readers see the old file or the new one, never a part.
+pub fn write_durably(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = tmp_name(path);
+    let mut f = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
+    f.write_all(bytes)
+        .and_then(|_| f.sync_all())
+        .map_err(|e| Error::write(&tmp, e))?;
+    drop(f);
+    commit_file(&tmp, path)
+}
+
+/// The temporary name used for `path` while it is being written.
+pub fn tmp_name(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!("{name}.tmp"))
+}
+
+/// Renames a finished, synced temporary file over `path` and syncs the directory.
+pub fn commit_file(tmp: &Path, path: &Path) -> Result<()> {
+    std::fs::rename(tmp, path).map_err(|e| Error::write(path, e))?;
+    sync_dir(path);
+    Ok(())
+}
+
+/// Syncs the directory holding `path` so a rename in it survives a power loss. A directory that
+/// cannot be opened for syncing (some network file systems) is not an error.
+pub fn sync_dir(path: &Path) {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+}
+
+/// What was found in the work directory when a run started.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Resume {
+    /// Nothing: a fresh start.
+    Fresh,
+    /// Work from the same inputs and parameters: finished steps are reused.
+    Resumed,
+    /// Work from other inputs or parameters: it was discarded.
+    Discarded,
+}
+
+/// An open, locked work directory.
+pub struct WorkDir {
+    path: PathBuf,
+    /// What was found there.
+    pub resume: Resume,
+}
+
+/// The default work directory for an output: `.<name>.tilecurv` beside it.
+pub fn default_path(output: &Path) -> PathBuf {
+    let name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "output".into());
+    let dir = output
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."));
+    dir.join(format!(".{name}.tilecurv"))
+}
+
+/// Whether the run that wrote a lock is still alive: a live, non-zombie process that is a
+/// tilecurv (so a recycled pid does not block the directory forever).
+fn process_alive(pid: i32) -> bool {
+    if pid <= 0 {
+        return false;
+    }
+    if let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        // "pid (comm) state ...": comm may contain spaces and parentheses, so split at the last ')'.
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
+            return false;
+        };
+        let comm = &stat[open + 1..close];
+        let state = stat[close + 1..].trim_start().chars().next().unwrap_or('X');
+        return comm.starts_with("tilecurv") && !matches!(state, 'Z' | 'X');
+    }
+    // No /proc: ask the kernel whether the pid exists (signal 0 sends nothing).
+    // SAFETY: kill with signal 0 has no effect on the target.
+    unsafe {
+        libc::kill(pid, 0) == 0
+            || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+    }
+}
+
+impl WorkDir {
+    /// Opens (creating it if needed) and locks the work directory at `path`, compares its
+    /// manifest with `manifest` (whose first line is the fingerprint), and discards stale work.
+    pub fn open(path: &Path, manifest: &str) -> Result<Self> {
+        std::fs::create_dir_all(path).map_err(|e| Error::write(path, e))?;
+        let lock = path.join(LOCK);
+        match OpenOptions::new().write(true).create_new(true).open(&lock) {
+            Ok(mut f) => {
+                let _ = writeln!(f, "{}", std::process::id());
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                let holder = std::fs::read_to_string(&lock)
+                    .ok()
+                    .and_then(|s| s.trim().parse::<i32>().ok())
+                    .unwrap_or(0);
+                if process_alive(holder) && holder != std::process::id() as i32 {
+                    return Err(Error::Usage(format!(
+                        "{}: another tilecurv run (process {holder}) is using this work directory; wait for it, or use --work-dir",
+                        path.display()
+                    )));
+                }
+                // A stale lock from a run that died: take it over.
+                std::fs::write(&lock, format!("{}\n", std::process::id()))
+                    .map_err(|e| Error::write(&lock, e))?;
+            }
+            Err(e) => return Err(Error::write(&lock, e)),
+        }
+        let mpath = path.join(MANIFEST);
+        let resume = match std::fs::read_to_string(&mpath) {
+            Ok(old) if old == manifest => Resume::Resumed,
+            Ok(_) => {
+                clear_except_lock(path)?;
+                Resume::Discarded
+            }
+            Err(_) => {
+                clear_except_lock(path)?;
+                Resume::Fresh
+            }
+        };
+        if resume != Resume::Resumed {
+            write_durably(&mpath, manifest.as_bytes())?;
+        }
+        Ok(WorkDir {
+            path: path.to_path_buf(),
+            resume,
+        })
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Removes the whole directory (after a successful run).
+    pub fn remove(self) {
+        let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
+impl Drop for WorkDir {
+    /// Releases the lock; the work stays for a resumed run unless `remove` was called.
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(self.path.join(LOCK));
+    }
+}
+
+fn clear_except_lock(dir: &Path) -> Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::write(dir, e))?;
+    for e in entries.flatten() {
+        if e.file_name() == LOCK {
+            continue;
+        }
+        let p = e.path();
+        let r = if p.is_dir() {
+            std::fs::remove_dir_all(&p)
+        } else {
+            std::fs::remove_file(&p)
+        };
+        r.map_err(|e| Error::write(&p, e))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fnv1a_reference_values() {
+        // FNV-1a 64 of "a" is 0xaf63dc4c8601ec8c; ours adds a separator byte after each field.
+        let mut f = Fingerprint::default();
+        f.0 ^= b'a' as u64;
+        f.0 = f.0.wrapping_mul(0x0000_0100_0000_01b3);
+        assert_eq!(f.0, 0xaf63_dc4c_8601_ec8c);
+        let mut a = Fingerprint::default();
+        let mut b = Fingerprint::default();
+        assert_ne!(
+            a.text("ab").text("c").value(),
+            b.text("a").text("bc").value()
+        );
+    }
+
+    #[test]
+    fn stale_work_is_discarded_and_matching_work_resumed() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let wd = dir.path().join("w");
+        let w = WorkDir::open(&wd, "fp 1\n").expect("open");
+        assert_eq!(w.resume, Resume::Fresh);
+        std::fs::write(wd.join("tile_0_0.res"), b"x").expect("write");
+        drop(w);
+        let w = WorkDir::open(&wd, "fp 1\n").expect("open");
+        assert_eq!(w.resume, Resume::Resumed);
+        assert!(wd.join("tile_0_0.res").exists());
+        drop(w);
+        let w = WorkDir::open(&wd, "fp 2\n").expect("open");
+        assert_eq!(w.resume, Resume::Discarded);
+        assert!(!wd.join("tile_0_0.res").exists());
+        drop(w);
+        // A lock naming a live process that is not tilecurv (pid 1: a recycled pid) is stale.
+        std::fs::write(wd.join(LOCK), "1\n").expect("write lock");
+        let w = WorkDir::open(&wd, "fp 2\n").expect("open");
+        w.remove();
+        assert!(!wd.exists());
+    }
+}
