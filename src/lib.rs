@@ -27,4 +27,5 @@ pub mod progress;
 pub mod results;
 pub mod sink;
 pub mod source;
+pub mod synthetic;
 pub mod tile;
