@@ -27,5 +27,6 @@ pub mod progress;
 pub mod results;
 pub mod sink;
 pub mod source;
+pub mod synthetic;
 pub mod tile;
 pub mod workdir;

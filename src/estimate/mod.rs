@@ -4,7 +4,15 @@
 //! as in algorithms.md section 0.1: k1 <= k2, positive where the surface bends away from its
 //! normal (a sphere with outward normals has H = 1/r), in 1/(coordinate unit).
 
+pub mod apss;
+pub mod aso;
 pub mod cnc;
+pub mod cnc_delaunay;
+pub mod jet;
+pub mod local;
+pub mod rng;
+pub mod vcm;
+pub mod wme;
 
 use crate::geometry::V3;
 
@@ -108,6 +116,8 @@ pub struct EstimatorParams {
     pub seed: u64,
     /// Number of random triangles L for CNC-Uniform.
     pub triangles: usize,
+    /// Polynomial degree of the osculating jet (2 to 4).
+    pub jet_degree: usize,
 }
 
 impl Default for EstimatorParams {
@@ -115,17 +125,41 @@ impl Default for EstimatorParams {
         EstimatorParams {
             seed: 0,
             triangles: 100,
+            jet_degree: 2,
         }
     }
 }
 
 /// Command-line names of the available estimators, default first.
-pub const NAMES: &[&str] = &["cnc-avg-hexagram"];
+pub const NAMES: &[&str] = &[
+    "cnc-avg-hexagram",
+    "cnc-hexagram",
+    "cnc-uniform",
+    "cnc-delaunay",
+    "apss",
+    "aso",
+    "wme",
+    "jet",
+    "vcm",
+];
 
 /// Builds the estimator called `name`, or None if there is no such estimator.
-pub fn build(name: &str, _params: &EstimatorParams) -> Option<Box<dyn Estimator>> {
+pub fn build(name: &str, params: &EstimatorParams) -> Option<Box<dyn Estimator>> {
     match name {
         "cnc-avg-hexagram" => Some(Box::new(cnc::CncAvgHexagram)),
+        "cnc-hexagram" => Some(Box::new(cnc::CncHexagram)),
+        "cnc-uniform" => Some(Box::new(cnc::CncUniform {
+            triangles: params.triangles,
+            seed: params.seed,
+        })),
+        "cnc-delaunay" => Some(Box::new(cnc_delaunay::CncDelaunay)),
+        "apss" => Some(Box::new(apss::Apss)),
+        "aso" => Some(Box::new(aso::Aso)),
+        "wme" => Some(Box::new(wme::Wme)),
+        "vcm" => Some(Box::new(vcm::Vcm)),
+        "jet" => Some(Box::new(jet::Jet {
+            degree: params.jet_degree,
+        })),
         _ => None,
     }
 }

@@ -1,6 +1,7 @@
 //! Integration tests: the `tilecurv` binary on real and synthetic files.
 
 mod bad_input;
+mod closed_form;
 mod common;
 mod invariance;
 mod real_files;
