@@ -23,6 +23,7 @@ pub mod neighbors;
 pub mod normals;
 pub mod pipeline;
 pub mod plan;
+pub mod ply_out;
 pub mod progress;
 pub mod results;
 pub mod sink;

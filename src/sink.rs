@@ -1,11 +1,15 @@
 //! Writing points. A [`PointSink`] receives each input record followed by its new column bytes,
 //! in file order, and makes the output appear atomically on `finish`. [`create_sink`] picks the
-//! writer from the output's extension.
+//! writer from the output's extension; [`temp_path`] and [`commit`] are the atomic-output steps
+//! every writer shares.
 
-use std::path::Path;
+use std::fs::File;
+use std::path::{Path, PathBuf};
 
 use crate::columns::ColumnSet;
 use crate::error::{Error, Result};
+use crate::las_out::LasWriter;
+use crate::ply_out::PlyWriter;
 use crate::source::PointSource;
 
 /// An output being written: records in, a complete file (or nothing) out.
@@ -18,26 +22,87 @@ pub trait PointSink {
     fn abandon(self: Box<Self>);
 }
 
-/// Checks that the output path has a supported extension before any work is done.
-pub fn check_output_path(output: &Path) -> Result<()> {
-    crate::las_out::output_is_laz(output).map(|_| ())
+/// The output formats, chosen by the output's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// `.las`
+    Las,
+    /// `.laz`
+    Laz,
+    /// `.ply`: binary little endian, or ASCII when the name ends in `.ascii.ply`.
+    Ply {
+        /// Whether to write ASCII PLY.
+        ascii: bool,
+    },
 }
 
-/// Creates the writer for `output` (.las or .laz).
+/// The format an output path asks for.
+pub fn output_format(output: &Path) -> Result<OutputFormat> {
+    let name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let ext = name.rsplit_once('.').map(|(_, e)| e);
+    match ext {
+        Some("las") => Ok(OutputFormat::Las),
+        Some("laz") => Ok(OutputFormat::Laz),
+        Some("ply") => Ok(OutputFormat::Ply {
+            ascii: name.ends_with(".ascii.ply"),
+        }),
+        _ => Err(Error::Usage(format!(
+            "{}: the output must end in .las, .laz or .ply (.ascii.ply for ASCII PLY): the extension chooses the format",
+            output.display()
+        ))),
+    }
+}
+
+/// Checks that the output path has a supported extension before any work is done.
+pub fn check_output_path(output: &Path) -> Result<()> {
+    output_format(output).map(|_| ())
+}
+
+/// Creates the writer for `output`: LAS/LAZ (a LAS input's records kept byte for byte, any
+/// other input converted) or PLY.
 pub fn create_sink(
     source: &dyn PointSource,
     output: &Path,
     cols: &ColumnSet,
     provenance: &str,
 ) -> Result<Box<dyn PointSink>> {
-    crate::las_out::output_is_laz(output)?;
-    let las = source.as_las().ok_or_else(|| {
-        Error::Usage(format!(
-            "{}: LAS/LAZ output needs a LAS/LAZ input",
-            output.display()
-        ))
-    })?;
-    Ok(Box::new(crate::las_out::LasWriter::create(
-        las, output, cols, provenance,
-    )?))
+    Ok(match output_format(output)? {
+        OutputFormat::Las | OutputFormat::Laz => match source.as_las() {
+            Some(las) => Box::new(LasWriter::create(las, output, cols, provenance)?),
+            None => Box::new(LasWriter::create_converted(
+                source, output, cols, provenance,
+            )?),
+        },
+        OutputFormat::Ply { ascii } => {
+            Box::new(PlyWriter::create(source, output, cols, provenance, ascii)?)
+        }
+    })
+}
+
+/// The temporary file an output is written to: hidden, beside the output (the same file
+/// system, so that the final rename is atomic), named after the output and this process.
+pub fn temp_path(output: &Path) -> PathBuf {
+    let file_name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "output".into());
+    output.with_file_name(format!(".{file_name}.tilecurv-{}.tmp", std::process::id()))
+}
+
+/// Makes a completely written temporary file the output: syncs it, renames it over the output
+/// and syncs the directory so that the rename is durable.
+pub fn commit(file: File, tmp: &Path, output: &Path) -> Result<()> {
+    file.sync_all().map_err(|e| Error::write(tmp, e))?;
+    drop(file);
+    std::fs::rename(tmp, output).map_err(|e| Error::write(output, e))?;
+    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        // A directory that cannot be opened for sync is not fatal.
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    Ok(())
 }

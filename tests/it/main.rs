@@ -3,6 +3,7 @@
 mod bad_input;
 mod closed_form;
 mod common;
+mod formats;
 mod invariance;
 mod real_files;
 mod sample;
