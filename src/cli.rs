@@ -262,8 +262,8 @@ pub fn main_with_args() -> i32 {
             };
             match crate::pipeline::run(&cfg, &reporter, &CANCEL) {
                 Ok(s) => {
-                    if !quiet {
-                        if !cfg.dry_run {
+                    if !quiet && !cfg.dry_run {
+                        {
                             eprintln!(
                                 "done: {} points in {:.1} s ({:.0} points/s), {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
                                 s.points,

@@ -42,7 +42,7 @@ pub fn pca_normal(xyz: &[V3], nbrs: &[u32]) -> Option<V3> {
     c[2][0] = c[0][2];
     c[2][1] = c[1][2];
     let (vals, vecs) = sym3_eigen(&c);
-    if !(vals[2] > 0.0) || vals[1] <= 1e-12 * vals[2] {
+    if vals[2].is_nan() || vals[2] <= 0.0 || vals[1] <= 1e-12 * vals[2] {
         return None;
     }
     normalize(vecs[0])

@@ -32,7 +32,8 @@ impl CncMeasures {
         let eik = sub(xk, xi);
         let mu0 = 0.5 * dot(ubar, cross(eij, eik));
         let size2 = dot(eij, eij) + dot(eik, eik);
-        if !(mu0.abs() > 1e-12 * size2) {
+        // Also skips a NaN area (non-finite input).
+        if mu0.is_nan() || mu0.abs() <= 1e-12 * size2 {
             return;
         }
         let s = mu0.signum();
@@ -48,9 +49,9 @@ impl CncMeasures {
         let q = cross(eik, ubar);
         let a = sub(uk, ui);
         let b = sub(uj, ui);
-        for r in 0..3 {
-            for c in 0..3 {
-                self.am[r][c] += s * 0.5 * (p[r] * a[c] - q[r] * b[c]);
+        for (row, (pr, qr)) in self.am.iter_mut().zip(p.iter().zip(&q)) {
+            for (m, (ac, bc)) in row.iter_mut().zip(a.iter().zip(&b)) {
+                *m += s * 0.5 * (pr * ac - qr * bc);
             }
         }
         self.a0 += s * mu0;
@@ -63,18 +64,15 @@ impl CncMeasures {
     /// sym(AM)/A0 onto the tangent plane of the query normal `n` (section 1.6: the C -> infinity
     /// limit of the paper's rule; k = -eigenvalue). `extra_flags` are or-ed into the result.
     pub fn finish(&self, n: V3, extra_flags: u8) -> Curvature {
-        if self.triangles == 0 || !(self.a0 > 0.0) {
+        if self.triangles == 0 || self.a0.is_nan() || self.a0 <= 0.0 {
             return Curvature::undefined(flags::DEGENERATE | extra_flags);
         }
         let (e1, e2) = tangent_basis(n);
+        // a^T sym(AM) b / A0, with sym(AM) = (AM + AM^T)/2.
         let sym = |a: V3, b: V3| {
-            let mut acc = 0.0;
-            for r in 0..3 {
-                for c in 0..3 {
-                    acc += a[r] * 0.5 * (self.am[r][c] + self.am[c][r]) * b[c];
-                }
-            }
-            acc / self.a0
+            let am_b = self.am.map(|row| dot(row, b));
+            let am_a = self.am.map(|row| dot(row, a));
+            0.5 * (dot(a, am_b) + dot(b, am_a)) / self.a0
         };
         // Minus the tangent block, so that its eigenvalues are the curvatures k1 <= k2.
         let s = [[-sym(e1, e1), -sym(e1, e2)], [-sym(e2, e1), -sym(e2, e2)]];

@@ -120,7 +120,7 @@ impl Descriptor {
 /// payload is malformed; unknown reserved type codes are sized by their options byte as the
 /// specification says for type 0.
 pub fn parse(data: &[u8]) -> Result<Vec<Descriptor>, String> {
-    if data.len() % DESCRIPTOR_SIZE != 0 {
+    if !data.len().is_multiple_of(DESCRIPTOR_SIZE) {
         return Err(format!(
             "extra-bytes VLR is {} bytes, not a multiple of {DESCRIPTOR_SIZE}",
             data.len()

@@ -14,7 +14,10 @@
 
 use std::path::Path;
 
-use tilecurv::synthetic::{sample_height_field, sample_sphere, sample_torus, torus_curvature_at, HeightField, Paraboloid, Saddle, TrueCurvature};
+use tilecurv::synthetic::{
+    sample_height_field, sample_sphere, sample_torus, torus_curvature_at, HeightField, Paraboloid,
+    Saddle, TrueCurvature,
+};
 
 use crate::common::{column, process, write_las};
 
@@ -34,14 +37,24 @@ fn rms_errors(out: &Path, truth: impl Fn(usize) -> Option<TrueCurvature>) -> Rms
     let mut n = 0;
     for i in 0..flags.len() {
         let Some(t) = truth(i) else { continue };
-        assert_eq!(flags[i] as u8 & 7, 0, "point {i} undefined on a smooth surface");
+        assert_eq!(
+            flags[i] as u8 & 7,
+            0,
+            "point {i} undefined on a smooth surface"
+        );
         for (s, (c, want)) in sum.iter_mut().zip(cols.iter().zip([t.h, t.k, t.k1, t.k2])) {
             *s += (c[i] - want).powi(2);
         }
         n += 1;
     }
     let r = sum.map(|s| (s / n as f64).sqrt());
-    Rms { h: r[0], k: r[1], k1: r[2], k2: r[3], n }
+    Rms {
+        h: r[0],
+        k: r[1],
+        k1: r[2],
+        k2: r[3],
+        n,
+    }
 }
 
 #[test]
@@ -58,7 +71,10 @@ fn sphere_with_file_normals() {
         let out = dir.path().join(format!("sphere_{tile}.las"));
         process(&input, &out, &["-k", "30", "--tile", tile]);
         let flags = column(&out, "CurvatureFlags");
-        assert!(flags.iter().all(|&f| f as u8 & 32 != 0), "the file's normals are used (flag 32)");
+        assert!(
+            flags.iter().all(|&f| f as u8 & 32 != 0),
+            "the file's normals are used (flag 32)"
+        );
         let e = rms_errors(&out, |_| Some(tilecurv::synthetic::sphere_curvature(r)));
         eprintln!("sphere r=2 N=20000 K=30 file normals, tile {tile}: RMS H {:.2e} K {:.2e} k1 {:.2e} k2 {:.2e}", e.h, e.k, e.k1, e.k2);
         // Section 7: sphere r = 2, K = 30 gives H = 0.5000 and k in 0.4993..0.5005 on exact
@@ -66,7 +82,12 @@ fn sphere_with_file_normals() {
         // than section 7's), so allow 2e-3 relative on H and K, 4e-3 on k1, k2.
         assert!(e.h < 2e-3 / r, "RMS H {}", e.h);
         assert!(e.k < 2e-3 / (r * r) * 2.0, "RMS K {}", e.k);
-        assert!(e.k1 < 4e-3 / r && e.k2 < 4e-3 / r, "RMS k1 {} k2 {}", e.k1, e.k2);
+        assert!(
+            e.k1 < 4e-3 / r && e.k2 < 4e-3 / r,
+            "RMS k1 {} k2 {}",
+            e.k1,
+            e.k2
+        );
     }
 }
 
@@ -83,7 +104,9 @@ fn torus_with_pca_normals() {
     write_las(&input, &cloud.positions, None, 1e-6);
     let out = dir.path().join("torus.laz");
     process(&input, &out, &["-k", "50", "--tile", "3"]);
-    let e = rms_errors(&out, |i| (cloud.normals[i][2] > 0.35).then(|| torus_curvature_at(big_r, r, cloud.positions[i])));
+    let e = rms_errors(&out, |i| {
+        (cloud.normals[i][2] > 0.35).then(|| torus_curvature_at(big_r, r, cloud.positions[i]))
+    });
     eprintln!("torus R=6 r=2 N=20000 K=50 PCA normals, {} points with n_z > 0.35: RMS H {:.2e} K {:.2e} k1 {:.2e} k2 {:.2e}", e.n, e.h, e.k, e.k1, e.k2);
     assert!(e.n > 5000);
     // Section 7 with exact normals: RMS H 0.0020, K 0.0017, k 0.0037 (upper ends), plus the PCA
@@ -98,22 +121,50 @@ fn torus_with_pca_normals() {
     write_las(&with_normals, &cloud.positions, Some(&cloud.normals), 1e-6);
     let out_n = dir.path().join("torus_n.laz");
     process(&with_normals, &out_n, &["-k", "50", "--tile", "3"]);
-    let x = rms_errors(&out_n, |i| (cloud.normals[i][2] > 0.35).then(|| torus_curvature_at(big_r, r, cloud.positions[i])));
-    eprintln!("torus exact normals: RMS H {:.2e} K {:.2e} k1 {:.2e} k2 {:.2e}", x.h, x.k, x.k1, x.k2);
-    assert!(x.h < 1.25 * 0.0020 && x.k < 1.25 * 0.0017, "RMS H {} K {}", x.h, x.k);
-    assert!(x.k1 < 1.25 * 0.0037 && x.k2 < 1.25 * 0.0037, "RMS k1 {} k2 {}", x.k1, x.k2);
+    let x = rms_errors(&out_n, |i| {
+        (cloud.normals[i][2] > 0.35).then(|| torus_curvature_at(big_r, r, cloud.positions[i]))
+    });
+    eprintln!(
+        "torus exact normals: RMS H {:.2e} K {:.2e} k1 {:.2e} k2 {:.2e}",
+        x.h, x.k, x.k1, x.k2
+    );
+    assert!(
+        x.h < 1.25 * 0.0020 && x.k < 1.25 * 0.0017,
+        "RMS H {} K {}",
+        x.h,
+        x.k
+    );
+    assert!(
+        x.k1 < 1.25 * 0.0037 && x.k2 < 1.25 * 0.0037,
+        "RMS k1 {} k2 {}",
+        x.k1,
+        x.k2
+    );
     assert!(e.k < 0.0017 + pca, "RMS K {}", e.k);
-    assert!(e.k1 < 0.0037 + 2.0 * pca && e.k2 < 0.0037 + 2.0 * pca, "RMS k1 {} k2 {}", e.k1, e.k2);
+    assert!(
+        e.k1 < 0.0037 + 2.0 * pca && e.k2 < 0.0037 + 2.0 * pca,
+        "RMS k1 {} k2 {}",
+        e.k1,
+        e.k2
+    );
 }
 
-fn height_field_case(name: &str, f: &impl HeightField, expect: impl Fn(f64, f64) -> TrueCurvature) -> Rms {
+fn height_field_case(
+    name: &str,
+    f: &impl HeightField,
+    expect: impl Fn(f64, f64) -> TrueCurvature,
+) -> Rms {
     // A 4 x 4 unit patch sampled on a jittered 160 x 160 grid (spacing 0.025), moved to UTM-sized
     // coordinates (x + 500000, y + 5000000, z + 100) to exercise the f64 centring. PCA normals,
     // oriented up (the true normal of a height field). Errors away from the patch border (one-
     // sided neighbourhoods there): |x|, |y| < 1.5.
     let dir = tempfile::tempdir().expect("temp dir");
     let cloud = sample_height_field(f, 2.0, 160, 1.0, 5);
-    let shifted: Vec<[f64; 3]> = cloud.positions.iter().map(|p| [p[0] + 500_000.0, p[1] + 5_000_000.0, p[2] + 100.0]).collect();
+    let shifted: Vec<[f64; 3]> = cloud
+        .positions
+        .iter()
+        .map(|p| [p[0] + 500_000.0, p[1] + 5_000_000.0, p[2] + 100.0])
+        .collect();
     let input = dir.path().join(format!("{name}.las"));
     write_las(&input, &shifted, None, 1e-6);
     let out = dir.path().join(format!("{name}.las.out.las"));
@@ -139,6 +190,12 @@ fn saddle_and_paraboloid_height_fields() {
     for (e, name) in [(&saddle, "saddle"), (&bowl, "paraboloid")] {
         assert!(e.n > 10_000, "{name}: {} points", e.n);
         assert!(e.h < pca, "{name}: RMS H {}", e.h);
-        assert!(e.k1 < 2.0 * pca && e.k2 < 2.0 * pca && e.k < 2.0 * pca, "{name}: RMS K {} k1 {} k2 {}", e.k, e.k1, e.k2);
+        assert!(
+            e.k1 < 2.0 * pca && e.k2 < 2.0 * pca && e.k < 2.0 * pca,
+            "{name}: RMS K {} k1 {} k2 {}",
+            e.k,
+            e.k1,
+            e.k2
+        );
     }
 }
