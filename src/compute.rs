@@ -74,7 +74,7 @@ fn knn_of(
 
 /// Computes the core points of `t`. `scene` is the x/y extent of the whole cloud.
 pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> TileOutcome {
-    let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids) else {
+    let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids, p.k) else {
         return TileOutcome::default();
     };
     let n = t.xyz.len();

@@ -30,6 +30,41 @@ impl TilePoints {
         self.ids.push(p.id);
         self.file_normals.push(p.normal);
     }
+
+    /// Reorders the points to follow a Z-order (Morton) curve over x/y, core and context
+    /// separately, so that consecutive queries touch the same part of the k-d tree (cache
+    /// locality). Results do not depend on the order: neighbours are ranked by (distance, id).
+    fn morton_order(&mut self) {
+        let r = self.region;
+        let (w, h) = (
+            (r.max[0] - r.min[0]).max(f64::MIN_POSITIVE),
+            (r.max[1] - r.min[1]).max(f64::MIN_POSITIVE),
+        );
+        let key = |p: &V3| {
+            let q = |v: f64, lo: f64, ext: f64| (((v - lo) / ext).clamp(0.0, 1.0) * 65535.0) as u32;
+            interleave(q(p[0], r.min[0], w)) | (interleave(q(p[1], r.min[1], h)) << 1)
+        };
+        for range in [0..self.n_core, self.n_core..self.xyz.len()] {
+            let mut order: Vec<(u32, usize)> =
+                range.clone().map(|i| (key(&self.xyz[i]), i)).collect();
+            order.sort_unstable();
+            let xyz: Vec<V3> = order.iter().map(|&(_, i)| self.xyz[i]).collect();
+            let ids: Vec<u64> = order.iter().map(|&(_, i)| self.ids[i]).collect();
+            let nrm: Vec<Option<V3>> = order.iter().map(|&(_, i)| self.file_normals[i]).collect();
+            self.xyz[range.clone()].copy_from_slice(&xyz);
+            self.ids[range.clone()].copy_from_slice(&ids);
+            self.file_normals[range].copy_from_slice(&nrm);
+        }
+    }
+}
+
+/// Spreads the 16 low bits of `v` to the even bit positions.
+fn interleave(v: u32) -> u32 {
+    let mut x = v & 0xffff;
+    x = (x | (x << 8)) & 0x00ff_00ff;
+    x = (x | (x << 4)) & 0x0f0f_0f0f;
+    x = (x | (x << 2)) & 0x3333_3333;
+    (x | (x << 1)) & 0x5555_5555
 }
 
 /// Loads tile `key` with a halo of width `halo`. With `only`, just those core points (by id)
@@ -60,5 +95,6 @@ pub fn load_tile(
         }
     }
     buckets.gather(&region, key, known, |p| t.push(p))?;
+    t.morton_order();
     Ok(t)
 }
