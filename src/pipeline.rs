@@ -24,7 +24,7 @@ use crate::plan::{plan, ScanStats, TileGrid, TileKey, TilePlan, TileSpec};
 use crate::progress::Reporter;
 use crate::results::{is_complete, tile_path, Merger};
 use crate::source::PointSource;
-use crate::tile::{load_tile, TilePoints};
+use crate::tile::{load_tile, split_parts, Part, TilePoints};
 use crate::workdir::{Fingerprint, Resume, WorkDir};
 
 /// What a finished run reports.
@@ -383,20 +383,23 @@ fn run_in(
     } else {
         budget * 2 / 5
     };
-    let biggest = todo
+    // Two parts in flight (one computing, one loaded); a tile whose core and halo would need
+    // more than its share is computed in quadtree parts. Only the raw bucket of a tile (about
+    // POINT_BYTES per point) must fit whole.
+    let in_flight = 2;
+    let per_part = tile_budget / in_flight;
+    let max_core_points = (per_part / tile_point_bytes(cfg.k) * 2 / 3).max(1024);
+    if let Some(t) = todo
         .iter()
-        .map(|t| estimated_loaded_points(t, tile_size))
-        .max()
-        .unwrap_or(0);
-    let tile_bytes = biggest * tile_point_bytes(cfg.k);
-    if tile_bytes > tile_budget {
+        .find(|t| t.count as usize * POINT_BYTES > per_part)
+    {
         reporter.warn(&format!(
-            "the densest tile holds about {biggest} points ({} MiB to compute), more than the {} MiB the budget leaves for tiles; memory may exceed --memory: use a smaller --tile or a larger --memory",
-            tile_bytes >> 20,
-            tile_budget >> 20
+            "tile {:?} holds {} points, whose raw bucket alone exceeds the {} MiB the budget leaves per tile; memory may exceed --memory: use a smaller --tile or a larger --memory",
+            t.key,
+            t.count,
+            per_part >> 20
         ));
     }
-    let in_flight = (tile_budget / tile_bytes.max(1)).clamp(1, 3);
 
     // Pass 2: the tiles not done yet.
     reporter.phase("curvature", stats.count);
@@ -411,6 +414,7 @@ fn run_in(
         params,
         pool,
         in_flight,
+        max_core_points,
         reporter,
         cancel,
     );
@@ -529,22 +533,45 @@ fn run_tiles(
     params: &ComputeParams<'_>,
     pool: &rayon::ThreadPool,
     in_flight: usize,
+    max_core_points: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<(u64, u64)> {
+    type Loaded = (TileSpec, Part, usize, TilePoints);
     std::thread::scope(|s| -> Result<(u64, u64)> {
-        let (tile_tx, tile_rx) = bounded::<Result<(TileSpec, TilePoints)>>(in_flight - 1);
+        let (tile_tx, tile_rx) = bounded::<Result<Loaded>>(in_flight - 1);
         let (res_tx, res_rx) = bounded::<(TileKey, Vec<PointResult>)>(1);
         let loader = s.spawn(move || {
+            let load = |spec: &TileSpec,
+                        tx: &crossbeam_channel::Sender<Result<Loaded>>|
+             -> Result<bool> {
+                // A tile too dense for the budget is computed in quadtree parts.
+                let whole = Part::whole(grid.rect(spec.key));
+                let parts = if (spec.count as usize) <= max_core_points {
+                    vec![whole]
+                } else {
+                    split_parts(&buckets.core(spec.key)?, whole, max_core_points)
+                };
+                let n = parts.len();
+                for part in parts {
+                    let t = load_tile(buckets, spec.key, &part, spec.halo, None, &tplan.per_tile)?;
+                    if tx.send(Ok((spec.clone(), part, n, t))).is_err() {
+                        return Ok(false);
+                    }
+                }
+                Ok(true)
+            };
             for spec in todo {
                 if cancel.load(Ordering::Relaxed) {
                     return;
                 }
-                let t = load_tile(buckets, grid, spec.key, spec.halo, None, &tplan.per_tile)
-                    .map(|t| (spec.clone(), t));
-                let failed = t.is_err();
-                if tile_tx.send(t).is_err() || failed {
-                    return; // the compute stage stopped, or the error is on its way
+                match load(spec, &tile_tx) {
+                    Ok(true) => {}
+                    Ok(false) => return, // the compute stage stopped
+                    Err(e) => {
+                        let _ = tile_tx.send(Err(e));
+                        return;
+                    }
                 }
             }
         });
@@ -559,20 +586,23 @@ fn run_tiles(
         let mut undefined = 0u64;
         let mut retried = 0u64;
         let mut failure = None;
+        // Parts of one tile arrive one after the other; their results are written together.
+        let mut gathered: Vec<PointResult> = Vec::new();
+        let mut parts_seen = 0usize;
         for item in tile_rx.iter() {
             if cancel.load(Ordering::Relaxed) {
                 failure = Some(Error::Interrupted);
                 break;
             }
-            let (spec, tile) = match item {
+            let (spec, part, n_parts, tile) = match item {
                 Ok(v) => v,
                 Err(e) => {
                     failure = Some(e);
                     break;
                 }
             };
-            let r = pool.install(|| compute_verified(buckets, grid, tplan, &spec, tile, params));
-            let (results, again) = match r {
+            let r = pool.install(|| compute_verified(buckets, tplan, &spec, &part, tile, params));
+            let (mut results, again) = match r {
                 Ok(v) => v,
                 Err(e) => {
                     failure = Some(e);
@@ -585,7 +615,16 @@ fn run_tiles(
                 .filter(|r| r.curvature.flags & flags::UNDEFINED != 0)
                 .count() as u64;
             reporter.advance(results.len() as u64);
-            if res_tx.send((spec.key, results)).is_err() {
+            gathered.append(&mut results);
+            parts_seen += 1;
+            if parts_seen < n_parts {
+                continue;
+            }
+            parts_seen = 0;
+            if res_tx
+                .send((spec.key, std::mem::take(&mut gathered)))
+                .is_err()
+            {
                 break; // the writer failed; its error is reported below
             }
         }
@@ -611,9 +650,9 @@ fn run_tiles(
 /// where every neighbourhood is complete). Returns the results and the number of retried points.
 fn compute_verified(
     buckets: &Buckets,
-    grid: &TileGrid,
     tplan: &TilePlan,
     spec: &TileSpec,
+    part: &Part,
     tile: TilePoints,
     params: &ComputeParams<'_>,
 ) -> Result<(Vec<PointResult>, u64)> {
@@ -627,7 +666,7 @@ fn compute_verified(
         retried += retry.len() as u64;
         halo *= 2.0;
         let only: HashSet<u64> = retry.iter().copied().collect();
-        let t = load_tile(buckets, grid, spec.key, halo, Some(&only), &tplan.per_tile)?;
+        let t = load_tile(buckets, spec.key, part, halo, Some(&only), &tplan.per_tile)?;
         let covers = t.region.covers(&tplan.scene);
         let mut o = compute_tile(&t, &tplan.scene, params);
         results.append(&mut o.done);
@@ -679,11 +718,12 @@ fn dry_run(
     let mut us_per_point = f64::NAN;
     let mut halo_factor = 1.0;
     if let Some(spec) = sample {
-        let t = load_tile(&buckets, &grid, spec.key, spec.halo, None, &tplan.per_tile)?;
+        let whole = Part::whole(grid.rect(spec.key));
+        let t = load_tile(&buckets, spec.key, &whole, spec.halo, None, &tplan.per_tile)?;
         halo_factor = t.xyz.len() as f64 / t.n_core.max(1) as f64;
         let t1 = Instant::now();
         let (r, _) =
-            pool.install(|| compute_verified(&buckets, &grid, &tplan, &spec, t, params))?;
+            pool.install(|| compute_verified(&buckets, &tplan, &spec, &whole, t, params))?;
         us_per_point = t1.elapsed().as_secs_f64() * 1e6 / r.len().max(1) as f64;
     }
     let n = stats.count as f64;

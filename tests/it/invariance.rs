@@ -1,5 +1,6 @@
 //! Tiling is invisible: every output column is bit-identical whatever the tile size, the thread
-//! count or the read chunk size, on real files (LAS and LAZ input).
+//! count, the read chunk size or the memory budget (spilled buckets, quadtree parts), on real
+//! files (LAS and LAZ input).
 
 use crate::common::{column_bytes, process, shared, COLUMNS};
 
@@ -41,5 +42,10 @@ fn tiles_threads_and_chunks_do_not_change_results() {
                 }
             }
         }
+        // A small memory budget: buckets spill to disk and the one big tile is computed in
+        // quadtree parts.
+        let out = dir.path().join("parts.las");
+        process(&input, &out, &["--tile", tiles[2], "--memory", "64M"]);
+        assert_same_columns(&reference, &out);
     }
 }
