@@ -21,6 +21,7 @@ pub mod las;
 pub mod las_out;
 pub mod neighbors;
 pub mod normals;
+pub mod orient;
 pub mod pipeline;
 pub mod plan;
 pub mod ply_out;

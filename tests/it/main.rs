@@ -5,5 +5,6 @@ mod closed_form;
 mod common;
 mod formats;
 mod invariance;
+mod orientation;
 mod real_files;
 mod sample;
