@@ -147,6 +147,7 @@ impl Buckets {
             max: [f64::NEG_INFINITY; 3],
             ..Default::default()
         };
+        let mut centroid = crate::orient::Centroid::default();
         for input in inputs {
             let rl = input.source.record_length();
             input
@@ -160,6 +161,7 @@ impl Buckets {
                             stats.min[a] = stats.min[a].min(p.xyz[a]);
                             stats.max[a] = stats.max[a].max(p.xyz[a]);
                         }
+                        centroid.add(p.xyz);
                         let key = grid.key(p.xyz[0], p.xyz[1]);
                         *stats.per_tile.entry(key).or_default() += 1;
                         mem.entry(key).or_default().push(p);
@@ -187,6 +189,7 @@ impl Buckets {
                     progress(n as u64)
                 })?;
         }
+        stats.centroid = centroid.get().unwrap_or_default();
         if spilled {
             // Everything goes to disk, so that the buckets can be reused by a resumed run.
             let mut keys: Vec<TileKey> = mem.keys().copied().collect();
@@ -319,8 +322,11 @@ impl Buckets {
 
 fn stats_text(s: &ScanStats) -> String {
     let mut t = format!(
-        "count {}\nmin {} {} {}\nmax {} {} {}\n",
+        "count {}\ncentroid {} {} {}\nmin {} {} {}\nmax {} {} {}\n",
         s.count,
+        s.centroid[0].to_bits(),
+        s.centroid[1].to_bits(),
+        s.centroid[2].to_bits(),
         s.min[0].to_bits(),
         s.min[1].to_bits(),
         s.min[2].to_bits(),
@@ -340,6 +346,13 @@ fn parse_stats(text: &str) -> Option<ScanStats> {
         let w: Vec<&str> = line.split_whitespace().collect();
         match w.as_slice() {
             ["count", n] => s.count = n.parse().ok()?,
+            ["centroid", a, b, c] => {
+                s.centroid = [
+                    f64::from_bits(a.parse().ok()?),
+                    f64::from_bits(b.parse().ok()?),
+                    f64::from_bits(c.parse().ok()?),
+                ];
+            }
             ["min", a, b, c] => {
                 s.min = [
                     f64::from_bits(a.parse().ok()?),
@@ -390,14 +403,15 @@ mod tests {
             count: 3,
             min: [0.1, -0.3, 5.0],
             max: [9.0, 8.0, 7.0],
+            centroid: [1.0, 2.5, -3.0],
             ..Default::default()
         };
         s.per_tile.insert((-3, 4), 2);
         s.per_tile.insert((0, 0), 1);
         let t = parse_stats(&stats_text(&s)).expect("parse");
         assert_eq!(
-            (t.count, t.min, t.max, t.per_tile),
-            (s.count, s.min, s.max, s.per_tile)
+            (t.count, t.min, t.max, t.centroid, t.per_tile),
+            (s.count, s.min, s.max, s.centroid, s.per_tile)
         );
     }
 }

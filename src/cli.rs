@@ -6,10 +6,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 
+use crate::config::OrientMode;
 use crate::config::{ColumnType, Config, Length};
 use crate::error::{Error, ExitClass};
 use crate::estimate::EstimatorParams;
-use crate::normals::Orientation;
 use crate::progress::TermReporter;
 
 /// Exit codes, as documented in `--help` and the README.
@@ -107,11 +107,12 @@ struct ProcessArgs {
     #[arg(long, default_value = "cnc-avg-hexagram")]
     estimator: String,
 
-    /// Orientation of PCA normals: `up` (towards +Z, aerial scans) or `viewpoint:X,Y,Z` (towards a
+    /// Orientation of PCA normals: `up` (towards +Z, aerial scans), `outward` (away from the
+    /// centroid of all points: closed, star-shaped objects) or `viewpoint:X,Y,Z` (towards a
     /// terrestrial scanner, in file coordinates). Normals stored in the file (NormalX/Y/Z) are
     /// used as they are unless --ignore-file-normals.
     #[arg(long, default_value = "up", value_parser = parse_orientation)]
-    orient: Orientation,
+    orient: OrientMode,
 
     /// Estimate normals by PCA even when the input has NormalX/Y/Z.
     #[arg(long)]
@@ -153,9 +154,12 @@ struct ProcessArgs {
     quiet: bool,
 }
 
-fn parse_orientation(s: &str) -> Result<Orientation, String> {
+fn parse_orientation(s: &str) -> Result<OrientMode, String> {
     if s == "up" {
-        return Ok(Orientation::Up);
+        return Ok(OrientMode::Up);
+    }
+    if s == "outward" {
+        return Ok(OrientMode::Outward);
     }
     if let Some(rest) = s.strip_prefix("viewpoint:") {
         let v: Vec<f64> = rest
@@ -165,14 +169,16 @@ fn parse_orientation(s: &str) -> Result<Orientation, String> {
             .map_err(|_| format!("{s:?}: expected viewpoint:X,Y,Z with three numbers"))?;
         if let [x, y, z] = v[..] {
             if [x, y, z].iter().all(|c| c.is_finite()) {
-                return Ok(Orientation::Viewpoint([x, y, z]));
+                return Ok(OrientMode::Viewpoint([x, y, z]));
             }
         }
         return Err(format!(
             "{s:?}: expected viewpoint:X,Y,Z with three finite numbers"
         ));
     }
-    Err(format!("{s:?}: expected `up` or `viewpoint:X,Y,Z`"))
+    Err(format!(
+        "{s:?}: expected `up`, `outward` or `viewpoint:X,Y,Z`"
+    ))
 }
 
 impl ProcessArgs {

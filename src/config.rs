@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use crate::crs::LengthUnit;
 use crate::error::{Error, Result};
 use crate::estimate::EstimatorParams;
+use crate::geometry::V3;
 use crate::normals::Orientation;
 
 /// A length with its unit as the user wrote it (`50m`, `150ft`, `150usft`, or a bare number in
@@ -125,6 +126,38 @@ pub fn default_memory() -> u64 {
     (total / 2).clamp(256 << 20, 4 << 30)
 }
 
+/// How PCA normals are oriented, as the user asked for it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OrientMode {
+    /// Towards +Z (aerial scans).
+    Up,
+    /// Towards a scanner position, in file coordinates (terrestrial scans).
+    Viewpoint(V3),
+    /// Away from the centroid of all points (closed, star-shaped objects).
+    Outward,
+}
+
+impl OrientMode {
+    /// The orientation rule once the cloud's centroid is known.
+    pub fn resolve(self, centroid: V3) -> Orientation {
+        match self {
+            OrientMode::Up => Orientation::Up,
+            OrientMode::Viewpoint(v) => Orientation::Viewpoint(v),
+            OrientMode::Outward => Orientation::Outward(centroid),
+        }
+    }
+}
+
+impl std::fmt::Display for OrientMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            OrientMode::Up => write!(f, "up"),
+            OrientMode::Viewpoint(v) => write!(f, "viewpoint:{},{},{}", v[0], v[1], v[2]),
+            OrientMode::Outward => write!(f, "outward"),
+        }
+    }
+}
+
 /// Storage type of the new columns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColumnType {
@@ -156,7 +189,7 @@ pub struct Config {
     /// Estimator parameters.
     pub params: EstimatorParams,
     /// Orientation of PCA normals (file normals are used as they are when present).
-    pub orientation: Orientation,
+    pub orientation: OrientMode,
     /// Ignore NormalX/Y/Z stored in the input and estimate normals.
     pub ignore_file_normals: bool,
     /// Also write the principal directions.

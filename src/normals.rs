@@ -10,6 +10,8 @@ pub enum Orientation {
     Up,
     /// Towards a scanner position (terrestrial LIDAR), in file coordinates.
     Viewpoint(V3),
+    /// Away from a centre (the cloud's centroid): closed, star-shaped objects.
+    Outward(V3),
 }
 
 /// The PCA normal at `xyz[nbrs[0]]` from the points `nbrs` (local indices): the eigenvector of
@@ -55,6 +57,7 @@ pub fn orient(n: V3, p: V3, how: Orientation) -> V3 {
     let reference = match how {
         Orientation::Up => [0.0, 0.0, 1.0],
         Orientation::Viewpoint(v) => sub(v, p),
+        Orientation::Outward(c) => sub(p, c),
     };
     let s = dot(n, reference);
     let flip = if s != 0.0 {

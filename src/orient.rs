@@ -76,9 +76,7 @@ use crate::normals::{orient, Orientation};
 /// oriented by the sign of its first non-zero component, the tie rule of
 /// [`crate::normals::orient`].
 pub fn orient_outward(n: V3, p: V3, centre: V3) -> V3 {
-    // `orient` makes <n, viewpoint - position> >= 0; with the roles swapped that is
-    // <n, p - centre> >= 0, with the same tie rule.
-    orient(n, centre, Orientation::Viewpoint(p))
+    orient(n, p, Orientation::Outward(centre))
 }
 
 /// A running centroid of many points (streaming, mergeable), accumulated relative to the first
@@ -695,7 +693,7 @@ mod tests {
 
     fn knn_lists(xyz: &[V3], k: usize) -> Vec<Vec<u32>> {
         let ids: Vec<u64> = (0..xyz.len() as u64).collect();
-        let index = NeighbourIndex::build(xyz, &ids).expect("index");
+        let index = NeighbourIndex::build(xyz, &ids, k).expect("index");
         let mut s = KnnScratch::default();
         (0..xyz.len())
             .map(|i| {

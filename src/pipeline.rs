@@ -19,7 +19,6 @@ use crate::config::{ColumnType, Config};
 use crate::crs::UnitSource;
 use crate::error::{Error, Result};
 use crate::estimate::flags;
-use crate::normals::Orientation;
 use crate::plan::{plan, ScanStats, TileGrid, TileKey, TilePlan, TileSpec};
 use crate::progress::Reporter;
 use crate::results::{is_complete, tile_path, Merger};
@@ -184,17 +183,26 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
     };
     let tile_size = cfg.tile.in_file_units(metres);
     let with_normals = sources.iter().filter(|s| s.has_normals()).count();
-    if with_normals != 0 && with_normals != sources.len() {
+    if with_normals != 0 && with_normals != sources.len() && !cfg.ignore_file_normals {
         return Err(Error::Usage(
-            "some inputs have NormalX/Y/Z and others do not; process them separately".into(),
+            "some inputs have normals and others do not; process them separately (or use --ignore-file-normals)".into(),
         ));
     }
-    let file_normals = with_normals > 0;
-    if file_normals && cfg.ignore_file_normals {
-        return Err(Error::Usage(format!(
-            "{}: --ignore-file-normals: the input already has NormalX/Y/Z columns, and the estimated normals cannot be written under the same names; drop the option to use the file's normals",
-            sources[0].path().display()
-        )));
+    let file_normals = with_normals > 0 && !cfg.ignore_file_normals;
+    // Estimated normals are written as NormalX/Y/Z: an input that already has columns of those
+    // names (a LAS file's normals) cannot take them.
+    let named_normals = |s: &dyn PointSource| {
+        s.properties()
+            .iter()
+            .any(|p| p.name.eq_ignore_ascii_case("NormalX"))
+    };
+    if cfg.ignore_file_normals {
+        if let Some(s) = sources.iter().find(|s| named_normals(s.as_ref())) {
+            return Err(Error::Usage(format!(
+                "{}: --ignore-file-normals: the input already has NormalX/Y/Z columns, and the estimated normals cannot be written under the same names; drop the option to use the file's normals",
+                s.path().display()
+            )));
+        }
     }
     let total: u64 = sources.iter().map(|s| s.len()).sum();
     for s in &sources {
@@ -227,13 +235,14 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
         .ok_or_else(|| Error::Usage(format!("unknown estimator {:?}", cfg.estimator)))?;
     let cols = ColumnSet {
         ty: cfg.column_type,
-        normals: !file_normals,
+        normals: !file_normals && !sources.iter().any(|s| named_normals(s.as_ref())),
         directions: cfg.directions,
         unit: unit_name.clone(),
     };
+    // The orientation is resolved against the cloud's centroid once the scan has seen it.
     let params = ComputeParams {
         k: cfg.k,
-        orientation: cfg.orientation,
+        orientation: cfg.orientation.resolve([0.0; 3]),
         use_file_normals: file_normals,
         estimator: estimator.as_ref(),
     };
@@ -348,6 +357,10 @@ fn run_in(
             reporter,
             cancel,
         )?,
+    };
+    let params = &ComputeParams {
+        orientation: cfg.orientation.resolve(stats.centroid),
+        ..*params
     };
     let tplan = plan(&stats, tile_size, cfg.k);
     let results_dir = work.path().join("results");
@@ -710,6 +723,10 @@ fn dry_run(
         cancel,
     )?;
     let scan_s = t0.elapsed().as_secs_f64();
+    let params = &ComputeParams {
+        orientation: cfg.orientation.resolve(stats.centroid),
+        ..*params
+    };
     let tplan = plan(&stats, grid.size, cfg.k);
     let mut counts: Vec<u64> = tplan.tiles.iter().map(|t| t.count).collect();
     counts.sort_unstable();
@@ -760,10 +777,7 @@ fn dry_run(
 
 /// The provenance text stored in the output: tool version, estimator and every parameter.
 fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> String {
-    let orientation = match cfg.orientation {
-        Orientation::Up => "up".to_string(),
-        Orientation::Viewpoint(v) => format!("viewpoint:{},{},{}", v[0], v[1], v[2]),
-    };
+    let orientation = cfg.orientation.to_string();
     let inputs: Vec<String> = cfg
         .inputs
         .iter()

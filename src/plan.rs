@@ -96,6 +96,8 @@ pub struct ScanStats {
     pub max: [f64; 3],
     /// Points per tile core.
     pub per_tile: BTreeMap<TileKey, u64>,
+    /// Centroid of all points.
+    pub centroid: [f64; 3],
 }
 
 /// One tile of the plan.

@@ -81,7 +81,7 @@ fn vertex_normals(path: &Path, xyz: &[V3]) -> Vec<Option<V3>> {
 }
 
 fn knn_lists(xyz: &[V3], ids: &[u64]) -> Vec<Vec<u32>> {
-    let index = NeighbourIndex::build(xyz, ids).expect("index");
+    let index = NeighbourIndex::build(xyz, ids, K).expect("index");
     let mut s = KnnScratch::default();
     (0..xyz.len())
         .map(|i| {
