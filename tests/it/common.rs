@@ -1,5 +1,6 @@
 //! Shared helpers of the integration tests: locating shared data, running the binary, reading
-//! outputs back with the library's own LAS reader, and writing synthetic LAS inputs.
+//! outputs back with the library's own LAS reader or with an independent PLY parser, and writing
+//! synthetic LAS inputs.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -176,4 +177,116 @@ pub fn write_las(path: &Path, xyz: &[[f64; 3]], normals: Option<&[[f64; 3]]>, sc
         }
     }
     std::fs::write(path, data).expect("write synthetic LAS");
+}
+
+/// A table of points: property names, their PLY types (`double` for untyped text), and rows.
+pub struct Table {
+    pub format: String,
+    pub names: Vec<String>,
+    pub types: Vec<String>,
+    pub rows: Vec<Vec<f64>>,
+}
+
+impl Table {
+    pub fn col(&self, name: &str) -> Vec<f64> {
+        let j = self
+            .names
+            .iter()
+            .position(|n| n == name)
+            .unwrap_or_else(|| panic!("no property {name} in {:?}", self.names));
+        self.rows.iter().map(|r| r[j]).collect()
+    }
+}
+
+pub fn type_size(ty: &str) -> usize {
+    match ty {
+        "char" | "uchar" | "int8" | "uint8" => 1,
+        "short" | "ushort" | "int16" | "uint16" => 2,
+        "int" | "uint" | "float" | "int32" | "uint32" | "float32" => 4,
+        "double" | "float64" => 8,
+        other => panic!("unknown PLY type {other}"),
+    }
+}
+
+pub fn decode(ty: &str, b: &[u8], big: bool) -> f64 {
+    let mut a = [0u8; 8];
+    let n = type_size(ty);
+    a[..n].copy_from_slice(&b[..n]);
+    if big {
+        a[..n].reverse();
+    }
+    match ty {
+        "char" | "int8" => a[0] as i8 as f64,
+        "uchar" | "uint8" => a[0] as f64,
+        "short" | "int16" => i16::from_le_bytes([a[0], a[1]]) as f64,
+        "ushort" | "uint16" => u16::from_le_bytes([a[0], a[1]]) as f64,
+        "int" | "int32" => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        "uint" | "uint32" => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        "float" | "float32" => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        _ => f64::from_le_bytes(a),
+    }
+}
+
+/// Reads the vertex element of a PLY file (any encoding; elements before it must be fixed-size).
+pub fn read_ply(path: &Path) -> Table {
+    let data = std::fs::read(path).expect("read PLY");
+    let end = data
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .expect("end_header")
+        + 11;
+    let header = String::from_utf8_lossy(&data[..end]).into_owned();
+    let (mut format, mut names, mut types) = (String::new(), Vec::new(), Vec::new());
+    let mut elements: Vec<(String, usize, usize)> = Vec::new(); // name, count, record size
+    for line in header.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        match w.as_slice() {
+            ["format", f, _] => format = f.to_string(),
+            ["element", name, n] => elements.push((name.to_string(), n.parse().expect("count"), 0)),
+            ["property", ty, name] => {
+                let e = elements.last_mut().expect("element");
+                e.2 += type_size(ty);
+                if e.0 == "vertex" {
+                    names.push(name.to_string());
+                    types.push(ty.to_string());
+                }
+            }
+            _ => {}
+        }
+    }
+    let vi = elements
+        .iter()
+        .position(|e| e.0 == "vertex")
+        .expect("vertex element");
+    let n = elements[vi].1;
+    let mut rows = Vec::with_capacity(n);
+    if format == "ascii" {
+        let skip: usize = elements[..vi].iter().map(|e| e.1).sum();
+        let body = String::from_utf8_lossy(&data[end..]).into_owned();
+        for line in body.lines().skip(skip).take(n) {
+            rows.push(
+                line.split_whitespace()
+                    .map(|t| t.parse::<f64>().expect("number"))
+                    .collect(),
+            );
+        }
+    } else {
+        let big = format == "binary_big_endian";
+        let mut at = end + elements[..vi].iter().map(|e| e.1 * e.2).sum::<usize>();
+        for _ in 0..n {
+            let mut row = Vec::new();
+            for ty in &types {
+                row.push(decode(ty, &data[at..], big));
+                at += type_size(ty);
+            }
+            rows.push(row);
+        }
+    }
+    assert_eq!(rows.len(), n, "{}: vertex count", path.display());
+    Table {
+        format,
+        names,
+        types,
+        rows,
+    }
 }

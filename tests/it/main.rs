@@ -7,4 +7,5 @@ mod formats;
 mod invariance;
 mod orientation;
 mod real_files;
+mod reference;
 mod sample;
