@@ -51,6 +51,59 @@ enum Command {
     /// Compute normals and curvature for every point and write them as new extra-bytes columns.
     #[command(after_help = EXIT_HELP)]
     Process(ProcessArgs),
+    /// Write a synthetic point cloud with its exact curvature, for testing and benchmarking.
+    Generate(GenerateArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct GenerateArgs {
+    #[command(subcommand)]
+    kind: GenerateKind,
+}
+
+#[derive(Subcommand, Debug)]
+enum GenerateKind {
+    /// Aerial-LIDAR-like terrain (hills and hollows on a gentle slope) of any size, with the
+    /// closed-form curvature of every point. Streams: memory does not grow with --points.
+    ///
+    /// Units: coordinates in metres (WGS 84 / UTM zone 10N, EPSG:32610, declared by GeoTIFF
+    /// keys with metre units; scale 0.001 m) around easting 500000, northing 4100000. Points
+    /// are LAS 1.2 point format 1 (GPS time), ordered by flight strip (north-south, 250 m wide)
+    /// and scan row, classified as ground. Extra-bytes columns (f64): TrueH (mean curvature,
+    /// 1/m), TrueK (Gaussian curvature, 1/m^2), Truek1 <= Truek2 (principal curvatures, 1/m),
+    /// with the upward normal: positive on hilltops, the sign of `process`'s H, K, k1, k2.
+    #[command(after_help = EXIT_HELP)]
+    Terrain(TerrainArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct TerrainArgs {
+    /// Output file; the extension chooses the format: .las or .laz. Written to a temporary file
+    /// and renamed when complete.
+    #[arg(short, long)]
+    output: PathBuf,
+
+    /// Number of points: 2000000, 2M, 500k, 1e6 (k, M, G = powers of ten). At most 4294967295
+    /// (LAS 1.2).
+    #[arg(long, value_parser = crate::generate::parse_count)]
+    points: u64,
+
+    /// Points per square metre; the terrain covers a square of points/density square metres.
+    #[arg(long, default_value_t = 10.0)]
+    density: f64,
+
+    /// Seed of the terrain and of the sampling: the same options give the same file.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+
+    /// Standard deviation of Gaussian noise added to z, in metres. The truth columns stay those
+    /// of the noise-free surface at the point's x, y.
+    #[arg(long, default_value_t = 0.0)]
+    noise: f64,
+
+    /// Print nothing on success.
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -255,6 +308,41 @@ pub fn main_with_args() -> i32 {
         }
     };
     match cli.command {
+        Command::Generate(GenerateArgs {
+            kind: GenerateKind::Terrain(args),
+        }) => {
+            let opts = crate::generate::TerrainOptions {
+                points: args.points,
+                density_per_m2: args.density,
+                seed: args.seed,
+                noise_m: args.noise,
+            };
+            install_signal_handlers();
+            match crate::generate::generate_terrain(&opts, &args.output, &CANCEL) {
+                Ok(s) => {
+                    if !args.quiet {
+                        eprintln!(
+                            "done: {} points over {:.0} m x {:.0} m ({} strips, {} bumps, z {:.1}..{:.1} m) in {:.1} s ({:.0} points/s) -> {}",
+                            s.points,
+                            s.side_m,
+                            s.side_m,
+                            s.strips,
+                            s.bumps,
+                            s.z_range_m[0],
+                            s.z_range_m[1],
+                            s.seconds,
+                            s.points as f64 / s.seconds.max(1e-9),
+                            args.output.display()
+                        );
+                    }
+                    exit::OK
+                }
+                Err(e) => {
+                    eprintln!("tilecurv: error: {e}");
+                    exit_code(&e)
+                }
+            }
+        }
         Command::Process(args) => {
             let quiet = args.quiet;
             let cfg = args.into_config();

@@ -16,6 +16,7 @@ pub mod config;
 pub mod crs;
 pub mod error;
 pub mod estimate;
+pub mod generate;
 pub mod geometry;
 pub mod las;
 pub mod las_out;

@@ -6,6 +6,7 @@ mod common;
 mod formats;
 mod invariance;
 mod orientation;
+mod outofcore;
 mod real_files;
 mod reference;
 mod sample;

@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# tilecurv against pgeof, end to end on the same generated terrain (file in, file out).
+#
+# usage: scripts/bench_pgeof.sh [SIZE...]      (default: 2M 20M; sizes as `generate --points`)
+#
+# For each size: generates a LAS terrain with `tilecurv generate terrain` (cached under
+# $TILECURV_BENCH_DIR, default /tmp/tilecurv-bench), then times
+#   tilecurv process IN -o OUT.las -k $K --threads $THREADS          (release build)
+#   python3 scripts/bench_pgeof.py IN OUT.las $K                      (laspy read, pgeof.knn_search
+#                                                                      + compute_features on all
+#                                                                      cores, laspy write)
+# with /usr/bin/time -v, and prints points/s of each, their ratio, and the peak RSS of each.
+# The input is read once before each run so that both start from a warm page cache.
+#
+# Environment: TILECURV_BENCH_DIR (cache and outputs), K (default 30), THREADS (tilecurv
+# threads, default 2), SEED (terrain seed, default 1), KEEP_OUTPUTS=1 to keep the outputs.
+# The two tools do not compute the same thing: tilecurv writes normals and H, K, k1, k2 (CNC
+# estimator); pgeof writes PCA eigenvalue features and a normal. Both do a k-NN search and a
+# per-point PCA over K neighbours, which dominate pgeof's time.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+BENCH_DIR=${TILECURV_BENCH_DIR:-/tmp/tilecurv-bench}
+K=${K:-30}
+THREADS=${THREADS:-2}
+SEED=${SEED:-1}
+SIZES=("$@")
+[ ${#SIZES[@]} -gt 0 ] || SIZES=(2M 20M)
+
+command -v /usr/bin/time >/dev/null || { echo "bench_pgeof.sh: /usr/bin/time is required (apt-get install time)" >&2; exit 2; }
+mkdir -p "$BENCH_DIR"
+python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore \
+    'pgeof==0.3.4' 'laspy[lazrs]==2.7.0' 'numpy<3'
+cargo build --release --locked --quiet
+BIN=$PWD/target/release/tilecurv
+
+# seconds and peak RSS (MiB) from a /usr/bin/time -v report
+wall_s() { awk -F': ' '/Elapsed \(wall clock\)/ { n = split($2, p, ":"); s = 0; for (i = 1; i <= n; i++) s = s * 60 + p[i]; print s }' "$1"; }
+rss_mib() { awk -F': ' '/Maximum resident set size/ { printf "%.0f", $2 / 1024 }' "$1"; }
+
+printf '\n%-6s %-9s %10s %12s %10s\n' size tool "time (s)" "points/s" "RSS (MiB)" >"$BENCH_DIR/summary.txt"
+for size in "${SIZES[@]}"; do
+    in="$BENCH_DIR/terrain_${size}_seed${SEED}.las"
+    if [ ! -f "$in" ]; then
+        "$BIN" generate terrain -o "$in" --points "$size" --seed "$SEED"
+    fi
+    points=$(od -An -t u4 -j 107 -N 4 "$in" | tr -d ' ') # LAS 1.2 point count
+
+    cat "$in" >/dev/null
+    out_tc="$BENCH_DIR/out_tilecurv_$size.las"
+    rm -f "$out_tc"
+    /usr/bin/time -v -o "$BENCH_DIR/time_tilecurv_$size.txt" \
+        "$BIN" process "$in" -o "$out_tc" -k "$K" --threads "$THREADS" -q
+    t_tc=$(wall_s "$BENCH_DIR/time_tilecurv_$size.txt")
+    m_tc=$(rss_mib "$BENCH_DIR/time_tilecurv_$size.txt")
+
+    cat "$in" >/dev/null
+    out_pg="$BENCH_DIR/out_pgeof_$size.las"
+    rm -f "$out_pg"
+    /usr/bin/time -v -o "$BENCH_DIR/time_pgeof_$size.txt" \
+        python3 scripts/bench_pgeof.py "$in" "$out_pg" "$K"
+    t_pg=$(wall_s "$BENCH_DIR/time_pgeof_$size.txt")
+    m_pg=$(rss_mib "$BENCH_DIR/time_pgeof_$size.txt")
+
+    [ "${KEEP_OUTPUTS:-0}" = 1 ] || rm -f "$out_tc" "$out_pg"
+    awk -v size="$size" -v n="$points" -v ttc="$t_tc" -v tpg="$t_pg" -v mtc="$m_tc" -v mpg="$m_pg" \
+        -v threads="$THREADS" -v cores="$(nproc)" 'BEGIN {
+        printf "%-6s %-9s %10.1f %12.0f %10d   (--threads %d)\n", size, "tilecurv", ttc, n / ttc, mtc, threads
+        printf "%-6s %-9s %10.1f %12.0f %10d   (all %d cores)\n", size, "pgeof", tpg, n / tpg, mpg, cores
+        printf "%-6s ratio tilecurv/pgeof points/s: %.2f; RSS: %.2f\n", size, tpg / ttc, mtc / mpg
+    }' >>"$BENCH_DIR/summary.txt"
+done
+cat "$BENCH_DIR/summary.txt"
