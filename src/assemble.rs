@@ -13,13 +13,15 @@ use crate::sink::{create_sink, PointSink};
 use crate::source::PointSource;
 
 /// Writes `output` from `source` (whose point 0 has global id `first_id`) and the next results
-/// of `merger`. The output appears only if every point was matched with its result; otherwise
-/// the temporary file is removed.
+/// of `merger`; with `flips` (`--orient propagate`), the results of the patches marked there
+/// (per tile of the plan) are written with the opposite orientation. The output appears only if
+/// every point was matched with its result; otherwise the temporary file is removed.
 #[allow(clippy::too_many_arguments)]
 pub fn assemble(
     source: &dyn PointSource,
     first_id: u64,
     merger: &mut Merger,
+    flips: Option<&[Vec<bool>]>,
     cols: &ColumnSet,
     output: &Path,
     provenance: &str,
@@ -33,6 +35,8 @@ pub fn assemble(
         source,
         first_id,
         merger,
+        flips,
+        cols,
         chunk_points,
         reporter,
         cancel,
@@ -45,11 +49,14 @@ pub fn assemble(
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn merge_into(
     writer: &mut dyn PointSink,
     source: &dyn PointSource,
     first_id: u64,
     merger: &mut Merger,
+    flips: Option<&[Vec<bool>]>,
+    cols: &ColumnSet,
     chunk_points: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
@@ -73,8 +80,21 @@ fn merge_into(
                 }
                 None => return Err(Error::Internal(format!("no result for point {id}"))),
             }
+            // The record is the point's global patch (u64) then its columns.
+            let (patch, columns) = rec.split_at_mut(8);
+            let patch = u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8]));
+            if let Some(f) = flips.filter(|_| patch != u64::MAX) {
+                let (tile, local) = ((patch >> 32) as usize, (patch & 0xffff_ffff) as usize);
+                if f.get(tile)
+                    .and_then(|t| t.get(local))
+                    .copied()
+                    .unwrap_or(false)
+                {
+                    cols.flip_encoded(columns);
+                }
+            }
             out.extend_from_slice(r);
-            out.extend_from_slice(&rec);
+            out.extend_from_slice(columns);
         }
         writer.write_points(&out)?;
         reporter.advance((records.len() / rl) as u64);

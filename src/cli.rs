@@ -161,7 +161,9 @@ struct ProcessArgs {
     estimator: String,
 
     /// Orientation of PCA normals: `up` (towards +Z, aerial scans), `outward` (away from the
-    /// centroid of all points: closed, star-shaped objects) or `viewpoint:X,Y,Z` (towards a
+    /// centroid of all points: closed, star-shaped objects), `propagate` (consistent over the
+    /// neighbour graph, seeded outward: objects like the Stanford bunny; tile by tile, with
+    /// the tiles' signs reconciled through their halos) or `viewpoint:X,Y,Z` (towards a
     /// terrestrial scanner, in file coordinates). Normals stored in the file (NormalX/Y/Z) are
     /// used as they are unless --ignore-file-normals.
     #[arg(long, default_value = "up", value_parser = parse_orientation)]
@@ -214,6 +216,9 @@ fn parse_orientation(s: &str) -> Result<OrientMode, String> {
     if s == "outward" {
         return Ok(OrientMode::Outward);
     }
+    if s == "propagate" {
+        return Ok(OrientMode::Propagate);
+    }
     if let Some(rest) = s.strip_prefix("viewpoint:") {
         let v: Vec<f64> = rest
             .split(',')
@@ -230,7 +235,7 @@ fn parse_orientation(s: &str) -> Result<OrientMode, String> {
         ));
     }
     Err(format!(
-        "{s:?}: expected `up`, `outward` or `viewpoint:X,Y,Z`"
+        "{s:?}: expected `up`, `outward`, `propagate` or `viewpoint:X,Y,Z`"
     ))
 }
 

@@ -81,6 +81,51 @@ impl ColumnSet {
         self.float_names().len() * w + 1
     }
 
+    /// Rewrites encoded columns as they read with the opposite normal (a propagation patch
+    /// whose sign the cross-tile step reversed): normal and H negated, `k1' = -k2`,
+    /// `k2' = -k1`, directions swapped, K and the flags unchanged (orient::flip_curvature).
+    /// Negation and swaps are exact in f32 and f64, so this equals encoding the flipped values.
+    pub fn flip_encoded(&self, rec: &mut [u8]) {
+        let w = match self.ty {
+            ColumnType::F32 => 4,
+            ColumnType::F64 => 8,
+        };
+        let get = |rec: &[u8], i: usize| match self.ty {
+            ColumnType::F32 => {
+                f32::from_le_bytes(rec[i * w..i * w + 4].try_into().unwrap_or([0; 4])) as f64
+            }
+            ColumnType::F64 => {
+                f64::from_le_bytes(rec[i * w..i * w + 8].try_into().unwrap_or([0; 8]))
+            }
+        };
+        let names = self.float_names();
+        let mut v: Vec<f64> = (0..names.len()).map(|i| get(rec, i)).collect();
+        let at = |n: &str| names.iter().position(|x| *x == n);
+        for n in ["NormalX", "NormalY", "NormalZ", "H"] {
+            if let Some(i) = at(n).filter(|&i| !v[i].is_nan()) {
+                v[i] = -v[i];
+            }
+        }
+        if let (Some(a), Some(b)) = (at("k1"), at("k2")) {
+            // NaN (undefined) stays the NaN it was.
+            let neg = |x: f64| if x.is_nan() { x } else { -x };
+            let (k1, k2) = (v[a], v[b]);
+            v[a] = neg(k2);
+            v[b] = neg(k1);
+        }
+        for c in ["x", "y", "z"] {
+            if let (Some(a), Some(b)) = (at(&format!("d1{c}")), at(&format!("d2{c}"))) {
+                v.swap(a, b);
+            }
+        }
+        for (i, x) in v.into_iter().enumerate() {
+            match self.ty {
+                ColumnType::F32 => rec[i * w..i * w + 4].copy_from_slice(&(x as f32).to_le_bytes()),
+                ColumnType::F64 => rec[i * w..i * w + 8].copy_from_slice(&x.to_le_bytes()),
+            }
+        }
+    }
+
     /// Appends the encoded columns of one point to `out` (little-endian, record order).
     pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
         let c = &r.curvature;

@@ -22,6 +22,34 @@ pub struct ComputeParams<'e> {
     pub use_file_normals: bool,
     /// The estimator.
     pub estimator: &'e dyn Estimator,
+    /// `--orient propagate`: the cloud's centroid, from which each tile's propagation is seeded
+    /// (orient.rs); None for the per-point rules.
+    pub propagate: Option<V3>,
+}
+
+/// Which loaded points of a pass another pass also orients (for the cross-tile votes of
+/// `--orient propagate`).
+#[derive(Debug, Clone, Copy)]
+pub enum Shared {
+    /// Every loaded point (a wider-halo retry: its points were oriented by earlier passes).
+    All,
+    /// Points within `width` of the edge of the core rectangle `rect`, inside or outside it.
+    Band {
+        /// The core (tile or part) rectangle.
+        rect: Rect,
+        /// The initial halo width.
+        width: f64,
+    },
+}
+
+impl Shared {
+    fn contains(&self, p: V3) -> bool {
+        match *self {
+            Shared::All => true,
+            // Outside the inner rectangle (empty when the band is wider than half the core).
+            Shared::Band { rect, width } => !rect.grown(-width).contains(p[0], p[1]),
+        }
+    }
 }
 
 /// One point's result.
@@ -33,7 +61,13 @@ pub struct PointResult {
     pub normal: V3,
     /// Curvature and flags.
     pub curvature: Curvature,
+    /// With `--orient propagate`: the point's patch, numbered within its tile (see orient.rs);
+    /// [`NO_PATCH`] otherwise.
+    pub patch: u32,
 }
+
+/// The patch of a point outside any propagation patch.
+pub const NO_PATCH: u32 = u32::MAX;
 
 /// The outcome of one pass over a loaded tile.
 #[derive(Debug, Default)]
@@ -43,6 +77,8 @@ pub struct TileOutcome {
     /// Ids of core points whose neighbourhood (or a neighbour's) may reach past the loaded
     /// region: to be recomputed with a wider halo.
     pub retry: Vec<u64>,
+    /// With `--orient propagate`: the pass's patch anchors and shared normals.
+    pub orientation: Option<crate::orient::TileOrientation>,
 }
 
 struct Knn {
@@ -73,7 +109,15 @@ fn knn_of(
 }
 
 /// Computes the core points of `t`. `scene` is the x/y extent of the whole cloud.
-pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> TileOutcome {
+/// With `--orient propagate`, the pass's patches are numbered from `first_patch` and `shared`
+/// says which of its points other passes also orient.
+pub fn compute_tile(
+    t: &TilePoints,
+    scene: &Rect,
+    p: &ComputeParams<'_>,
+    first_patch: u32,
+    shared: Shared,
+) -> TileOutcome {
     let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids, p.k) else {
         return TileOutcome::default();
     };
@@ -105,7 +149,7 @@ pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> Tile
         knn[j] = Some(l);
     }
     // 3. Normals of every point with a neighbour list.
-    let normals: Vec<Option<V3>> = knn
+    let mut normals: Vec<Option<V3>> = knn
         .par_iter()
         .enumerate()
         .map(|(i, l)| {
@@ -118,6 +162,28 @@ pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> Tile
             pca_normal(&t.xyz, &l.list).map(|nrm| orient(nrm, t.xyz[i], p.orientation))
         })
         .collect();
+    // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.
+    let orientation = p.propagate.filter(|_| !p.use_file_normals).map(|centre| {
+        let lists: Vec<&[u32]> = knn
+            .iter()
+            .map(|l| l.as_ref().map_or(&[][..], |l| &l.list[..]))
+            .collect();
+        crate::orient::orient_tile(
+            &t.xyz,
+            &t.ids,
+            &lists,
+            &mut normals,
+            centre,
+            first_patch,
+            |i| shared.contains(t.xyz[i]),
+        )
+    });
+    let patch_of = |i: usize| {
+        orientation
+            .as_ref()
+            .and_then(|o| o.patch(i))
+            .unwrap_or(NO_PATCH)
+    };
     // 4. Estimator for the verified core points.
     struct Scratch {
         pos: Vec<V3>,
@@ -153,6 +219,7 @@ pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> Tile
                         id: t.ids[i],
                         normal: [f64::NAN; 3],
                         curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag),
+                        patch: NO_PATCH,
                     });
                 };
                 s.pos.clear();
@@ -182,11 +249,19 @@ pub fn compute_tile(t: &TilePoints, scene: &Rect, p: &ComputeParams<'_>) -> Tile
                     id: t.ids[i],
                     normal: n0,
                     curvature,
+                    patch: patch_of(i),
                 })
             },
         )
         .collect();
-    let mut out = TileOutcome::default();
+    let mut out = TileOutcome {
+        // Each result carries its patch; the per-point components are not needed any more.
+        orientation: orientation.map(|o| crate::orient::TileOrientation {
+            component: Vec::new(),
+            ..o
+        }),
+        ..TileOutcome::default()
+    };
     for r in results {
         match r {
             Ok(pr) => out.done.push(pr),

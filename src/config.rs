@@ -135,6 +135,9 @@ pub enum OrientMode {
     Viewpoint(V3),
     /// Away from the centroid of all points (closed, star-shaped objects).
     Outward,
+    /// Consistent orientation by propagation over the neighbour graph (Hoppe et al. 1992),
+    /// seeded outward: objects where no per-point rule works (orient.rs).
+    Propagate,
 }
 
 impl OrientMode {
@@ -143,7 +146,8 @@ impl OrientMode {
         match self {
             OrientMode::Up => Orientation::Up,
             OrientMode::Viewpoint(v) => Orientation::Viewpoint(v),
-            OrientMode::Outward => Orientation::Outward(centroid),
+            // Propagation starts from outward normals and then makes each patch consistent.
+            OrientMode::Outward | OrientMode::Propagate => Orientation::Outward(centroid),
         }
     }
 }
@@ -154,6 +158,7 @@ impl std::fmt::Display for OrientMode {
             OrientMode::Up => write!(f, "up"),
             OrientMode::Viewpoint(v) => write!(f, "viewpoint:{},{},{}", v[0], v[1], v[2]),
             OrientMode::Outward => write!(f, "outward"),
+            OrientMode::Propagate => write!(f, "propagate"),
         }
     }
 }

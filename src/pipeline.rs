@@ -14,14 +14,14 @@ use crossbeam_channel::bounded;
 use crate::assemble::assemble;
 use crate::bucket::{Buckets, ScanInput, POINT_BYTES};
 use crate::columns::ColumnSet;
-use crate::compute::{compute_tile, ComputeParams, PointResult};
-use crate::config::{ColumnType, Config};
+use crate::compute::{compute_tile, ComputeParams, PointResult, Shared, TileOutcome};
+use crate::config::{ColumnType, Config, OrientMode};
 use crate::crs::UnitSource;
 use crate::error::{Error, Result};
 use crate::estimate::flags;
-use crate::plan::{plan, ScanStats, TileGrid, TileKey, TilePlan, TileSpec};
+use crate::plan::{plan, ScanStats, TileGrid, TilePlan, TileSpec};
 use crate::progress::Reporter;
-use crate::results::{is_complete, tile_path, Merger};
+use crate::results::{is_complete, tile_path, Merger, TileSidecar};
 use crate::source::PointSource;
 use crate::tile::{load_tile, split_parts, Part, TilePoints};
 use crate::workdir::{Fingerprint, Resume, WorkDir};
@@ -245,6 +245,7 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
         orientation: cfg.orientation.resolve([0.0; 3]),
         use_file_normals: file_normals,
         estimator: estimator.as_ref(),
+        propagate: None,
     };
     let manifest = manifest(cfg, &sources, tile_size);
     let budget = cfg.memory_bytes as usize;
@@ -360,6 +361,7 @@ fn run_in(
     };
     let params = &ComputeParams {
         orientation: cfg.orientation.resolve(stats.centroid),
+        propagate: (cfg.orientation == OrientMode::Propagate).then_some(stats.centroid),
         ..*params
     };
     let tplan = plan(&stats, tile_size, cfg.k);
@@ -368,7 +370,7 @@ fn run_in(
     let todo: Vec<TileSpec> = tplan
         .tiles
         .iter()
-        .filter(|t| !is_complete(&tile_path(&results_dir, t.key), t.count, cols))
+        .filter(|t| !tile_done(&results_dir, t, cols, params.propagate.is_some()))
         .cloned()
         .collect();
     let resumed_tiles = tplan.tiles.len() - todo.len();
@@ -438,7 +440,7 @@ fn run_in(
                 let done = tplan
                     .tiles
                     .iter()
-                    .filter(|t| is_complete(&tile_path(&results_dir, t.key), t.count, cols))
+                    .filter(|t| tile_done(&results_dir, t, cols, params.propagate.is_some()))
                     .count();
                 reporter.warn(&format!(
                     "interrupted after {done} of {} tiles; the work is kept in {}",
@@ -458,6 +460,10 @@ fn run_in(
         .iter()
         .map(|t| tile_path(&results_dir, t.key))
         .collect();
+    let flips = match params.propagate {
+        Some(_) => Some(resolve_orientation(&results_dir, &tplan, reporter)?),
+        None => None,
+    };
     let mut merger = Merger::open(&results_dir, &files, cols)?;
     reporter.phase("write", total);
     let provenance = provenance(cfg, unit_name, tile_size, file_normals);
@@ -466,6 +472,7 @@ fn run_in(
             source.as_ref(),
             *first,
             &mut merger,
+            flips.as_deref(),
             cols,
             output,
             &provenance,
@@ -476,6 +483,54 @@ fn run_in(
     }
     reporter.finish_phase();
     Ok((undefined, retried, tplan.tiles.len(), resumed_tiles))
+}
+
+/// Whether a tile of the plan is finished: its result file is complete (and, with
+/// `--orient propagate`, its orientation sidecar is there: it is renamed first).
+fn tile_done(dir: &Path, t: &TileSpec, cols: &ColumnSet, propagate: bool) -> bool {
+    (!propagate || crate::results::orientation_path(dir, t.key).exists())
+        && is_complete(&tile_path(dir, t.key), t.count, cols)
+}
+
+/// `--orient propagate`, across tiles: reads every tile's patch anchors and shared normals,
+/// turns the normals that two patches both oriented into votes, solves one sign per patch
+/// (orient::patch_signs) and returns, per tile of the plan, which of its patches to flip.
+fn resolve_orientation(
+    dir: &Path,
+    tplan: &TilePlan,
+    reporter: &dyn Reporter,
+) -> Result<Vec<Vec<bool>>> {
+    let mut anchors = Vec::new();
+    let mut shared = Vec::new();
+    let mut offsets = Vec::with_capacity(tplan.tiles.len() + 1);
+    offsets.push(0u32);
+    for t in &tplan.tiles {
+        let sc = crate::results::read_sidecar(&crate::results::orientation_path(dir, t.key))?;
+        let base = *offsets.last().unwrap_or(&0);
+        anchors.extend(sc.anchors.iter().map(|a| crate::orient::PatchAnchor {
+            patch: base + a.patch,
+            ..*a
+        }));
+        shared.extend(sc.shared.iter().map(|s| crate::orient::SharedNormal {
+            patch: base + s.patch,
+            ..*s
+        }));
+        offsets.push(base + sc.anchors.len() as u32);
+    }
+    let total = *offsets.last().unwrap_or(&0) as usize;
+    let votes = crate::orient::votes_from_shared(&mut shared);
+    let signs = crate::orient::patch_signs(total, &votes, &anchors);
+    reporter.info(&format!(
+        "orientation: {total} patches in {} tiles, {} shared normals voted, {} against the chosen signs, {} patches flipped",
+        tplan.tiles.len(),
+        signs.votes,
+        signs.contradicted,
+        signs.flip.iter().filter(|f| **f).count()
+    ));
+    Ok(offsets
+        .windows(2)
+        .map(|w| signs.flip[w[0] as usize..w[1] as usize].to_vec())
+        .collect())
 }
 
 /// Points per read chunk: the user's choice, capped so that a chunk of raw records takes at
@@ -553,7 +608,7 @@ fn run_tiles(
     type Loaded = (TileSpec, Part, usize, TilePoints);
     std::thread::scope(|s| -> Result<(u64, u64)> {
         let (tile_tx, tile_rx) = bounded::<Result<Loaded>>(in_flight - 1);
-        let (res_tx, res_rx) = bounded::<(TileKey, Vec<PointResult>)>(1);
+        let (res_tx, res_rx) = bounded::<(TileSpec, Vec<PointResult>, Option<TileSidecar>)>(1);
         let loader = s.spawn(move || {
             let load = |spec: &TileSpec,
                         tx: &crossbeam_channel::Sender<Result<Loaded>>|
@@ -590,8 +645,8 @@ fn run_tiles(
         });
         let writer = s.spawn(move || -> Result<()> {
             let mut journal = crate::results::Journal::new(results_dir);
-            for (key, mut results) in res_rx {
-                journal.add(key, &mut results, cols)?;
+            for (spec, mut results, sidecar) in res_rx {
+                journal.add(spec.key, spec.index, &mut results, sidecar.as_ref(), cols)?;
             }
             // Also after an interruption: the tiles finished so far become durable.
             journal.commit()
@@ -601,6 +656,7 @@ fn run_tiles(
         let mut failure = None;
         // Parts of one tile arrive one after the other; their results are written together.
         let mut gathered: Vec<PointResult> = Vec::new();
+        let mut sidecar = TileSidecar::default();
         let mut parts_seen = 0usize;
         for item in tile_rx.iter() {
             if cancel.load(Ordering::Relaxed) {
@@ -614,7 +670,9 @@ fn run_tiles(
                     break;
                 }
             };
-            let r = pool.install(|| compute_verified(buckets, tplan, &spec, &part, tile, params));
+            let r = pool.install(|| {
+                compute_verified(buckets, tplan, &spec, &part, tile, params, &mut sidecar)
+            });
             let (mut results, again) = match r {
                 Ok(v) => v,
                 Err(e) => {
@@ -635,7 +693,11 @@ fn run_tiles(
             }
             parts_seen = 0;
             if res_tx
-                .send((spec.key, std::mem::take(&mut gathered)))
+                .send((
+                    spec,
+                    std::mem::take(&mut gathered),
+                    params.propagate.map(|_| std::mem::take(&mut sidecar)),
+                ))
                 .is_err()
             {
                 break; // the writer failed; its error is reported below
@@ -668,8 +730,28 @@ fn compute_verified(
     part: &Part,
     tile: TilePoints,
     params: &ComputeParams<'_>,
+    sidecar: &mut TileSidecar,
 ) -> Result<(Vec<PointResult>, u64)> {
-    let mut outcome = compute_tile(&tile, &tplan.scene, params);
+    // With `--orient propagate` each pass numbers its patches after the tile's earlier ones
+    // and reports their anchors and shared normals.
+    let keep = |o: &mut TileOutcome, sidecar: &mut TileSidecar| {
+        if let Some(or) = o.orientation.take() {
+            sidecar.anchors.extend(or.anchors);
+            sidecar.shared.extend(or.shared);
+        }
+    };
+    let band = Shared::Band {
+        rect: part.rect,
+        width: spec.halo,
+    };
+    let mut outcome = compute_tile(
+        &tile,
+        &tplan.scene,
+        params,
+        sidecar.anchors.len() as u32,
+        band,
+    );
+    keep(&mut outcome, sidecar);
     drop(tile);
     let mut results = std::mem::take(&mut outcome.done);
     let mut retry = outcome.retry;
@@ -681,7 +763,14 @@ fn compute_verified(
         let only: HashSet<u64> = retry.iter().copied().collect();
         let t = load_tile(buckets, spec.key, part, halo, Some(&only), &tplan.per_tile)?;
         let covers = t.region.covers(&tplan.scene);
-        let mut o = compute_tile(&t, &tplan.scene, params);
+        let mut o = compute_tile(
+            &t,
+            &tplan.scene,
+            params,
+            sidecar.anchors.len() as u32,
+            Shared::All,
+        );
+        keep(&mut o, sidecar);
         results.append(&mut o.done);
         retry = o.retry;
         if covers && !retry.is_empty() {
@@ -725,6 +814,7 @@ fn dry_run(
     let scan_s = t0.elapsed().as_secs_f64();
     let params = &ComputeParams {
         orientation: cfg.orientation.resolve(stats.centroid),
+        propagate: (cfg.orientation == OrientMode::Propagate).then_some(stats.centroid),
         ..*params
     };
     let tplan = plan(&stats, grid.size, cfg.k);
@@ -739,8 +829,17 @@ fn dry_run(
         let t = load_tile(&buckets, spec.key, &whole, spec.halo, None, &tplan.per_tile)?;
         halo_factor = t.xyz.len() as f64 / t.n_core.max(1) as f64;
         let t1 = Instant::now();
-        let (r, _) =
-            pool.install(|| compute_verified(&buckets, &tplan, &spec, &whole, t, params))?;
+        let (r, _) = pool.install(|| {
+            compute_verified(
+                &buckets,
+                &tplan,
+                &spec,
+                &whole,
+                t,
+                params,
+                &mut TileSidecar::default(),
+            )
+        })?;
         us_per_point = t1.elapsed().as_secs_f64() * 1e6 / r.len().max(1) as f64;
     }
     let n = stats.count as f64;

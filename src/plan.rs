@@ -103,6 +103,8 @@ pub struct ScanStats {
 /// One tile of the plan.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TileSpec {
+    /// Position of the tile in the plan.
+    pub index: u32,
     /// Tile coordinates.
     pub key: TileKey,
     /// Number of core points.
@@ -138,7 +140,9 @@ pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
     let tiles = stats
         .per_tile
         .iter()
-        .map(|(&key, &count)| TileSpec {
+        .enumerate()
+        .map(|(index, (&key, &count))| TileSpec {
+            index: index as u32,
             key,
             count,
             halo: initial_halo(count, size, k),

@@ -16,7 +16,114 @@ use crate::error::{Error, Result};
 use crate::plan::TileKey;
 use crate::workdir::tmp_name;
 
-const MAGIC: &[u8; 8] = b"TCRES001";
+const MAGIC: &[u8; 8] = b"TCRES002";
+const ORIENT_MAGIC: &[u8; 8] = b"TCORI001";
+
+/// Bytes of one record after the id: the point's global patch (u64, `--orient propagate`) and
+/// the encoded columns.
+pub fn record_size(cols: &ColumnSet) -> usize {
+    8 + cols.record_size()
+}
+
+/// The global patch of a point: its tile's index in the plan and its patch within the tile;
+/// u64::MAX for none.
+pub fn global_patch(tile_index: u32, local: u32) -> u64 {
+    if local == crate::compute::NO_PATCH {
+        u64::MAX
+    } else {
+        ((tile_index as u64) << 32) | local as u64
+    }
+}
+
+/// The orientation sidecar of a tile (`--orient propagate`): its patch anchors and the normals
+/// it shares with other tiles, for the cross-tile sign resolution.
+pub fn orientation_path(dir: &Path, key: TileKey) -> PathBuf {
+    dir.join(format!("tile_{}_{}.ori", key.0, key.1))
+}
+
+/// What a tile's passes contribute to the cross-tile orientation.
+#[derive(Debug, Clone, Default)]
+pub struct TileSidecar {
+    /// One anchor per patch (patches numbered within the tile).
+    pub anchors: Vec<crate::orient::PatchAnchor>,
+    /// Normals of points other passes also orient.
+    pub shared: Vec<crate::orient::SharedNormal>,
+}
+
+fn write_sidecar(path: &Path, s: &TileSidecar) -> Result<PathBuf> {
+    let tmp = tmp_name(path);
+    let mut b = Vec::with_capacity(24 + 21 * s.anchors.len() + 36 * s.shared.len());
+    b.extend_from_slice(ORIENT_MAGIC);
+    b.extend_from_slice(&(s.anchors.len() as u64).to_le_bytes());
+    b.extend_from_slice(&(s.shared.len() as u64).to_le_bytes());
+    for a in &s.anchors {
+        b.extend_from_slice(&a.patch.to_le_bytes());
+        b.extend_from_slice(&a.dist2.to_le_bytes());
+        b.extend_from_slice(&a.id.to_le_bytes());
+        b.push(a.outward as u8);
+    }
+    for n in &s.shared {
+        b.extend_from_slice(&n.id.to_le_bytes());
+        b.extend_from_slice(&n.patch.to_le_bytes());
+        for c in n.normal {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    std::fs::write(&tmp, &b).map_err(|e| Error::write(&tmp, e))?;
+    Ok(tmp)
+}
+
+/// Reads a tile's orientation sidecar.
+pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
+    let bad = || {
+        Error::Internal(format!(
+            "{}: orientation sidecar is damaged; delete the work directory and run again",
+            path.display()
+        ))
+    };
+    let b = std::fs::read(path).map_err(|e| Error::ReadIo {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let u64_at = |o: usize| {
+        b.get(o..o + 8)
+            .and_then(|s| s.try_into().ok())
+            .map(u64::from_le_bytes)
+            .ok_or_else(bad)
+    };
+    let u32_at = |o: usize| {
+        b.get(o..o + 4)
+            .and_then(|s| s.try_into().ok())
+            .map(u32::from_le_bytes)
+            .ok_or_else(bad)
+    };
+    let f64_at = |o: usize| u64_at(o).map(f64::from_bits);
+    if b.get(..8) != Some(&ORIENT_MAGIC[..]) {
+        return Err(bad());
+    }
+    let (na, ns) = (u64_at(8)? as usize, u64_at(16)? as usize);
+    let mut out = TileSidecar::default();
+    let mut o = 24;
+    for _ in 0..na {
+        let outward = *b.get(o + 20).ok_or_else(bad)? == 1;
+        out.anchors.push(crate::orient::PatchAnchor {
+            patch: u32_at(o)?,
+            dist2: f64_at(o + 4)?,
+            id: u64_at(o + 12)?,
+            outward,
+        });
+        o += 21;
+    }
+    for _ in 0..ns {
+        out.shared.push(crate::orient::SharedNormal {
+            id: u64_at(o)?,
+            patch: u32_at(o + 8)?,
+            normal: [f64_at(o + 12)?, f64_at(o + 20)?, f64_at(o + 28)?],
+        });
+        o += 36;
+    }
+    Ok(out)
+}
 /// Result files merged at once; more are first merged into runs (bounded memory: one read
 /// buffer per open file).
 pub const FAN_IN: usize = 64;
@@ -40,7 +147,7 @@ fn write_file(
     let head = [
         &MAGIC[..],
         &count.to_le_bytes(),
-        &(cols.record_size() as u64).to_le_bytes(),
+        &(record_size(cols) as u64).to_le_bytes(),
     ]
     .concat();
     w.write_all(&head).map_err(|e| Error::write(&tmp, e))?;
@@ -53,16 +160,18 @@ fn write_file(
 fn write_tile_tmp(
     dir: &Path,
     key: TileKey,
+    tile_index: u32,
     results: &mut [PointResult],
     cols: &ColumnSet,
 ) -> Result<PathBuf> {
     results.sort_unstable_by_key(|r| r.id);
     let path = tile_path(dir, key);
-    let mut buf = Vec::with_capacity(8 + cols.record_size());
+    let mut buf = Vec::with_capacity(8 + record_size(cols));
     write_file(&path, results.len() as u64, cols, |w| {
         for r in results.iter() {
             buf.clear();
             buf.extend_from_slice(&r.id.to_le_bytes());
+            buf.extend_from_slice(&global_patch(tile_index, r.patch).to_le_bytes());
             cols.encode(r, &mut buf);
             w.write_all(&buf).map_err(|e| Error::write(&path, e))?;
         }
@@ -94,10 +203,18 @@ impl Journal {
     pub fn add(
         &mut self,
         key: TileKey,
+        tile_index: u32,
         results: &mut [PointResult],
+        sidecar: Option<&TileSidecar>,
         cols: &ColumnSet,
     ) -> Result<()> {
-        let tmp = write_tile_tmp(&self.dir, key, results, cols)?;
+        // The sidecar is renamed before the result file: a tile is done only once both are.
+        if let Some(sc) = sidecar {
+            let path = orientation_path(&self.dir, key);
+            let tmp = write_sidecar(&path, sc)?;
+            self.pending.push((tmp, path));
+        }
+        let tmp = write_tile_tmp(&self.dir, key, tile_index, results, cols)?;
         self.pending.push((tmp, tile_path(&self.dir, key)));
         if self.pending.len() >= 256 || self.since.elapsed().as_secs_f64() > 2.0 {
             self.commit()?;
@@ -153,7 +270,7 @@ pub fn is_complete(path: &Path, expected: u64, cols: &ColumnSet) -> bool {
     let Ok(r) = TileResults::open(path, cols) else {
         return false;
     };
-    r.remaining == expected && meta.len() == 24 + expected * (8 + cols.record_size() as u64)
+    r.remaining == expected && meta.len() == 24 + expected * (8 + record_size(cols) as u64)
 }
 
 /// Reads one result file in id order.
@@ -187,10 +304,10 @@ impl TileResults {
             return Err(bad("not a tilecurv result file".into()));
         }
         let record = word(16) as usize;
-        if record != cols.record_size() {
+        if record != record_size(cols) {
             return Err(bad(format!(
                 "records of {record} bytes, expected {}",
-                cols.record_size()
+                record_size(cols)
             )));
         }
         Ok(TileResults {
@@ -328,9 +445,12 @@ mod tests {
                         h: (j * 150 + t) as f64,
                         ..Curvature::undefined(0)
                     },
+                    patch: crate::compute::NO_PATCH,
                 })
                 .collect();
-            journal.add((t as i64, 0), &mut rs, &cols).expect("write");
+            journal
+                .add((t as i64, 0), t as u32, &mut rs, None, &cols)
+                .expect("write");
             files.push(tile_path(dir.path(), (t as i64, 0)));
         }
         journal.commit().expect("commit");
