@@ -231,9 +231,7 @@ impl Journal {
         for (tmp, path) in self.pending.drain(..) {
             std::fs::rename(&tmp, &path).map_err(|e| Error::write(&path, e))?;
         }
-        if let Ok(d) = File::open(&self.dir) {
-            let _ = d.sync_all();
-        }
+        crate::workdir::sync_dir(&self.dir);
         self.since = std::time::Instant::now();
         Ok(())
     }

@@ -97,12 +97,5 @@ pub fn temp_path(output: &Path) -> PathBuf {
 pub fn commit(file: File, tmp: &Path, output: &Path) -> Result<()> {
     file.sync_all().map_err(|e| Error::write(tmp, e))?;
     drop(file);
-    std::fs::rename(tmp, output).map_err(|e| Error::write(output, e))?;
-    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        // A directory that cannot be opened for sync is not fatal.
-        if let Ok(d) = File::open(dir) {
-            let _ = d.sync_all();
-        }
-    }
-    Ok(())
+    crate::workdir::commit_file(tmp, output)
 }

@@ -74,17 +74,17 @@ pub fn tmp_name(path: &Path) -> PathBuf {
 /// Renames a finished, synced temporary file over `path` and syncs the directory.
 pub fn commit_file(tmp: &Path, path: &Path) -> Result<()> {
     std::fs::rename(tmp, path).map_err(|e| Error::write(path, e))?;
-    sync_dir(path);
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        sync_dir(dir);
+    }
     Ok(())
 }
 
-/// Syncs the directory holding `path` so a rename in it survives a power loss. A directory that
-/// cannot be opened for syncing (some network file systems) is not an error.
-pub fn sync_dir(path: &Path) {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        if let Ok(d) = File::open(dir) {
-            let _ = d.sync_all();
-        }
+/// Syncs a directory so that a rename in it survives a power loss. A directory that cannot be
+/// opened for syncing (some network file systems) is not an error.
+pub fn sync_dir(dir: &Path) {
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
     }
 }
 
