@@ -160,7 +160,9 @@ mod tests {
             .collect::<Vec<_>>()
         );
         // LAS extra-bytes descriptions hold 32 bytes.
-        assert!(cols.columns()[4..8].iter().all(|c| c.description.len() <= 32));
+        assert!(cols.columns()[4..8]
+            .iter()
+            .all(|c| c.description.len() <= 32));
         let read = |bytes: &[u8]| -> Vec<f64> {
             bytes[..64]
                 .chunks(8)
