@@ -118,7 +118,7 @@ struct ProcessArgs {
     /// its input's file name. The extension chooses the format: .las or .laz. Holds every input
     /// point in the same order with all original fields, VLRs and EVLRs, plus the columns
     /// NormalX/Y/Z, H (mean curvature), K (Gaussian), k1 <= k2 (principal), CurvatureFlags and,
-    /// with --directions, d1x..d2z. Curvature is positive where the surface bends away from its
+    /// with --directions, d1x..d2z and, with --features, SharpFeature and VcmNormalX/Y/Z. Curvature is positive where the surface bends away from its
     /// normal (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
     #[arg(short, long)]
     output: PathBuf,
@@ -176,6 +176,16 @@ struct ProcessArgs {
     /// Also write the principal directions d1 (of k1) and d2 (of k2) as unit vectors.
     #[arg(long)]
     directions: bool,
+
+    /// Also write the VCM's sharp-feature columns (only with --estimator vcm): SharpFeature, the
+    /// score lambda2/(lambda1+lambda2+lambda3) of the convolved Voronoi covariance measure
+    /// (eigenvalues in decreasing order), and VcmNormalX/Y/Z, the VCM's own unit normal (signed
+    /// to agree with the PCA or file normal). The score lies in [0, 1/2]: about 0 on a plane or
+    /// smooth surface, about alpha^2/12 on a sharp edge of external (dihedral turning) angle
+    /// alpha in radians (about 0.2-0.3 on a right-angled edge), and around 0.2 at a corner;
+    /// threshold it to select creases.
+    #[arg(long)]
+    features: bool,
 
     /// Store the new columns as 64-bit floats (default: 32-bit).
     #[arg(long = "f64")]
@@ -263,6 +273,7 @@ impl ProcessArgs {
             orientation: self.orient,
             ignore_file_normals: self.ignore_file_normals,
             directions: self.directions,
+            features: self.features,
             column_type: if self.f64_columns {
                 ColumnType::F64
             } else {

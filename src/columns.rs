@@ -4,6 +4,7 @@
 
 use crate::compute::PointResult;
 use crate::config::ColumnType;
+use crate::estimate::Extra;
 use crate::las::extra_bytes::{NewColumn, ScalarType};
 
 /// Name of the quality-flag column.
@@ -19,6 +20,9 @@ pub struct ColumnSet {
     pub normals: bool,
     /// Whether the principal directions are written.
     pub directions: bool,
+    /// Whether the estimator's extra values ([`Extra`]: `SharpFeature`, `VcmNormalX/Y/Z`) are
+    /// written (`--features`); NaN for points without them.
+    pub features: bool,
     /// Unit symbol of the coordinates, for the descriptions ("m", "ft", or "unit").
     pub unit: String,
 }
@@ -34,6 +38,9 @@ impl ColumnSet {
         v.extend(["H", "K", "k1", "k2"]);
         if self.directions {
             v.extend(["d1x", "d1y", "d1z", "d2x", "d2y", "d2z"]);
+        }
+        if self.features {
+            v.extend(["SharpFeature", "VcmNormalX", "VcmNormalY", "VcmNormalZ"]);
         }
         v
     }
@@ -53,6 +60,10 @@ impl ColumnSet {
             "K" => format!("Gaussian curvature (1/{u}^2)"),
             "k1" => format!("min principal curvature (1/{u})"),
             "k2" => format!("max principal curvature (1/{u})"),
+            "SharpFeature" => "VCM edge score l2/(l1+l2+l3)".into(),
+            "VcmNormalX" | "VcmNormalY" | "VcmNormalZ" => {
+                format!("VCM unit normal {}", &name[9..].to_lowercase())
+            }
             d => format!("direction of k{} ({})", &d[1..2], &d[2..3]),
         };
         let mut cols: Vec<NewColumn> = self
@@ -146,6 +157,81 @@ impl ColumnSet {
                 put(v);
             }
         }
+        if self.features {
+            let e = c.extra.unwrap_or(Extra {
+                feature: f64::NAN,
+                normal: [f64::NAN; 3],
+            });
+            put(e.feature);
+            for v in e.normal {
+                put(v);
+            }
+        }
         out.push(c.flags);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimate::Curvature;
+
+    /// `--features` appends SharpFeature and VcmNormalX/Y/Z after the curvature columns, with
+    /// the estimator's extra values, or NaN for a result without them.
+    #[test]
+    fn feature_columns_follow_the_curvature() {
+        let cols = ColumnSet {
+            ty: ColumnType::F64,
+            normals: false,
+            directions: false,
+            features: true,
+            unit: "m".into(),
+        };
+        let names: Vec<String> = cols.columns().into_iter().map(|c| c.name).collect();
+        assert_eq!(
+            names,
+            [
+                "H",
+                "K",
+                "k1",
+                "k2",
+                "SharpFeature",
+                "VcmNormalX",
+                "VcmNormalY",
+                "VcmNormalZ"
+            ]
+            .into_iter()
+            .chain([FLAGS_NAME])
+            .collect::<Vec<_>>()
+        );
+        // LAS extra-bytes descriptions hold 32 bytes.
+        assert!(cols.columns()[4..8]
+            .iter()
+            .all(|c| c.description.len() <= 32));
+        let read = |bytes: &[u8]| -> Vec<f64> {
+            bytes[..64]
+                .chunks(8)
+                .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+                .collect()
+        };
+        let mut r = PointResult {
+            id: 0,
+            normal: [0.0, 0.0, 1.0],
+            curvature: Curvature {
+                extra: Some(Extra {
+                    feature: 0.25,
+                    normal: [0.0, 0.6, 0.8],
+                }),
+                ..Curvature::undefined(0)
+            },
+        };
+        let mut out = Vec::new();
+        cols.encode(&r, &mut out);
+        assert_eq!(out.len(), cols.record_size());
+        assert_eq!(read(&out)[4..], [0.25, 0.0, 0.6, 0.8]);
+        r.curvature.extra = None;
+        out.clear();
+        cols.encode(&r, &mut out);
+        assert!(read(&out)[4..].iter().all(|v| v.is_nan()));
     }
 }

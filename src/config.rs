@@ -199,6 +199,8 @@ pub struct Config {
     pub ignore_file_normals: bool,
     /// Also write the principal directions.
     pub directions: bool,
+    /// Also write the VCM's sharp-feature score and normal (only with the `vcm` estimator).
+    pub features: bool,
     /// Storage type of the new columns.
     pub column_type: ColumnType,
     /// Worker threads.
@@ -244,6 +246,12 @@ impl Config {
                 crate::estimate::NAMES.join(", ")
             )));
         }
+        if self.features && self.estimator != "vcm" {
+            return Err(Error::Usage(format!(
+                "--features writes the VCM's sharp-feature score and normal, which only --estimator vcm computes (got --estimator {}); add --estimator vcm or drop --features",
+                self.estimator
+            )));
+        }
         Ok(())
     }
 }
@@ -277,6 +285,40 @@ mod tests {
                 && Length::parse("5 parsecs").is_err()
                 && Length::parse("m").is_err()
         );
+    }
+
+    /// `--features` needs the VCM estimator; the usage error names the flag.
+    #[test]
+    fn features_only_with_vcm() {
+        let mut cfg = Config {
+            inputs: vec!["in.las".into()],
+            output: "out.las".into(),
+            memory_bytes: 1 << 30,
+            dry_run: false,
+            progress_json: None,
+            tile: Length::Metres(50.0),
+            k: 30,
+            estimator: "cnc-avg-hexagram".into(),
+            params: EstimatorParams::default(),
+            orientation: OrientMode::Up,
+            ignore_file_normals: false,
+            directions: false,
+            features: true,
+            column_type: ColumnType::F32,
+            threads: 1,
+            chunk_points: 1000,
+            work_dir: None,
+        };
+        let e = cfg
+            .validate()
+            .expect_err("features without vcm")
+            .to_string();
+        assert!(
+            e.contains("--features") && e.contains("--estimator vcm"),
+            "{e}"
+        );
+        cfg.estimator = "vcm".into();
+        cfg.validate().expect("features with vcm");
     }
 
     #[test]

@@ -67,7 +67,7 @@
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
 
-use crate::estimate::Curvature;
+use crate::estimate::{Curvature, Extra};
 use crate::geometry::{add, dot, scale, sub, V3};
 use crate::normals::{orient, Orientation};
 
@@ -626,7 +626,9 @@ pub fn patch_signs(n_patches: usize, votes: &[PatchVote], anchors: &[PatchAnchor
 
 /// A curvature result as it reads with the opposite normal: `H' = -H`, `K' = K`,
 /// `k1' = -k2`, `k2' = -k1` (k1 stays the smaller), `d1' = d2`, `d2' = d1` (so that
-/// `d1 x d2 = n` still holds). Flags are unchanged; NaN stays NaN.
+/// `d1 x d2 = n` still holds). An estimator's own normal ([`Extra::normal`]) is negated with
+/// the input normal it was oriented by; the feature score is unsigned. Flags are unchanged; NaN
+/// stays NaN.
 pub fn flip_curvature(c: &Curvature) -> Curvature {
     Curvature {
         h: -c.h,
@@ -636,6 +638,10 @@ pub fn flip_curvature(c: &Curvature) -> Curvature {
         d1: c.d2,
         d2: c.d1,
         flags: c.flags,
+        extra: c.extra.map(|e| Extra {
+            normal: scale(e.normal, -1.0),
+            ..e
+        }),
     }
 }
 
@@ -949,11 +955,19 @@ mod tests {
             d1: [1.0, 0.0, 0.0],
             d2: [0.0, 1.0, 0.0],
             flags: 16,
+            extra: Some(Extra {
+                feature: 0.25,
+                normal: n,
+            }),
         };
         let f = flip_curvature(&c);
         assert_eq!((f.h, f.k, f.k1, f.k2), (-1.5, 2.0, -2.0, -1.0));
         assert!(f.k1 <= f.k2);
         assert_eq!(normalize(cross(f.d1, f.d2)), Some(scale(n, -1.0)));
+        assert_eq!(
+            f.extra.map(|e| (e.feature, e.normal)),
+            Some((0.25, scale(n, -1.0)))
+        );
         assert_eq!(flip_curvature(&f), c);
     }
 }

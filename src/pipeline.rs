@@ -117,13 +117,14 @@ fn manifest(cfg: &Config, sources: &[Box<dyn PointSource>], tile_size: f64) -> S
         ));
     }
     let params = format!(
-        "estimator={} k={} params={:?} orientation={:?} ignore_file_normals={} directions={} columns={:?} tile={}",
+        "estimator={} k={} params={:?} orientation={:?} ignore_file_normals={} directions={} features={} columns={:?} tile={}",
         cfg.estimator,
         cfg.k,
         cfg.params,
         cfg.orientation,
         cfg.ignore_file_normals,
         cfg.directions,
+        cfg.features,
         cfg.column_type,
         tile_size.to_bits()
     );
@@ -237,6 +238,7 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
         ty: cfg.column_type,
         normals: !file_normals && !sources.iter().any(|s| named_normals(s.as_ref())),
         directions: cfg.directions,
+        features: cfg.features,
         unit: unit_name.clone(),
     };
     // The orientation is resolved against the cloud's centroid once the scan has seen it.
@@ -856,7 +858,7 @@ fn dry_run(
     } else {
         budget * 3 / 5 + tiles_mem / 2
     };
-    let cols_bytes = 8 + 1 + 4 * if cfg.directions { 13 } else { 7 };
+    let cols_bytes = 8 + 1 + 4 * (7 + 6 * cfg.directions as usize + 4 * cfg.features as usize);
     let disk = if in_memory { 0.0 } else { n * 45.0 } + n * cols_bytes as f64;
     let est = 2.0 * scan_s + n * us_per_point * 1e-6;
     println!("plan: {} points in {} tiles of {:.3} (file units); points per tile: min {}, median {median}, max {}", stats.count, tplan.tiles.len(), grid.size, counts[0], counts[counts.len() - 1]);
@@ -887,7 +889,7 @@ fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> S
         })
         .collect();
     format!(
-        "tilecurv {}\ninputs={}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\nsign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
+        "tilecurv {}\ninputs={}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\nfeatures={}\nsign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
         env!("CARGO_PKG_VERSION"),
         inputs.join(","),
         cfg.estimator,
@@ -901,5 +903,6 @@ fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> S
             ColumnType::F64 => "f64",
         },
         cfg.directions,
+        cfg.features,
     )
 }

@@ -429,6 +429,7 @@ mod tests {
             ty: ColumnType::F32,
             normals: true,
             directions: false,
+            features: false,
             unit: "m".into(),
         };
         // 150 tiles (more than FAN_IN, so runs are made), ids interleaved across tiles.

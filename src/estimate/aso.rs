@@ -169,6 +169,7 @@ impl Estimator for Aso {
             d1,
             d2,
             flags: umbilic,
+            extra: None,
         }
     }
 }

@@ -85,6 +85,7 @@ impl CncMeasures {
             d1,
             d2,
             flags: umb | extra_flags,
+            extra: None,
         }
     }
 }

@@ -127,6 +127,7 @@ impl Estimator for Jet {
             d1,
             d2,
             flags: umbilic,
+            extra: None,
         }
     }
 }

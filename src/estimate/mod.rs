@@ -63,6 +63,22 @@ pub struct Curvature {
     pub d2: V3,
     /// Quality flags ([`flags`]).
     pub flags: u8,
+    /// Values beyond the curvature that only some estimators compute (None for the others).
+    pub extra: Option<Extra>,
+}
+
+/// Per-point values an estimator may compute besides the curvature: today the VCM's own
+/// normal and its sharp-feature score (algorithms.md sections 2.4 and 2.5), written by
+/// `--features`. Plain numbers, no I/O; NaN components mean "computed but undefined".
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Extra {
+    /// Sharp-feature score lambda2 / (lambda1 + lambda2 + lambda3) of the convolved VCM
+    /// (eigenvalues in decreasing order): 0 on a plane, about alpha^2 / 12 on an edge of
+    /// external angle alpha; in [0, 1/2].
+    pub feature: f64,
+    /// Unit normal estimated by the estimator itself (the VCM's leading eigenvector), oriented
+    /// to agree with the query point's input normal.
+    pub normal: V3,
 }
 
 impl Curvature {
@@ -76,6 +92,7 @@ impl Curvature {
             d1: [0.0; 3],
             d2: [0.0; 3],
             flags,
+            extra: None,
         }
     }
 }

@@ -68,6 +68,7 @@ impl Estimator for Wme {
             d1,
             d2,
             flags: umbilic,
+            extra: None,
         }
     }
 }
