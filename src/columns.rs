@@ -78,7 +78,7 @@ impl ColumnSet {
         cols.push(NewColumn {
             name: FLAGS_NAME.into(),
             ty: ScalarType::U8,
-            description: "1few 2nrm 4degen 8bnd 16umb 32file".into(),
+            description: "1few 2nrm 4dgn 8bnd 16umb 32file".into(),
         });
         cols
     }
@@ -112,7 +112,15 @@ impl ColumnSet {
         let names = self.float_names();
         let mut v: Vec<f64> = (0..names.len()).map(|i| get(rec, i)).collect();
         let at = |n: &str| names.iter().position(|x| *x == n);
-        for n in ["NormalX", "NormalY", "NormalZ", "H"] {
+        for n in [
+            "NormalX",
+            "NormalY",
+            "NormalZ",
+            "H",
+            "VcmNormalX",
+            "VcmNormalY",
+            "VcmNormalZ",
+        ] {
             if let Some(i) = at(n).filter(|&i| !v[i].is_nan()) {
                 v[i] = -v[i];
             }
@@ -205,9 +213,7 @@ mod tests {
             .collect::<Vec<_>>()
         );
         // LAS extra-bytes descriptions hold 32 bytes.
-        assert!(cols.columns()[4..8]
-            .iter()
-            .all(|c| c.description.len() <= 32));
+        assert!(cols.columns().iter().all(|c| c.description.len() <= 32));
         let read = |bytes: &[u8]| -> Vec<f64> {
             bytes[..64]
                 .chunks(8)
@@ -224,6 +230,7 @@ mod tests {
                 }),
                 ..Curvature::undefined(0)
             },
+            patch: crate::compute::NO_PATCH,
         };
         let mut out = Vec::new();
         cols.encode(&r, &mut out);

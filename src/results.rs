@@ -461,11 +461,9 @@ mod tests {
         let mut expect = 0;
         while let Some(id) = m.next(&mut rec).expect("next") {
             assert_eq!(id, expect);
-            // H is the 4th f32 after the three normal components.
-            assert_eq!(
-                f32::from_le_bytes(rec[12..16].try_into().expect("4 bytes")),
-                id as f32
-            );
+            // After the patch (u64, none here), H is the 4th f32, after the normal.
+            assert_eq!(u64::from_le_bytes(rec[..8].try_into().expect("8 bytes")), u64::MAX);
+            assert_eq!(f32::from_le_bytes(rec[20..24].try_into().expect("4 bytes")), id as f32);
             expect += 1;
         }
         assert_eq!(expect, 150 * 7);
