@@ -208,6 +208,9 @@ pub struct Config {
     /// Work directory for buckets and per-tile results (default: beside the output); kept after
     /// an interruption so that the same command resumes.
     pub work_dir: Option<PathBuf>,
+    /// Process this many points sampled on the faces of each (mesh) input instead of its
+    /// vertices (`--sample-faces`).
+    pub sample_faces: Option<u64>,
 }
 
 impl Config {

@@ -117,7 +117,7 @@ fn manifest(cfg: &Config, sources: &[Box<dyn PointSource>], tile_size: f64) -> S
         ));
     }
     let params = format!(
-        "estimator={} k={} params={:?} orientation={:?} ignore_file_normals={} directions={} columns={:?} tile={}",
+        "estimator={} k={} params={:?} orientation={:?} ignore_file_normals={} directions={} columns={:?} tile={} sample_faces={:?}",
         cfg.estimator,
         cfg.k,
         cfg.params,
@@ -125,7 +125,8 @@ fn manifest(cfg: &Config, sources: &[Box<dyn PointSource>], tile_size: f64) -> S
         cfg.ignore_file_normals,
         cfg.directions,
         cfg.column_type,
-        tile_size.to_bits()
+        tile_size.to_bits(),
+        cfg.sample_faces
     );
     fp.text(&params);
     format!(
@@ -151,7 +152,10 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
     let sources = cfg
         .inputs
         .iter()
-        .map(|p| crate::source::open(p))
+        .map(|p| match cfg.sample_faces {
+            Some(n) => crate::source::open_sampled(p, n, cfg.params.seed),
+            None => crate::source::open(p),
+        })
         .collect::<Result<Vec<_>>>()?;
 
     // Units: every input must agree, the first one decides.
@@ -887,7 +891,7 @@ fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> S
         })
         .collect();
     format!(
-        "tilecurv {}\ninputs={}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\nsign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
+        "tilecurv {}\ninputs={}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\n{}sign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
         env!("CARGO_PKG_VERSION"),
         inputs.join(","),
         cfg.estimator,
@@ -901,5 +905,8 @@ fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> S
             ColumnType::F64 => "f64",
         },
         cfg.directions,
+        cfg.sample_faces
+            .map(|n| format!("sample_faces={n} (points sampled on the mesh faces)\n"))
+            .unwrap_or_default(),
     )
 }
