@@ -321,34 +321,39 @@ pub fn read_faces(path: &Path, map: &[u8], faces: &mut Faces) -> Result<bool> {
         for (no, content) in lines.by_ref() {
             let at = Place::Line(no);
             let mut toks = tokens(content);
-            let mut next = |what: &dyn Fn() -> String| -> Result<i64> {
-                let tok = toks.next().ok_or_else(|| {
-                    faces.bad(at, format!("the face line ends before {}", what()))
-                })?;
+            let mut take = |what: &dyn Fn() -> String| {
+                toks.next()
+                    .ok_or_else(|| faces.bad(at, format!("the face line ends before {}", what())))
+            };
+            let int = |tok: &[u8], what: &dyn Fn() -> String| {
                 integer(tok).ok_or_else(|| {
-                    faces.bad(
-                        at,
-                        format!(
-                            "{} is {:?}, not an integer",
-                            what(),
-                            String::from_utf8_lossy(tok)
-                        ),
-                    )
+                    let tok = String::from_utf8_lossy(tok);
+                    faces.bad(at, format!("{} is {tok:?}, not an integer", what()))
                 })
             };
             idx.clear();
             for p in &face.props {
+                let name = || p.name.clone();
+                let tok = take(&name)?;
                 if p.list.is_none() {
-                    next(&|| p.name.clone())?;
                     continue;
                 }
-                let n = next(&|| format!("the length of {}", p.name))?;
-                for k in 0..n.max(0) {
-                    let i = next(&|| format!("{} item {}", p.name, k + 1))?;
+                let len = || format!("the length of {}", p.name);
+                let n = u64::try_from(int(tok, &len)?)
+                    .map_err(|_| faces.bad(at, format!("{} is negative", len())))?;
+                for k in 0..n {
+                    let item = || format!("{} item {}", p.name, k + 1);
+                    let tok = take(&item)?;
                     if is_indices(p) {
-                        idx.push(i);
+                        idx.push(int(tok, &item)?);
                     }
                 }
+            }
+            if let Some(extra) = toks.next() {
+                return Err(faces.bad(at, format!(
+                    "the face line has more values than the face element's properties ({:?} is one too many)",
+                    String::from_utf8_lossy(extra)
+                )));
             }
             faces.polygon(&idx, at)?;
         }

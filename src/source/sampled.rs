@@ -174,7 +174,7 @@ pub fn open(path: &Path, n: u64, seed: u64) -> Result<Box<dyn PointSource>> {
         )
     })?;
     let describe = format!(
-        "{n} points sampled on the {} triangles ({polygons} faces, area {:.6e}) of {what}",
+        "{n} points sampled on {} triangles ({polygons} faces, area {:.6e}) of a mesh read as {what}",
         mesh.tris.len(),
         mesh.area()
     );
@@ -411,6 +411,30 @@ mod tests {
         assert!(points(s.as_ref(), 5)
             .iter()
             .all(|q| q.normal == Some([-1.0, 0.0, 0.0])));
+        // Other face properties, lists of floats included, are skipped; extra values are not.
+        let with_uv = head.replace(
+            "end_header",
+            "property list uchar float texcoord\nproperty float quality\nend_header",
+        );
+        let (_d, p) = write(
+            "uv.ply",
+            format!("{with_uv}0 0 0\n0 0 1\n0 1 0\n7 3 0 1 2 2 0.5 0.25 0.9\n").as_bytes(),
+        );
+        assert_eq!(points(open(&p, 5, 0).expect("uv").as_ref(), 5).len(), 5);
+        let (_d, p) = write(
+            "uv2.ply",
+            format!("{with_uv}0 0 0\n0 0 1\n0 1 0\n7 3 0 1 2 2 0.5 0.25 0.9 4\n").as_bytes(),
+        );
+        assert!(message(open(&p, 5, 0)).contains("line 16: the face line has more values"));
+        let (_d, p) = write(
+            "uv3.ply",
+            format!("{with_uv}0 0 0\n0 0 1\n0 1 0\n7 3 0 1.5 2 2 0.5 0.25 0.9\n").as_bytes(),
+        );
+        let m = message(open(&p, 5, 0));
+        assert!(
+            m.contains("line 16: vertex_indices item 2 is \"1.5\", not an integer"),
+            "{m}"
+        );
         // The same in binary big endian, then with an index out of range.
         let bin = |last: i32| {
             let mut b = head.replace("ascii", "binary_big_endian").into_bytes();
