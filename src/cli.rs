@@ -214,6 +214,14 @@ struct ProcessArgs {
     #[arg(long)]
     work_dir: Option<PathBuf>,
 
+    /// For a mesh (OBJ, OFF, or PLY with a face element): process N points sampled uniformly by
+    /// area on its faces instead of its vertices, each with the unit normal of its face (polygons
+    /// are fan-triangulated; counter-clockwise vertex order is outward), used as a file normal.
+    /// N as for `generate --points`: 200k, 1M. The sample comes from --seed and does not depend
+    /// on --threads or --chunk-size. The mesh is held in memory, the samples are streamed.
+    #[arg(long, value_name = "N", value_parser = crate::generate::parse_count)]
+    sample_faces: Option<u64>,
+
     /// Print only warnings and errors.
     #[arg(short, long)]
     quiet: bool,
@@ -282,6 +290,7 @@ impl ProcessArgs {
             threads,
             chunk_points: self.chunk_points,
             work_dir: self.work_dir,
+            sample_faces: self.sample_faces,
         }
     }
 }

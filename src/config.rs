@@ -210,6 +210,9 @@ pub struct Config {
     /// Work directory for buckets and per-tile results (default: beside the output); kept after
     /// an interruption so that the same command resumes.
     pub work_dir: Option<PathBuf>,
+    /// Process this many points sampled on the faces of each (mesh) input instead of its
+    /// vertices (`--sample-faces`).
+    pub sample_faces: Option<u64>,
 }
 
 impl Config {
@@ -304,6 +307,7 @@ mod tests {
             ignore_file_normals: false,
             directions: false,
             features: true,
+            sample_faces: None,
             column_type: ColumnType::F32,
             threads: 1,
             chunk_points: 1000,

@@ -117,7 +117,7 @@ fn manifest(cfg: &Config, sources: &[Box<dyn PointSource>], tile_size: f64) -> S
         ));
     }
     let params = format!(
-        "estimator={} k={} params={:?} orientation={:?} ignore_file_normals={} directions={} features={} columns={:?} tile={}",
+        "estimator={} k={} params={:?} orientation={:?} ignore_file_normals={} directions={} features={} columns={:?} tile={} sample_faces={:?}",
         cfg.estimator,
         cfg.k,
         cfg.params,
@@ -126,7 +126,8 @@ fn manifest(cfg: &Config, sources: &[Box<dyn PointSource>], tile_size: f64) -> S
         cfg.directions,
         cfg.features,
         cfg.column_type,
-        tile_size.to_bits()
+        tile_size.to_bits(),
+        cfg.sample_faces
     );
     fp.text(&params);
     format!(
@@ -152,7 +153,10 @@ pub fn run(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result
     let sources = cfg
         .inputs
         .iter()
-        .map(|p| crate::source::open(p))
+        .map(|p| match cfg.sample_faces {
+            Some(n) => crate::source::open_sampled(p, n, cfg.params.seed),
+            None => crate::source::open(p),
+        })
         .collect::<Result<Vec<_>>>()?;
 
     // Units: every input must agree, the first one decides.
@@ -889,7 +893,7 @@ fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> S
         })
         .collect();
     format!(
-        "tilecurv {}\ninputs={}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\nfeatures={}\nsign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
+        "tilecurv {}\ninputs={}\nestimator={}\nk={}\nseed={}\ntriangles={}\nnormals={}\norientation={orientation}\ntile={} ({tile_size} {unit})\ncolumns={}\ndirections={}\nfeatures={}\n{}sign=positive where the surface bends away from its normal; curvature in 1/{unit}\n",
         env!("CARGO_PKG_VERSION"),
         inputs.join(","),
         cfg.estimator,
@@ -904,5 +908,8 @@ fn provenance(cfg: &Config, unit: &str, tile_size: f64, file_normals: bool) -> S
         },
         cfg.directions,
         cfg.features,
+        cfg.sample_faces
+            .map(|n| format!("sample_faces={n} (points sampled on the mesh faces)\n"))
+            .unwrap_or_default(),
     )
 }

@@ -462,8 +462,14 @@ mod tests {
         while let Some(id) = m.next(&mut rec).expect("next") {
             assert_eq!(id, expect);
             // After the patch (u64, none here), H is the 4th f32, after the normal.
-            assert_eq!(u64::from_le_bytes(rec[..8].try_into().expect("8 bytes")), u64::MAX);
-            assert_eq!(f32::from_le_bytes(rec[20..24].try_into().expect("4 bytes")), id as f32);
+            assert_eq!(
+                u64::from_le_bytes(rec[..8].try_into().expect("8 bytes")),
+                u64::MAX
+            );
+            assert_eq!(
+                f32::from_le_bytes(rec[20..24].try_into().expect("4 bytes")),
+                id as f32
+            );
             expect += 1;
         }
         assert_eq!(expect, 150 * 7);

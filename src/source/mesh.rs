@@ -1,12 +1,14 @@
 //! Mesh files read as point clouds: the vertices of OFF (with NOFF normals) and OBJ (`v` lines)
-//! files become the points, faces and every other record are ignored. Both are text: the
-//! headers are parsed here, the vertex lines by the shared text scanner.
+//! files become the points, faces and every other record are ignored, unless the faces are
+//! sampled (`--sample-faces`, [`super::sampled`]), for which [`obj_faces`] and [`off_faces`]
+//! read them. Both are text: the headers are parsed here, the lines by the shared text scanner.
 
 use std::path::Path;
 
 use crate::error::{Error, Result};
 
 use super::map_file;
+use super::sampled::{integer, Faces, Place};
 use super::text::{first_point_line, tokens, Body, Column, Lines, PointLines, TextSource};
 
 /// Names for `n` vertex values: x y z, then `then` in order, then `column<i>` (1-based).
@@ -21,16 +23,28 @@ fn vertex_columns(n: usize, then: &[&str]) -> Vec<Column> {
         .collect()
 }
 
-/// Opens an OFF file (`OFF`, `NOFF`, `COFF`, `CNOFF`, `STOFF`... in ASCII): the vertex count
-/// from the header, then that many vertex lines `x y z [nx ny nz] [r g b [a]]`.
-pub fn open_off(path: &Path) -> Result<TextSource> {
-    let map = map_file(path)?;
+/// What an OFF header says.
+struct OffHeader {
+    /// The keyword (`OFF`, `NOFF`, ...).
+    keyword: String,
+    /// The keyword's prefix (`N`, `C`, `ST`, ...).
+    prefix: String,
+    /// The vertex lines.
+    body: Body,
+    /// The number of vertices.
+    count: u64,
+    /// The number of faces, when the header gives one.
+    faces: Option<u64>,
+}
+
+/// Parses the header of an ASCII OFF file.
+fn off_header(path: &Path, map: &[u8]) -> Result<OffHeader> {
     let all = Body {
         start: 0,
         first_line: 1,
         lines: Lines::All,
     };
-    let mut lines = PointLines::new(&map, all);
+    let mut lines = PointLines::new(map, all);
     let (no, head) = lines
         .next()
         .ok_or_else(|| Error::bad_input(path, None, "the file is empty: expected an OFF header"))?;
@@ -94,16 +108,137 @@ pub fn open_off(path: &Path) -> Result<TextSource> {
             noun: "vertices",
         },
     };
-    let (_, n, _, _) = first_point_line(path, &map, body)?;
+    Ok(OffHeader {
+        prefix: prefix.to_string(),
+        keyword,
+        body,
+        count,
+        faces: counts.get(1).and_then(|c| c.parse().ok()),
+    })
+}
+
+/// Opens an OFF file (`OFF`, `NOFF`, `COFF`, `CNOFF`, `STOFF`... in ASCII): the vertex count
+/// from the header, then that many vertex lines `x y z [nx ny nz] [r g b [a]]`.
+pub fn open_off(path: &Path) -> Result<TextSource> {
+    let map = map_file(path)?;
+    let h = off_header(path, &map)?;
+    let (_, n, _, _) = first_point_line(path, &map, h.body)?;
     let mut then = Vec::new();
-    if prefix.contains('N') {
+    if h.prefix.contains('N') {
         then.extend(["nx", "ny", "nz"]);
     }
-    if prefix.contains('C') {
+    if h.prefix.contains('C') {
         then.extend(["red", "green", "blue", "alpha"]);
     }
-    let describe = format!("{keyword} mesh vertices ({count})");
-    TextSource::new(path, map, describe, body, vertex_columns(n, &then))
+    let describe = format!("{} mesh vertices ({})", h.keyword, h.count);
+    TextSource::new(path, map, describe, h.body, vertex_columns(n, &then))
+}
+
+/// Reads the faces of an OFF file into `faces`: after the vertex lines, one line per face,
+/// `n i1 ... in [colour]` with 0-based indices. Returns false when the header declares no
+/// faces.
+pub fn off_faces(path: &Path, map: &[u8], faces: &mut Faces) -> Result<bool> {
+    let h = off_header(path, map)?;
+    let count = match h.faces {
+        Some(c) if c > 0 => c,
+        _ => return Ok(false),
+    };
+    let body = Body {
+        lines: Lines::Counted {
+            skip: h.count,
+            count,
+            noun: "faces",
+        },
+        ..h.body
+    };
+    let mut lines = PointLines::new(map, body);
+    let mut idx = Vec::new();
+    for (no, content) in lines.by_ref() {
+        let at = Place::Line(no);
+        let mut toks = tokens(content);
+        let first = toks.next().unwrap_or_default();
+        let n = integer(first)
+            .and_then(|n| usize::try_from(n).ok())
+            .ok_or_else(|| {
+                faces.bad(
+                    at,
+                    format!(
+                        "expected a face \"<n> <index> ...\" but the vertex count is {:?}",
+                        String::from_utf8_lossy(first)
+                    ),
+                )
+            })?;
+        idx.clear();
+        for tok in toks.take(n) {
+            let i = integer(tok).ok_or_else(|| {
+                faces.bad(
+                    at,
+                    format!(
+                        "face vertex {:?} is not an integer",
+                        String::from_utf8_lossy(tok)
+                    ),
+                )
+            })?;
+            idx.push(i);
+        }
+        if idx.len() < n {
+            return Err(faces.bad(
+                at,
+                format!("the face declares {n} vertices but lists {}", idx.len()),
+            ));
+        }
+        faces.polygon(&idx, at)?;
+    }
+    if lines.points < count {
+        return Err(faces.bad(
+            Place::Line(lines.line - 1),
+            format!(
+                "the header declares {count} faces but the file ends after {}: it is truncated or the count is wrong",
+                lines.points
+            ),
+        ));
+    }
+    Ok(true)
+}
+
+/// Reads the faces of an OBJ file into `faces`: its `f` lines, each vertex `v`, `v/vt`,
+/// `v//vn` or `v/vt/vn` with `v` 1-based, or negative for relative to the vertices defined so
+/// far. Returns false when there is no `f` line.
+pub fn obj_faces(map: &[u8], faces: &mut Faces) -> Result<bool> {
+    let all = Body {
+        start: 0,
+        first_line: 1,
+        lines: Lines::All,
+    };
+    let (mut defined, mut any) = (0i64, false);
+    let mut idx = Vec::new();
+    for (no, content) in PointLines::new(map, all) {
+        let mut toks = tokens(content);
+        match toks.next() {
+            Some(b"v") => defined += 1,
+            Some(b"f") => {
+                let at = Place::Line(no);
+                idx.clear();
+                for tok in toks {
+                    let v = tok.split(|&b| b == b'/').next().unwrap_or_default();
+                    let i = integer(v).ok_or_else(|| {
+                        faces.bad(
+                            at,
+                            format!(
+                                "face vertex {:?} is not an integer",
+                                String::from_utf8_lossy(tok)
+                            ),
+                        )
+                    })?;
+                    idx.push(if i < 0 { defined + i } else { i - 1 });
+                }
+                faces.polygon(&idx, at)?;
+                any = true;
+            }
+            _ => {}
+        }
+    }
+    Ok(any)
 }
 
 /// Opens an OBJ file: its `v x y z [w | r g b]` lines are the points.

@@ -6,6 +6,7 @@ pub mod las;
 pub mod mesh;
 pub mod pcd;
 pub mod ply;
+pub mod sampled;
 pub mod text;
 
 use std::path::Path;
@@ -343,45 +344,85 @@ pub fn no_crs(format: &str) -> UnitSource {
     UnitSource::Unknown(format!("{format} has no CRS"))
 }
 
-/// Opens a point cloud file, choosing the reader from its signature and extension.
-pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
+/// The input formats, as [`detect`] tells them apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// LAS or LAZ.
+    Las,
+    /// PLY (any encoding).
+    Ply,
+    /// PCD.
+    Pcd,
+    /// XYZ text (`.xyz`, `.pts`, `.txt`).
+    Xyz,
+    /// ASCII OFF mesh.
+    Off,
+    /// OBJ mesh.
+    Obj,
+}
+
+/// The format of a file, from its extension, or from a LAS or PLY signature when the extension
+/// is unknown.
+pub fn detect(path: &Path) -> Result<Format> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
-    match ext.as_str() {
-        "las" | "laz" => Ok(Box::new(LasSource::open(path)?)),
-        "ply" => ply::open(path),
-        "pcd" => pcd::open(path),
-        "xyz" | "pts" | "txt" => Ok(Box::new(text::TextSource::open_xyz(path)?)),
-        "off" => Ok(Box::new(mesh::open_off(path)?)),
-        "obj" => Ok(Box::new(mesh::open_obj(path)?)),
+    Ok(match ext.as_str() {
+        "las" | "laz" => Format::Las,
+        "ply" => Format::Ply,
+        "pcd" => Format::Pcd,
+        "xyz" | "pts" | "txt" => Format::Xyz,
+        "off" => Format::Off,
+        "obj" => Format::Obj,
         _ => {
-            // Unknown extension: a LAS or PLY signature still identifies the format.
             let mut sig = [0u8; 4];
             let sig = std::fs::File::open(path)
                 .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut sig))
                 .map(|_| sig)
                 .unwrap_or_default();
             if &sig == b"LASF" {
-                Ok(Box::new(LasSource::open(path)?))
+                Format::Las
             } else if &sig[..3] == b"ply" {
-                ply::open(path)
+                Format::Ply
             } else if !path.exists() {
-                Err(Error::ReadIo {
+                return Err(Error::ReadIo {
                     path: path.to_path_buf(),
                     source: std::io::Error::from(std::io::ErrorKind::NotFound),
-                })
+                });
             } else {
-                Err(Error::bad_input(
+                return Err(Error::bad_input(
                     path,
                     None,
                     format!(
                         "unsupported input format {ext:?}: tilecurv reads .las, .laz, .ply, .pcd, .xyz, .pts, .txt, .off and .obj"
                     ),
-                ))
+                ));
             }
         }
-    }
+    })
+}
+
+/// Opens a point cloud file, choosing the reader from its signature and extension.
+pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
+    open_format(path, detect(path)?)
+}
+
+/// Opens a file with the reader of `format`.
+pub fn open_format(path: &Path, format: Format) -> Result<Box<dyn PointSource>> {
+    Ok(match format {
+        Format::Las => Box::new(LasSource::open(path)?),
+        Format::Ply => ply::open(path)?,
+        Format::Pcd => pcd::open(path)?,
+        Format::Xyz => Box::new(text::TextSource::open_xyz(path)?),
+        Format::Off => Box::new(mesh::open_off(path)?),
+        Format::Obj => Box::new(mesh::open_obj(path)?),
+    })
+}
+
+/// Opens a mesh file as `n` points sampled uniformly by area on its faces, with the faces'
+/// normals, from the run's `seed` (`process --sample-faces`; see [`sampled`]).
+pub fn open_sampled(path: &Path, n: u64, seed: u64) -> Result<Box<dyn PointSource>> {
+    sampled::open(path, n, seed)
 }

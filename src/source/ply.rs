@@ -12,7 +12,8 @@ use crate::crs::UnitSource;
 use crate::error::{Error, Result};
 use crate::las::extra_bytes::ScalarType;
 
-use super::text::{Body, Column, Lines, TextSource};
+use super::sampled::{integer, Faces, Place};
+use super::text::{tokens, Body, Column, Lines, PointLines, TextSource};
 use super::{
     map_file, no_crs, usable_normal, xyz_and_normals, Bounds, LasSource, PointSource, Property,
     SourcePoint, Stored,
@@ -59,8 +60,9 @@ enum Encoding {
 struct PlyProperty {
     name: String,
     ty: ScalarType,
-    /// Whether this is a list (`property list <count type> <item type> name`).
-    list: bool,
+    /// For a list (`property list <count type> <item type> name`), the count type; `ty` is then
+    /// the item type.
+    list: Option<ScalarType>,
 }
 
 struct Element {
@@ -142,10 +144,11 @@ fn parse_header(path: &Path, map: &[u8]) -> Result<Header> {
                 };
                 let (list, ty, name) = match rest {
                     ["list", count_ty, ty, name] => {
-                        ply_type(count_ty).ok_or_else(|| unknown_type(path, line, count_ty))?;
-                        (true, *ty, *name)
+                        let c = ply_type(count_ty)
+                            .ok_or_else(|| unknown_type(path, line, count_ty))?;
+                        (Some(c), *ty, *name)
                     }
-                    [ty, name] => (false, *ty, *name),
+                    [ty, name] => (None, *ty, *name),
                     _ => {
                         return Err(bad(line, format!(
                             "expected \"property <type> <name>\" or \"property list <type> <type> <name>\", found {text:?}"
@@ -195,7 +198,7 @@ pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
     };
     let before = &h.elements[..vi];
     let vertex = &h.elements[vi];
-    if let Some(p) = vertex.props.iter().find(|p| p.list) {
+    if let Some(p) = vertex.props.iter().find(|p| p.list.is_some()) {
         return Err(Error::bad_input(path, None, format!(
             "header line {}: the vertex element has a list property ({}); tilecurv reads scalar vertex properties only",
             vertex.line, p.name
@@ -231,7 +234,7 @@ pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
     }
     let mut start = h.end;
     for e in before {
-        if let Some(p) = e.props.iter().find(|p| p.list) {
+        if let Some(p) = e.props.iter().find(|p| p.list.is_some()) {
             return Err(Error::bad_input(path, None, format!(
                 "header line {}: element {} precedes the vertices and has a list property ({}); tilecurv reads binary PLY whose vertex element comes first or follows fixed-size elements",
                 e.line, e.name, p.name
@@ -276,6 +279,194 @@ pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
         at,
         props,
     )?))
+}
+
+/// Reads the `face` element of a PLY file into `faces`: its `vertex_indices` (or
+/// `vertex_index`) list, 0-based, in any encoding; other face properties are skipped. Returns
+/// false when the file declares no faces.
+pub fn read_faces(path: &Path, map: &[u8], faces: &mut Faces) -> Result<bool> {
+    let h = parse_header(path, map)?;
+    let Some(fi) = h.elements.iter().position(|e| e.name == "face") else {
+        return Ok(false);
+    };
+    let face = &h.elements[fi];
+    if face.count == 0 {
+        return Ok(false);
+    }
+    let is_indices = |p: &PlyProperty| {
+        p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
+    };
+    if !face.props.iter().any(is_indices) {
+        let names: Vec<_> = face.props.iter().map(|p| p.name.as_str()).collect();
+        return Err(Error::bad_input(path, None, format!(
+            "header line {}: the face element has no list property vertex_indices (or vertex_index); its properties are: {}",
+            face.line,
+            names.join(" ")
+        )));
+    }
+    let mut idx = Vec::new();
+    if h.encoding == Encoding::Ascii {
+        let body = Body {
+            start: h.end,
+            first_line: h.lines + 1,
+            lines: Lines::Counted {
+                skip: h.elements[..fi]
+                    .iter()
+                    .fold(0u64, |s, e| s.saturating_add(e.count)),
+                count: face.count,
+                noun: "faces",
+            },
+        };
+        let mut lines = PointLines::new(map, body);
+        for (no, content) in lines.by_ref() {
+            let at = Place::Line(no);
+            let mut toks = tokens(content);
+            let mut take = |what: &dyn Fn() -> String| {
+                toks.next()
+                    .ok_or_else(|| faces.bad(at, format!("the face line ends before {}", what())))
+            };
+            let int = |tok: &[u8], what: &dyn Fn() -> String| {
+                integer(tok).ok_or_else(|| {
+                    let tok = String::from_utf8_lossy(tok);
+                    faces.bad(at, format!("{} is {tok:?}, not an integer", what()))
+                })
+            };
+            idx.clear();
+            for p in &face.props {
+                let name = || p.name.clone();
+                let tok = take(&name)?;
+                if p.list.is_none() {
+                    continue;
+                }
+                let len = || format!("the length of {}", p.name);
+                let n = u64::try_from(int(tok, &len)?)
+                    .map_err(|_| faces.bad(at, format!("{} is negative", len())))?;
+                for k in 0..n {
+                    let item = || format!("{} item {}", p.name, k + 1);
+                    let tok = take(&item)?;
+                    if is_indices(p) {
+                        idx.push(int(tok, &item)?);
+                    }
+                }
+            }
+            if let Some(extra) = toks.next() {
+                return Err(faces.bad(at, format!(
+                    "the face line has more values than the face element's properties ({:?} is one too many)",
+                    String::from_utf8_lossy(extra)
+                )));
+            }
+            faces.polygon(&idx, at)?;
+        }
+        if lines.points < face.count {
+            return Err(faces.bad(
+                Place::Line(lines.line - 1),
+                format!(
+                    "the header declares {} faces but the file ends after {}: it is truncated or the count is wrong",
+                    face.count, lines.points
+                ),
+            ));
+        }
+        return Ok(true);
+    }
+    let mut cur = Cursor {
+        map,
+        pos: h.end,
+        big: h.encoding == Encoding::BigEndian,
+        faces,
+    };
+    for e in &h.elements[..fi] {
+        if e.props.iter().all(|p| p.list.is_none()) {
+            let size: u64 = e.props.iter().map(|p| p.ty.size() as u64).sum();
+            cur.skip(e.count.saturating_mul(size), &e.name)?;
+            continue;
+        }
+        for _ in 0..e.count {
+            for p in &e.props {
+                cur.property(p, &e.name, None)?;
+            }
+        }
+    }
+    for _ in 0..face.count {
+        let at = Place::Byte(cur.pos as u64);
+        idx.clear();
+        for p in &face.props {
+            let wanted = is_indices(p).then_some(&mut idx);
+            cur.property(p, "face", wanted)?;
+        }
+        cur.faces.polygon(&idx, at)?;
+    }
+    Ok(true)
+}
+
+/// A read position in a binary PLY body, for walking elements with list properties.
+struct Cursor<'m, 'f, 'p> {
+    map: &'m [u8],
+    pos: usize,
+    big: bool,
+    faces: &'f mut Faces<'p>,
+}
+
+impl Cursor<'_, '_, '_> {
+    /// Advances `bytes`, failing when that runs past the end of the file.
+    fn skip(&mut self, bytes: u64, element: &str) -> Result<()> {
+        let end = (self.pos as u64).saturating_add(bytes);
+        if end > self.map.len() as u64 {
+            return Err(self.faces.bad(Place::Byte(self.pos as u64), format!(
+                "element {element} runs past the end of the file ({} bytes): the file is truncated or its counts are wrong",
+                self.map.len()
+            )));
+        }
+        self.pos = end as usize;
+        Ok(())
+    }
+
+    /// Reads one integer value of type `ty`.
+    fn integer(&mut self, ty: ScalarType, what: &str, element: &str) -> Result<i64> {
+        let at = self.pos;
+        self.skip(ty.size() as u64, element)?;
+        let stored = if self.big {
+            Stored::Be(at)
+        } else {
+            Stored::Le(at)
+        };
+        let v = Property::new(what, ty, stored).value(self.map);
+        if v.fract() != 0.0 || v.abs() > (1u64 << 53) as f64 {
+            return Err(self.faces.bad(
+                Place::Byte(at as u64),
+                format!("{element} {what} is {v}, not an integer"),
+            ));
+        }
+        Ok(v as i64)
+    }
+
+    /// Reads one property: a list's items are appended to `items` when given, skipped
+    /// otherwise; scalars are skipped.
+    fn property(
+        &mut self,
+        p: &PlyProperty,
+        element: &str,
+        items: Option<&mut Vec<i64>>,
+    ) -> Result<()> {
+        let Some(count_ty) = p.list else {
+            return self.skip(p.ty.size() as u64, element);
+        };
+        let n = self.integer(count_ty, &format!("{} length", p.name), element)?;
+        let n = u64::try_from(n).map_err(|_| {
+            self.faces.bad(
+                Place::Byte((self.pos - count_ty.size()) as u64),
+                format!("{element} {} has a negative length {n}", p.name),
+            )
+        })?;
+        match items {
+            Some(items) => {
+                for _ in 0..n {
+                    items.push(self.integer(p.ty, &p.name, element)?);
+                }
+                Ok(())
+            }
+            None => self.skip(n.saturating_mul(p.ty.size() as u64), element),
+        }
+    }
 }
 
 /// Fixed-size binary point records in a memory-mapped file (binary PLY vertices, binary PCD),

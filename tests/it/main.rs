@@ -11,3 +11,4 @@ mod outofcore;
 mod real_files;
 mod reference;
 mod sample;
+mod sampled;
