@@ -108,7 +108,8 @@ struct TerrainArgs {
 
 #[derive(clap::Args, Debug)]
 struct ProcessArgs {
-    /// Input LAS or LAZ files (LAS 1.0-1.4, point formats 0-10, COPC-LAZ). Several inputs are
+    /// Input point clouds: LAS or LAZ (LAS 1.0-1.4, point formats 0-10, COPC-LAZ), PLY, XYZ
+    /// text (.xyz, .pts, .txt), PCD, or the vertices of OFF and OBJ meshes. Several inputs are
     /// one scene (adjacent tiles of a survey: neighbourhoods cross file borders) and give one
     /// output each. Never modified.
     #[arg(required = true, num_args = 1..)]
