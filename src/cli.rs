@@ -116,7 +116,8 @@ struct ProcessArgs {
     inputs: Vec<PathBuf>,
 
     /// Output file, or a directory (end it with /) for several inputs, where each output gets
-    /// its input's file name. The extension chooses the format: .las or .laz. Holds every input
+    /// its input's file name. The extension chooses the format: .las, .laz, .ply (binary) or
+    /// .ascii.ply. Holds every input
     /// point in the same order with all original fields, VLRs and EVLRs, plus the columns
     /// NormalX/Y/Z, H (mean curvature), K (Gaussian), k1 <= k2 (principal), CurvatureFlags and,
     /// with --directions, d1x..d2z and, with --features, SharpFeature and VcmNormalX/Y/Z. Curvature is positive where the surface bends away from its
