@@ -290,3 +290,11 @@ pub fn read_ply(path: &Path) -> Table {
         rows,
     }
 }
+
+/// The median of the finite values of `v`.
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.retain(|x| x.is_finite());
+    assert!(!v.is_empty(), "median of no values");
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}

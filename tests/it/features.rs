@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::common::{process, read_ply, shared, tilecurv};
+use crate::common::{median, process, read_ply, shared, tilecurv};
 
 type V3 = [f64; 3];
 
@@ -30,13 +30,6 @@ fn spread(normals: &[V3]) -> f64 {
         }
     }
     worst
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.retain(|x| x.is_finite());
-    assert!(!v.is_empty(), "median of no values");
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// An OBJ mesh: vertices and the unit normals of its faces incident to each vertex (polygons

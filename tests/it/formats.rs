@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use tilecurv::source::PointSource;
 
-use crate::common::{column, process, read_ply, records, root, shared, tilecurv, Table};
+use crate::common::{column, median, process, read_ply, records, root, shared, tilecurv, Table};
 
 /// Reads an input file independently of the library: PLY with `read_ply`, the text formats by
 /// splitting lines.
@@ -284,12 +284,6 @@ fn ascii_ply_output_holds_the_same_values() {
             );
         }
     }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.retain(|x| x.is_finite());
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 #[test]

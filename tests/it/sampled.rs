@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use crate::common::{process, read_ply, shared, tilecurv};
+use crate::common::{median, process, read_ply, shared, tilecurv};
 
 type V = [f64; 3];
 
@@ -91,12 +91,6 @@ fn read_obj(path: &Path) -> (Vec<V>, Vec<[usize; 3]>) {
 
 /// Bit 32 of CurvatureFlags: the normal came from the file.
 const FILE_NORMAL: u8 = 32;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.retain(|x| x.is_finite());
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
 
 #[test]
 fn fandisk_samples_lie_on_its_faces_with_their_normals() {
