@@ -161,16 +161,7 @@ impl Estimator for Aso {
         };
         let s = [[w(e1, e1), w(e1, e2)], [w(e2, e1), w(e2, e2)]];
         let (k1, k2, d1, d2, umbilic) = principal_from_tangent(s, e1, e2);
-        Curvature {
-            h: 0.5 * (k1 + k2),
-            k: k1 * k2,
-            k1,
-            k2,
-            d1,
-            d2,
-            flags: umbilic,
-            extra: None,
-        }
+        Curvature::from_principal(k1, k2, d1, d2, umbilic)
     }
 }
 

@@ -82,6 +82,21 @@ pub struct Extra {
 }
 
 impl Curvature {
+    /// A result from its principal curvatures and directions, with H = (k1 + k2)/2 and
+    /// K = k1 k2 (section 0.1), for estimators that produce no separate H and K.
+    pub fn from_principal(k1: f64, k2: f64, d1: V3, d2: V3, flags: u8) -> Self {
+        Curvature {
+            h: 0.5 * (k1 + k2),
+            k: k1 * k2,
+            k1,
+            k2,
+            d1,
+            d2,
+            flags,
+            extra: None,
+        }
+    }
+
     /// An undefined result carrying `flags`: NaN values, zero directions.
     pub fn undefined(flags: u8) -> Self {
         Curvature {

@@ -316,16 +316,7 @@ fn magnitudes(frame: &M3, ax: &AxisSums) -> Curvature {
     } else {
         0
     };
-    Curvature {
-        h: 0.5 * (k1 + k2),
-        k: k1 * k2,
-        k1,
-        k2,
-        d1,
-        d2,
-        flags: umbilic,
-        extra: None,
-    }
+    Curvature::from_principal(k1, k2, d1, d2, umbilic)
 }
 
 #[cfg(test)]
