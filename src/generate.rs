@@ -31,8 +31,8 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::estimate::rng::Rng;
 use crate::las::extra_bytes::{self, encode, NewColumn, ScalarType};
-use crate::las::header::POINT_FORMAT_SIZES;
-use crate::las::vlr::{padded, Vlr};
+use crate::las::header::{NewHeader, POINT_FORMAT_SIZES};
+use crate::las::vlr::Vlr;
 use crate::las_out::output_is_laz;
 use crate::sink::{commit, temp_path};
 use crate::synthetic::{HeightField, HeightJet};
@@ -505,36 +505,29 @@ fn truth_descriptors() -> Vec<u8> {
 
 /// The 227-byte LAS 1.2 header for `points` records after `vlr_bytes` bytes of VLRs.
 fn header(points: u64, num_vlrs: u32, vlr_bytes: usize, bounds: &IntBounds) -> Result<Vec<u8>> {
-    let mut h = vec![0u8; 227];
-    h[0..4].copy_from_slice(b"LASF");
-    h[24] = 1;
-    h[25] = 2;
-    h[26..58].copy_from_slice(&padded::<32>("SYNTHETIC TERRAIN"));
-    h[58..90].copy_from_slice(&padded::<32>(&format!(
-        "tilecurv {} generate",
-        env!("CARGO_PKG_VERSION")
-    )));
-    h[94..96].copy_from_slice(&227u16.to_le_bytes());
+    u32::try_from(points)
+        .map_err(|_| Error::Internal(format!("{points} points do not fit LAS 1.2")))?;
     let offset = u32::try_from(227 + vlr_bytes)
         .map_err(|_| Error::Internal("VLRs larger than 4 GiB".into()))?;
+    let offsets = [ORIGIN_M[0], ORIGIN_M[1], 0.0];
+    let at = |a: usize, v: i32| offsets[a] + f64::from(v) * SCALE_M;
+    let software = format!("tilecurv {} generate", env!("CARGO_PKG_VERSION"));
+    // Every point is return 1 of 1.
+    let mut h = NewHeader {
+        minor: 2,
+        system: "SYNTHETIC TERRAIN",
+        software: &software,
+        point_format: POINT_FORMAT,
+        record_length: RECORD_LENGTH as u16,
+        points,
+        scale: [SCALE_M; 3],
+        offset: offsets,
+        min: [0, 1, 2].map(|a| at(a, bounds.lo[a])),
+        max: [0, 1, 2].map(|a| at(a, bounds.hi[a])),
+    }
+    .bytes();
     h[96..100].copy_from_slice(&offset.to_le_bytes());
     h[100..104].copy_from_slice(&num_vlrs.to_le_bytes());
-    h[104] = POINT_FORMAT;
-    h[105..107].copy_from_slice(&(RECORD_LENGTH as u16).to_le_bytes());
-    let n = u32::try_from(points)
-        .map_err(|_| Error::Internal(format!("{points} points do not fit LAS 1.2")))?;
-    h[107..111].copy_from_slice(&n.to_le_bytes());
-    // Every point is return 1 of 1.
-    h[111..115].copy_from_slice(&n.to_le_bytes());
-    let offsets = [ORIGIN_M[0], ORIGIN_M[1], 0.0];
-    for a in 0..3 {
-        let lo = offsets[a] + f64::from(bounds.lo[a]) * SCALE_M;
-        let hi = offsets[a] + f64::from(bounds.hi[a]) * SCALE_M;
-        h[131 + 8 * a..139 + 8 * a].copy_from_slice(&SCALE_M.to_le_bytes());
-        h[155 + 8 * a..163 + 8 * a].copy_from_slice(&offsets[a].to_le_bytes());
-        h[179 + 16 * a..187 + 16 * a].copy_from_slice(&hi.to_le_bytes());
-        h[187 + 16 * a..195 + 16 * a].copy_from_slice(&lo.to_le_bytes());
-    }
     Ok(h)
 }
 

@@ -14,8 +14,8 @@ use crate::error::{Error, Result};
 use crate::las::extra_bytes::{
     self, encode, encode_undocumented, parse, Descriptor, NewColumn, DESCRIPTOR_SIZE,
 };
-use crate::las::header::{LasHeader, OutputLayout, POINT_FORMAT_SIZES};
-use crate::las::vlr::{padded, Vlr};
+use crate::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
+use crate::las::vlr::Vlr;
 use crate::sink::{commit, temp_path, PointSink};
 use crate::source::{xyz_and_normals, LasSource, PointSource, Property};
 
@@ -482,32 +482,20 @@ fn converted_header(
             "the input's properties take {extra_len} bytes per point, more than a LAS record holds"
         ))
     })?;
-    let mut h = vec![0u8; 375];
-    h[0..4].copy_from_slice(b"LASF");
-    h[24] = 1;
-    h[25] = 4;
-    h[26..58].copy_from_slice(&padded::<32>("OTHER"));
-    h[58..90].copy_from_slice(&padded::<32>(&format!(
-        "tilecurv {}",
-        env!("CARGO_PKG_VERSION")
-    )));
-    h[94..96].copy_from_slice(&375u16.to_le_bytes());
-    h[96..100].copy_from_slice(&375u32.to_le_bytes());
-    h[105..107].copy_from_slice(&record_length.to_le_bytes());
-    // Point format 0 keeps the legacy counts when they fit (LAS 1.4, section 2.4).
-    if let Ok(n) = u32::try_from(points) {
-        h[107..111].copy_from_slice(&n.to_le_bytes());
-        h[111..115].copy_from_slice(&n.to_le_bytes());
+    let software = format!("tilecurv {}", env!("CARGO_PKG_VERSION"));
+    Ok(NewHeader {
+        minor: 4,
+        system: "OTHER",
+        software: &software,
+        point_format: 0,
+        record_length,
+        points,
+        scale,
+        offset,
+        min: bounds[0],
+        max: bounds[1],
     }
-    for a in 0..3 {
-        h[131 + 8 * a..139 + 8 * a].copy_from_slice(&scale[a].to_le_bytes());
-        h[155 + 8 * a..163 + 8 * a].copy_from_slice(&offset[a].to_le_bytes());
-        h[179 + 16 * a..187 + 16 * a].copy_from_slice(&bounds[1][a].to_le_bytes());
-        h[187 + 16 * a..195 + 16 * a].copy_from_slice(&bounds[0][a].to_le_bytes());
-    }
-    h[247..255].copy_from_slice(&points.to_le_bytes());
-    h[255..263].copy_from_slice(&points.to_le_bytes());
-    Ok(h)
+    .bytes())
 }
 
 #[cfg(test)]

@@ -251,3 +251,63 @@ pub struct OutputLayout {
     /// Start of the waveform data in the output (LAS 1.3+), 0 if none.
     pub waveform_start: u64,
 }
+
+/// The fields of a header written from scratch (generated or converted clouds). The layout
+/// fields (offset to the points, VLR and EVLR counts) start as "no VLRs"; callers set them, or
+/// pass the header through [`LasHeader::patched`].
+#[derive(Debug, Clone)]
+pub struct NewHeader<'a> {
+    /// Minor version: 2 (227-byte header) or 4 (375 bytes, 64-bit counts).
+    pub minor: u8,
+    /// System identifier (32 bytes at most).
+    pub system: &'a str,
+    /// Generating software (32 bytes at most).
+    pub software: &'a str,
+    /// Point data record format.
+    pub point_format: u8,
+    /// Bytes per record, extra bytes included.
+    pub record_length: u16,
+    /// Number of points; every point counts as a first return.
+    pub points: u64,
+    /// Coordinate scale factors.
+    pub scale: [f64; 3],
+    /// Coordinate offsets.
+    pub offset: [f64; 3],
+    /// Minimum x, y, z.
+    pub min: [f64; 3],
+    /// Maximum x, y, z.
+    pub max: [f64; 3],
+}
+
+impl NewHeader<'_> {
+    /// The header bytes. Legacy 32-bit counts are set when the count fits (LAS 1.4 section 2.4
+    /// allows them for formats 0 to 5); LAS 1.4 also gets the 64-bit counts.
+    pub fn bytes(&self) -> Vec<u8> {
+        let size: u16 = if self.minor >= 4 { 375 } else { 227 };
+        let mut h = vec![0u8; size as usize];
+        h[0..4].copy_from_slice(b"LASF");
+        h[24] = 1;
+        h[25] = self.minor;
+        h[26..58].copy_from_slice(&super::vlr::padded::<32>(self.system));
+        h[58..90].copy_from_slice(&super::vlr::padded::<32>(self.software));
+        h[94..96].copy_from_slice(&size.to_le_bytes());
+        h[96..100].copy_from_slice(&(size as u32).to_le_bytes());
+        h[104] = self.point_format;
+        h[105..107].copy_from_slice(&self.record_length.to_le_bytes());
+        if let Ok(n) = u32::try_from(self.points) {
+            h[107..111].copy_from_slice(&n.to_le_bytes());
+            h[111..115].copy_from_slice(&n.to_le_bytes());
+        }
+        for a in 0..3 {
+            h[131 + 8 * a..139 + 8 * a].copy_from_slice(&self.scale[a].to_le_bytes());
+            h[155 + 8 * a..163 + 8 * a].copy_from_slice(&self.offset[a].to_le_bytes());
+            h[179 + 16 * a..187 + 16 * a].copy_from_slice(&self.max[a].to_le_bytes());
+            h[187 + 16 * a..195 + 16 * a].copy_from_slice(&self.min[a].to_le_bytes());
+        }
+        if self.minor >= 4 {
+            h[247..255].copy_from_slice(&self.points.to_le_bytes());
+            h[255..263].copy_from_slice(&self.points.to_le_bytes());
+        }
+        h
+    }
+}
