@@ -49,18 +49,69 @@ struct Grid {
     /// Coordinates and original ids in cell order (contiguous reads while scanning cells).
     xyz: Vec<V3>,
     ids: Vec<u64>,
+    /// Rounding allowance when comparing a distance with a cell face: cell membership and face
+    /// positions are computed in f64 at the coordinates' magnitude (1e6 for UTM).
+    face_eps: f64,
 }
 
-/// Per-thread scratch for [`NeighbourIndex::knn`], so queries do not allocate their ranking
-/// buffer each time.
+/// The 3 x 3 x 3 cells around one grid cell, gathered as f32 coordinates relative to the cell's
+/// centre (structure of arrays, so the distance pass vectorises). Every query in that cell
+/// reuses it: queries arrive in Morton order, so consecutive ones mostly share a cell.
+#[derive(Default)]
+struct Block {
+    /// The centre cell, or None before the first gather.
+    cell: Option<[usize; 3]>,
+    centre: V3,
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    /// Local point index of each gathered point.
+    local: Vec<u32>,
+    /// Bound on |f32 squared distance - f64 squared distance| between any two gathered points.
+    slack2: f64,
+}
+
+pub static DBG: [std::sync::atomic::AtomicU64; 4] = [const { std::sync::atomic::AtomicU64::new(0) }; 4];
+/// Per-thread scratch for [`NeighbourIndex::knn`], so queries do not allocate.
 #[derive(Default)]
 pub struct KnnScratch {
     ranked: Vec<(f64, u64, u32)>,
+    block: Block,
+    d2: Vec<f32>,
+    keys: Vec<u64>,
+    exact: Vec<(f64, u64, u32)>,
+    /// The last query's squared k-th distance, the first guess for the next one.
+    hint: f32,
 }
 
 #[inline]
 fn rank(a: &(f64, u64, u32), b: &(f64, u64, u32)) -> std::cmp::Ordering {
     a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
+}
+
+/// Sorts `v` by [`rank`]. Up to 64 entries (the usual case) are sorted as integer keys, the
+/// squared distance's bits with the entry's position in the low 6 bits (branch-free and much
+/// faster than comparing tuples), then put in exact order by an insertion pass: the keys only
+/// misorder distances within 64 ulps of each other, so that pass moves almost nothing.
+fn sort_ranked(v: &mut Vec<(f64, u64, u32)>, keys: &mut Vec<u64>, spare: &mut Vec<(f64, u64, u32)>) {
+    if v.len() > 64 {
+        v.sort_unstable_by(rank);
+        return;
+    }
+    keys.clear();
+    // Squared distances are >= +0.0, whose bit patterns order like the values.
+    keys.extend(v.iter().enumerate().map(|(e, r)| (r.0.to_bits() & !63) | e as u64));
+    keys.sort_unstable();
+    spare.clear();
+    spare.extend(keys.iter().map(|&key| v[(key & 63) as usize]));
+    for x in 1..spare.len() {
+        let mut y = x;
+        while y > 0 && rank(&spare[y], &spare[y - 1]).is_lt() {
+            spare.swap(y, y - 1);
+            y -= 1;
+        }
+    }
+    std::mem::swap(v, spare);
 }
 
 /// Offers a candidate to a max-heap (by rank) that keeps the `cap` best.
@@ -106,7 +157,7 @@ impl Grid {
     fn build(xyz: &[V3], ids: &[u64], lo: V3, hi: V3, k: usize) -> Option<Grid> {
         let n = xyz.len();
         let area = ((hi[0] - lo[0]) * (hi[1] - lo[1])).max(f64::MIN_POSITIVE);
-        let cell = (k as f64 * area / (std::f64::consts::PI * n as f64)).sqrt();
+        let cell = (k as f64 * area / (std::f64::consts::PI * n as f64)).sqrt() * 1.25;
         let g = Self::with_cell(xyz, ids, lo, hi, k, cell)?;
         // Points spread in z (vegetation, walls) occupy more cells than a surface would: then
         // grow the cells so that occupied cells hold about k/3 points (occupancy of a surface
@@ -168,7 +219,9 @@ impl Grid {
         let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
         let sorted_xyz = order.iter().map(|&i| xyz[i as usize]).collect();
         let sorted_ids = order.iter().map(|&i| ids[i as usize]).collect();
+        let magnitude = (0..3).map(|a| lo[a].abs().max(hi[a].abs())).fold(cell, f64::max);
         Some(Grid {
+            face_eps: 16.0 * f64::EPSILON * magnitude,
             lo,
             cell,
             dims,
@@ -178,6 +231,63 @@ impl Grid {
             xyz: sorted_xyz,
             ids: sorted_ids,
         })
+    }
+}
+
+impl Grid {
+    /// The cell holding `q` (a point inside the grid's bounds).
+    #[inline]
+    fn cell_of(&self, q: V3) -> [usize; 3] {
+        [0, 1, 2].map(|a| (((q[a] - self.lo[a]) / self.cell) as usize).min(self.dims[a] - 1))
+    }
+
+    /// Distance from `q` to the nearest face of the box of cells within Chebyshev distance `r`
+    /// of cell `qc`, less the rounding allowance. Faces at the grid's border hide nothing and
+    /// do not count (infinite when the box covers the grid).
+    fn room(&self, q: V3, qc: [usize; 3], r: usize) -> f64 {
+        let mut room = f64::INFINITY;
+        for a in 0..3 {
+            if qc[a] > r {
+                room = room.min(q[a] - (self.lo[a] + (qc[a] - r) as f64 * self.cell));
+            }
+            if qc[a] + r + 1 < self.dims[a] {
+                room = room.min(self.lo[a] + (qc[a] + r + 1) as f64 * self.cell - q[a]);
+            }
+        }
+        room - self.face_eps
+    }
+
+    /// Gathers the points of the 3 x 3 x 3 cells around cell `c` into `b`.
+    fn gather(&self, c: [usize; 3], b: &mut Block) {
+        b.cell = Some(c);
+        b.centre = [0, 1, 2].map(|a| self.lo[a] + (c[a] as f64 + 0.5) * self.cell);
+        b.x.clear();
+        b.y.clear();
+        b.z.clear();
+        b.local.clear();
+        let (z_lo, z_hi) = (c[2].saturating_sub(1) as u32, (c[2] + 1) as u32);
+        for x in c[0].saturating_sub(1)..(c[0] + 2).min(self.dims[0]) {
+            for y in c[1].saturating_sub(1)..(c[1] + 2).min(self.dims[1]) {
+                let col = x * self.dims[1] + y;
+                let cells = self.cols[col] as usize..self.cols[col + 1] as usize;
+                // z cells of a column are sorted, and their points contiguous.
+                let first = cells.start + self.zcells[cells.clone()].partition_point(|z| z.0 < z_lo);
+                let last = cells.start + self.zcells[cells].partition_point(|z| z.0 <= z_hi);
+                let run = self.zcells[first].1 as usize..self.zcells[last].1 as usize;
+                for (p, &l) in self.xyz[run.clone()].iter().zip(&self.order[run]) {
+                    b.x.push((p[0] - b.centre[0]) as f32);
+                    b.y.push((p[1] - b.centre[1]) as f32);
+                    b.z.push((p[2] - b.centre[2]) as f32);
+                    b.local.push(l);
+                }
+            }
+        }
+        // Gathered coordinates are within 1.5 cells of the centre on each axis, so each is
+        // rounded by at most 2^-24 * 1.5 cell; the error of an f32 squared distance (inputs,
+        // difference, products, sum) is below 50 * 2^-24 * R^2 with R = 1.5 * sqrt(3) cells
+        // (derivation in docs/architecture.md, k-NN). Doubled for safety.
+        let r = 1.5 * 3f64.sqrt() * self.cell;
+        b.slack2 = 100.0 * (f32::EPSILON as f64 / 2.0) * r * r;
     }
 }
 
@@ -255,6 +365,12 @@ impl<'a> NeighbourIndex<'a> {
         if others == 0 {
             return 0.0;
         }
+        if let Backend::Grid(g) = &self.backend {
+            if let Some(far2) = self.grid_block_knn(g, i, others, scratch) {
+                out.extend(scratch.exact[..others].iter().map(|r| r.2));
+                return far2.sqrt();
+            }
+        }
         let ranked = &mut scratch.ranked;
         ranked.clear();
         match &self.backend {
@@ -275,14 +391,110 @@ impl<'a> NeighbourIndex<'a> {
         ranked.last().map(|r| r.0.sqrt()).unwrap_or(0.0)
     }
 
+    /// The fast path of the grid: ranks the points of the 3 x 3 x 3 cells around `i`'s cell
+    /// (gathered once per cell, see [`Block`]). An f32 pass over them finds a squared radius
+    /// holding at least the k nearest (the point itself included); every point within that
+    /// radius plus the f32 rounding bound is ranked exactly by (f64 distance, id) into
+    /// `scratch.exact`. The answer stands when the exact k-th distance is inside the block;
+    /// returns its squared distance, or None to fall back to the shell search.
+    fn grid_block_knn(
+        &self,
+        g: &Grid,
+        i: usize,
+        others: usize,
+        s: &mut KnnScratch,
+    ) -> Option<f64> {
+        let q = self.xyz[i];
+        let c = g.cell_of(q);
+        if s.block.cell != Some(c) {
+            g.gather(c, &mut s.block);
+        }
+        let b = &s.block;
+        let need = others + 1; // the query itself is gathered too, at distance 0
+        if b.x.len() < need {
+            return None;
+        }
+        let ql = [0, 1, 2].map(|a| (q[a] - b.centre[a]) as f32);
+        s.d2.clear();
+        s.d2.extend(b.x.iter().zip(&b.y).zip(&b.z).map(|((&x, &y), &z)| {
+            let (dx, dy, dz) = (x - ql[0], y - ql[1], z - ql[2]);
+            dx * dx + dy * dy + dz * dz
+        }));
+        let d2 = &s.d2[..];
+        let count = |t: f32| d2.iter().map(|&d| (d <= t) as usize).sum::<usize>();
+        // Smallest squared radius found holding >= need points, aiming at a few more than need
+        // (so that few points are ranked exactly); counts grow about linearly with the squared
+        // radius on a surface, so each guess rescales the last.
+        let (mut below, mut above) = (0f32, f32::INFINITY);
+        let mut t = if s.hint > 0.0 {
+            s.hint
+        } else {
+            (0.5 * g.cell * g.cell) as f32
+        };
+        let window = need + need / 4 + 2;
+        for _ in 0..8 {
+            let n = count(t);
+            if n >= need {
+                above = t;
+                if n <= window {
+                    break;
+                }
+            } else {
+                below = t;
+            }
+            let aim = (need + need / 8 + 1) as f32;
+            let mut next = if n == 0 {
+                4.0 * t
+            } else {
+                t * (aim / n as f32).clamp(0.25, 4.0)
+            };
+            if !(next > below && next < above) {
+                next = if above.is_finite() {
+                    0.5 * (below + above)
+                } else {
+                    4.0 * t
+                };
+            }
+            t = next;
+        }
+        // Every point that can be among the exact k nearest is within `above` plus twice the
+        // rounding bound (f32 k-th <= above; exact and f32 values differ by <= slack2).
+        let lim = ((above as f64 + 2.0 * b.slack2) * (1.0 + 1e-6)) as f32;
+        s.keys.clear();
+        s.keys.resize(d2.len(), 0);
+        let mut n = 0;
+        for (j, &d) in d2.iter().enumerate() {
+            s.keys[n] = j as u64; // branch-free compaction of the indices within lim
+            n += (d <= lim) as usize;
+        }
+        s.exact.clear();
+        for &j in &s.keys[..n] {
+            let l = b.local[j as usize];
+            if l as usize != i {
+                s.exact.push((self.dist2(q, l as usize), self.ids[l as usize], l));
+            }
+        }
+        if s.exact.len() < others {
+            return None;
+        }
+        sort_ranked(&mut s.exact, &mut s.keys, &mut s.ranked);
+        let far2 = s.exact[others - 1].0;
+        s.hint = (far2 * 1.1) as f32;
+        DBG[0].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        DBG[1].fetch_add(d2.len() as u64, std::sync::atomic::Ordering::Relaxed);
+        DBG[2].fetch_add(n as u64, std::sync::atomic::Ordering::Relaxed);
+        if far2.sqrt() >= g.room(q, c, 1) { DBG[3].fetch_add(1, std::sync::atomic::Ordering::Relaxed); }
+        (far2.sqrt() < g.room(q, c, 1)).then_some(far2)
+    }
+
     /// Leaves in `ranked` exactly the `others` nearest points other than `i` (as a max-heap by
     /// rank): grows a box of cells around `i`, shell by shell, until the worst kept distance is
     /// strictly inside the box (every point outside is farther). Cells whose nearest corner is
     /// farther than the worst kept candidate are skipped.
     fn grid_candidates(&self, g: &Grid, i: usize, others: usize, heap: &mut Vec<(f64, u64, u32)>) {
         let q = self.xyz[i];
-        let qc =
-            [0, 1, 2].map(|a| (((q[a] - g.lo[a]) / g.cell) as usize).min(g.dims[a] - 1) as i64);
+        let cell = g.cell_of(q);
+        let qc = cell.map(|c| c as i64);
         // Squared distance from q to the slab of cell index c along axis a (0 inside it).
         let gap = |a: usize, c: i64| {
             let lo = g.lo[a] + c as f64 * g.cell;
@@ -339,21 +551,8 @@ impl<'a> NeighbourIndex<'a> {
             if (0..3).all(|a| qc[a] - r <= 0 && qc[a] + r >= g.dims[a] as i64 - 1) {
                 return; // the box covers the whole grid
             }
-            if heap.len() == others {
-                // Distance from q to the nearest face of the searched box (faces beyond the
-                // grid hide nothing).
-                let mut room = f64::INFINITY;
-                for a in 0..3 {
-                    if qc[a] - r > 0 {
-                        room = room.min(q[a] - (g.lo[a] + (qc[a] - r) as f64 * g.cell));
-                    }
-                    if qc[a] + r < g.dims[a] as i64 - 1 {
-                        room = room.min(g.lo[a] + (qc[a] + r + 1) as f64 * g.cell - q[a]);
-                    }
-                }
-                if heap[0].0.sqrt() < room {
-                    return;
-                }
+            if heap.len() == others && heap[0].0.sqrt() < g.room(q, cell, r as usize) {
+                return;
             }
             r += 1;
         }

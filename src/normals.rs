@@ -1,7 +1,7 @@
 //! Normals: PCA over a point's neighbours (the same K-NN the estimator uses) and orientation.
 //! Pure: works on coordinates and neighbour lists.
 
-use crate::geometry::{dot, normalize, scale, sub, sym3_eigen, V3};
+use crate::geometry::{dot, scale, sub, sym3_smallest, V3};
 
 /// How PCA normals are oriented (their sign is otherwise arbitrary).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -43,11 +43,11 @@ pub fn pca_normal(xyz: &[V3], nbrs: &[u32]) -> Option<V3> {
     c[1][0] = c[0][1];
     c[2][0] = c[0][2];
     c[2][1] = c[1][2];
-    let (vals, vecs) = sym3_eigen(&c);
+    let (vals, normal) = sym3_smallest(&c)?;
     if vals[2].is_nan() || vals[2] <= 0.0 || vals[1] <= 1e-12 * vals[2] {
         return None;
     }
-    normalize(vecs[0])
+    Some(normal)
 }
 
 /// Orients `n` at absolute position `p`. A normal exactly orthogonal to the reference direction

@@ -34,7 +34,7 @@ impl TilePoints {
     /// Reorders the points to follow a Z-order (Morton) curve over x/y, core and context
     /// separately, so that consecutive queries touch the same part of the k-d tree (cache
     /// locality). Results do not depend on the order: neighbours are ranked by (distance, id).
-    fn morton_order(&mut self) {
+    pub fn morton_order(&mut self) {
         let r = self.region;
         let (w, h) = (
             (r.max[0] - r.min[0]).max(f64::MIN_POSITIVE),

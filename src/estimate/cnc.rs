@@ -118,24 +118,25 @@ const HEX: [[f64; 2]; 6] = [
 
 /// The hexagon sector (0..6) of a neighbour at relative position `d`: the Voronoi region of the
 /// nearest hexagon vertex. The vertices are equidistant from the centre, so the nearest one
-/// maximises <d | w_k> and the radius drops out (section 1.7 note). Ties go to the lower k.
-/// Returns None for a point whose tangential projection is exactly zero (it is equidistant
-/// from all six vertices, like the query point itself).
+/// maximises <d | w_k> and the radius drops out (section 1.7 note): the sectors are the 60
+/// degree wedges centred on the vertex directions, bounded by the three lines at 30, 90 and
+/// 150 degrees. The side of each line (a sign test, no branch) names the wedge; a point on a
+/// line goes to one of its two wedges. Returns None for a point whose tangential projection is
+/// exactly zero (equidistant from all six vertices, like the query point itself).
+#[inline]
 pub fn hexagon_sector(d: V3, u: V3, v: V3) -> Option<usize> {
+    /// Wedge by (above 30 deg line, above 90 deg line, above 150 deg line); codes 2 and 5 are
+    /// impossible but for rounding next to the centre.
+    const WEDGE: [u8; 8] = [0, 5, 3, 4, 1, 0, 2, 3];
     let (a, b) = (dot(d, u), dot(d, v));
     if a == 0.0 && b == 0.0 {
         return None;
     }
-    let mut best = 0;
-    let mut best_score = f64::NEG_INFINITY;
-    for (k, w) in HEX.iter().enumerate() {
-        let s = w[0] * a + w[1] * b;
-        if s > best_score {
-            best = k;
-            best_score = s;
-        }
-    }
-    Some(best)
+    let s = 0.866_025_403_784_438_6 * b;
+    let code = (((s - 0.5 * a > 0.0) as usize) << 2)
+        | (((a < 0.0) as usize) << 1)
+        | ((-0.5 * a - s > 0.0) as usize);
+    Some(WEDGE[code] as usize)
 }
 
 /// The hexagon plane normal of the reference code: the query normal blended half and half with
@@ -316,6 +317,28 @@ mod tests {
             "K = {}",
             out.k
         );
+    }
+
+    /// The sign tests pick the hexagon vertex nearest to the projected point (the definition).
+    #[test]
+    fn hexagon_sector_is_the_nearest_vertex() {
+        let (u, v) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        for step in 0..3600 {
+            let t = (step as f64 + 0.37) * std::f64::consts::PI / 1800.0;
+            let r = 0.1 + (step % 7) as f64;
+            let d = [r * t.cos(), r * t.sin(), 0.3];
+            let nearest = HEX
+                .iter()
+                .enumerate()
+                .min_by(|a, b| {
+                    let da = (d[0] - r * a.1[0]).powi(2) + (d[1] - r * a.1[1]).powi(2);
+                    let db = (d[0] - r * b.1[0]).powi(2) + (d[1] - r * b.1[1]).powi(2);
+                    da.total_cmp(&db)
+                })
+                .map(|(k, _)| k);
+            assert_eq!(hexagon_sector(d, u, v), nearest, "angle {t}");
+        }
+        assert_eq!(hexagon_sector([0.0, 0.0, 2.0], u, v), None);
     }
 
     /// Flipping every normal negates H and keeps K (section 0.1).
