@@ -120,7 +120,6 @@ fn main() {
             lists[i * k..(i + 1) * k].copy_from_slice(&out);
         }
     });
-    eprintln!("DBG {:?}", tilecurv::neighbors::DBG);
     let origin = t.xyz[0];
     let local: Vec<[f32; 3]> = t
         .xyz

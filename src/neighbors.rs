@@ -71,7 +71,6 @@ struct Block {
     slack2: f64,
 }
 
-pub static DBG: [std::sync::atomic::AtomicU64; 4] = [const { std::sync::atomic::AtomicU64::new(0) }; 4];
 /// Per-thread scratch for [`NeighbourIndex::knn`], so queries do not allocate.
 #[derive(Default)]
 pub struct KnnScratch {
@@ -480,10 +479,6 @@ impl<'a> NeighbourIndex<'a> {
         sort_ranked(&mut s.exact, &mut s.keys, &mut s.ranked);
         let far2 = s.exact[others - 1].0;
         s.hint = (far2 * 1.1) as f32;
-        DBG[0].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        DBG[1].fetch_add(d2.len() as u64, std::sync::atomic::Ordering::Relaxed);
-        DBG[2].fetch_add(n as u64, std::sync::atomic::Ordering::Relaxed);
-        if far2.sqrt() >= g.room(q, c, 1) { DBG[3].fetch_add(1, std::sync::atomic::Ordering::Relaxed); }
         (far2.sqrt() < g.room(q, c, 1)).then_some(far2)
     }
 
