@@ -101,7 +101,10 @@ fn main() {
     let a = args();
     let t = load(&a);
     let n = t.xyz.len();
-    assert!(n > a.k, "stages: only {n} points in the tile; give a bigger --tile");
+    assert!(
+        n > a.k,
+        "stages: only {n} points in the tile; give a bigger --tile"
+    );
     eprintln!(
         "stages: {} — {n} points in a {} unit tile, k = {}, 1 thread, best of {}",
         a.file.display(),
@@ -175,7 +178,10 @@ fn main() {
     let _: V3 = [h_sum, checksum as f64, 0.0];
     println!("stage                        us/point");
     println!("k-NN (tilecurv, exact)       {knn:8.3}");
-    println!("k-NN (kiddo nearest_n, f32)  {kiddo:8.3}   ratio kiddo/tilecurv {:.2}", kiddo / knn);
+    println!(
+        "k-NN (kiddo nearest_n, f32)  {kiddo:8.3}   ratio kiddo/tilecurv {:.2}",
+        kiddo / knn
+    );
     println!("PCA normals                  {pca:8.3}");
     println!("cnc-avg-hexagram             {est:8.3}");
     println!(

@@ -2,6 +2,9 @@
 //! (the file's, or PCA oriented), halo verification, and the estimator for the core points whose
 //! whole neighbourhood is verified complete. Parallel over points with rayon; no I/O.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use rayon::iter::Either;
 use rayon::prelude::*;
 
 use crate::estimate::{flags, Curvature, Estimator, Neighbourhood};
@@ -81,21 +84,30 @@ pub struct TileOutcome {
     pub orientation: Option<crate::orient::TileOrientation>,
 }
 
-struct Knn {
-    list: Vec<u32>,
+/// What the k-NN of one point left in its slot of the tile's flat list array.
+#[derive(Clone, Copy, Default)]
+struct ListInfo {
+    /// Entries of the list (0: no list computed for this point).
+    len: u32,
+    /// Whether the list is provably the point's true k-NN (nothing nearer is outside the
+    /// loaded region).
     complete: bool,
 }
 
-fn knn_of(
+/// k-NN of point `i` into `slot` (its k entries of the flat list array).
+#[allow(clippy::too_many_arguments)]
+fn knn_into(
     t: &TilePoints,
     index: &NeighbourIndex<'_>,
     scene: &Rect,
     k: usize,
     i: usize,
     scratch: &mut KnnScratch,
-) -> Knn {
-    let mut list = Vec::with_capacity(k);
-    let far = index.knn(i, k, scratch, &mut list);
+    list: &mut Vec<u32>,
+    slot: &mut [u32],
+) -> ListInfo {
+    let far = index.knn(i, k, scratch, list);
+    slot[..list.len()].copy_from_slice(list);
     let p = t.xyz[i];
     let room = t.region.distance_to_open_side(p[0], p[1], scene);
     // Any point not loaded is strictly farther than `room`; with fewer than k points loaded,
@@ -105,7 +117,10 @@ fn knn_of(
     } else {
         far <= room
     };
-    Knn { list, complete }
+    ListInfo {
+        len: list.len() as u32,
+        complete,
+    }
 }
 
 /// Computes the core points of `t`. `scene` is the x/y extent of the whole cloud.
@@ -123,51 +138,58 @@ pub fn compute_tile(
     };
     let n = t.xyz.len();
     let k = p.k;
+    let n_core = t.n_core;
+    // Neighbour lists, flat (point i: lists[i k .. i k + info[i].len]): no allocation per point.
+    let mut lists = vec![0u32; n * k];
+    let mut info = vec![ListInfo::default(); n];
+    let scratch = || (KnnScratch::default(), Vec::with_capacity(k));
     // 1. k-NN of the core points.
-    let mut knn: Vec<Option<Knn>> = (0..t.n_core)
-        .into_par_iter()
-        .map_init(KnnScratch::default, |s, i| {
-            Some(knn_of(t, &index, scene, k, i, s))
-        })
-        .collect();
-    // 2. k-NN of the halo points that core neighbourhoods reach (their normals are used).
-    let mut needed = vec![false; n];
-    for l in knn.iter().flatten() {
-        for &j in &l.list {
-            needed[j as usize] = true;
-        }
-    }
-    let halo: Vec<usize> = (t.n_core..n).filter(|&j| needed[j]).collect();
-    let halo_knn: Vec<(usize, Knn)> = halo
-        .par_iter()
-        .map_init(KnnScratch::default, |s, &j| {
-            (j, knn_of(t, &index, scene, k, j, s))
-        })
-        .collect();
-    knn.resize_with(n, || None);
-    for (j, l) in halo_knn {
-        knn[j] = Some(l);
-    }
-    // 3. Normals of every point with a neighbour list.
-    let mut normals: Vec<Option<V3>> = knn
-        .par_iter()
+    lists[..n_core * k]
+        .par_chunks_mut(k)
+        .zip(info[..n_core].par_iter_mut())
         .enumerate()
-        .map(|(i, l)| {
-            let l = l.as_ref()?;
+        .for_each_init(scratch, |(s, list), (i, (slot, li))| {
+            *li = knn_into(t, &index, scene, k, i, s, list, slot);
+        });
+    // 2. k-NN of the halo points that core neighbourhoods reach (their normals are used).
+    let needed: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
+    lists[..n_core * k]
+        .par_chunks(k)
+        .zip(info[..n_core].par_iter())
+        .for_each(|(l, li)| {
+            for &j in &l[..li.len as usize] {
+                needed[j as usize].store(true, Ordering::Relaxed);
+            }
+        });
+    lists[n_core * k..]
+        .par_chunks_mut(k)
+        .zip(info[n_core..].par_iter_mut())
+        .enumerate()
+        .for_each_init(scratch, |(s, list), (h, (slot, li))| {
+            let j = n_core + h;
+            if needed[j].load(Ordering::Relaxed) {
+                *li = knn_into(t, &index, scene, k, j, s, list, slot);
+            }
+        });
+    let list = |i: usize| &lists[i * k..i * k + info[i].len as usize];
+    // 3. Normals of every point with a neighbour list.
+    let mut normals: Vec<Option<V3>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if info[i].len == 0 {
+                return None;
+            }
             if p.use_file_normals {
                 if let Some(fnorm) = t.file_normals[i] {
                     return crate::geometry::normalize(fnorm);
                 }
             }
-            pca_normal(&t.xyz, &l.list).map(|nrm| orient(nrm, t.xyz[i], p.orientation))
+            pca_normal(&t.xyz, list(i)).map(|nrm| orient(nrm, t.xyz[i], p.orientation))
         })
         .collect();
     // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.
     let orientation = p.propagate.filter(|_| !p.use_file_normals).map(|centre| {
-        let lists: Vec<&[u32]> = knn
-            .iter()
-            .map(|l| l.as_ref().map_or(&[][..], |l| &l.list[..]))
-            .collect();
+        let lists: Vec<&[u32]> = (0..n).map(list).collect();
         crate::orient::orient_tile(
             &t.xyz,
             &t.ids,
@@ -190,7 +212,7 @@ pub fn compute_tile(
         nrm: Vec<V3>,
         ids: Vec<u64>,
     }
-    let results: Vec<Result<PointResult, u64>> = (0..t.n_core)
+    let (done, retry): (Vec<PointResult>, Vec<u64>) = (0..n_core)
         .into_par_iter()
         .map_init(
             || Scratch {
@@ -199,15 +221,13 @@ pub fn compute_tile(
                 ids: Vec::with_capacity(k),
             },
             |s, i| {
-                let Some(l) = knn[i].as_ref() else {
-                    return Err(t.ids[i]);
-                };
-                let verified = l.complete
-                    && l.list
-                        .iter()
-                        .all(|&j| knn[j as usize].as_ref().is_some_and(|m| m.complete));
+                let verified = info[i].complete
+                    && list(i).iter().all(|&j| {
+                        let lj = info[j as usize];
+                        lj.len > 0 && lj.complete
+                    });
                 if !verified {
-                    return Err(t.ids[i]);
+                    return Either::Right(t.ids[i]);
                 }
                 let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
                     flags::FILE_NORMAL
@@ -215,7 +235,7 @@ pub fn compute_tile(
                     0
                 };
                 let Some(n0) = normals[i] else {
-                    return Ok(PointResult {
+                    return Either::Left(PointResult {
                         id: t.ids[i],
                         normal: [f64::NAN; 3],
                         curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag),
@@ -226,7 +246,7 @@ pub fn compute_tile(
                 s.nrm.clear();
                 s.ids.clear();
                 let q = t.xyz[i];
-                for &j in &l.list {
+                for &j in list(i) {
                     // Neighbours without a defined normal cannot contribute to a measure.
                     if let Some(nj) = normals[j as usize] {
                         s.pos.push(sub(t.xyz[j as usize], q));
@@ -245,7 +265,7 @@ pub fn compute_tile(
                 };
                 let mut curvature = curvature;
                 curvature.flags |= file_flag;
-                Ok(PointResult {
+                Either::Left(PointResult {
                     id: t.ids[i],
                     normal: n0,
                     curvature,
@@ -253,20 +273,14 @@ pub fn compute_tile(
                 })
             },
         )
-        .collect();
-    let mut out = TileOutcome {
+        .partition_map(|r| r);
+    TileOutcome {
+        done,
+        retry,
         // Each result carries its patch; the per-point components are not needed any more.
         orientation: orientation.map(|o| crate::orient::TileOrientation {
             component: Vec::new(),
             ..o
         }),
-        ..TileOutcome::default()
-    };
-    for r in results {
-        match r {
-            Ok(pr) => out.done.push(pr),
-            Err(id) => out.retry.push(id),
-        }
     }
-    out
 }

@@ -92,14 +92,22 @@ fn rank(a: &(f64, u64, u32), b: &(f64, u64, u32)) -> std::cmp::Ordering {
 /// squared distance's bits with the entry's position in the low 6 bits (branch-free and much
 /// faster than comparing tuples), then put in exact order by an insertion pass: the keys only
 /// misorder distances within 64 ulps of each other, so that pass moves almost nothing.
-fn sort_ranked(v: &mut Vec<(f64, u64, u32)>, keys: &mut Vec<u64>, spare: &mut Vec<(f64, u64, u32)>) {
+fn sort_ranked(
+    v: &mut Vec<(f64, u64, u32)>,
+    keys: &mut Vec<u64>,
+    spare: &mut Vec<(f64, u64, u32)>,
+) {
     if v.len() > 64 {
         v.sort_unstable_by(rank);
         return;
     }
     keys.clear();
     // Squared distances are >= +0.0, whose bit patterns order like the values.
-    keys.extend(v.iter().enumerate().map(|(e, r)| (r.0.to_bits() & !63) | e as u64));
+    keys.extend(
+        v.iter()
+            .enumerate()
+            .map(|(e, r)| (r.0.to_bits() & !63) | e as u64),
+    );
     keys.sort_unstable();
     spare.clear();
     spare.extend(keys.iter().map(|&key| v[(key & 63) as usize]));
@@ -218,7 +226,9 @@ impl Grid {
         let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
         let sorted_xyz = order.iter().map(|&i| xyz[i as usize]).collect();
         let sorted_ids = order.iter().map(|&i| ids[i as usize]).collect();
-        let magnitude = (0..3).map(|a| lo[a].abs().max(hi[a].abs())).fold(cell, f64::max);
+        let magnitude = (0..3)
+            .map(|a| lo[a].abs().max(hi[a].abs()))
+            .fold(cell, f64::max);
         Some(Grid {
             face_eps: 16.0 * f64::EPSILON * magnitude,
             lo,
@@ -270,7 +280,8 @@ impl Grid {
                 let col = x * self.dims[1] + y;
                 let cells = self.cols[col] as usize..self.cols[col + 1] as usize;
                 // z cells of a column are sorted, and their points contiguous.
-                let first = cells.start + self.zcells[cells.clone()].partition_point(|z| z.0 < z_lo);
+                let first =
+                    cells.start + self.zcells[cells.clone()].partition_point(|z| z.0 < z_lo);
                 let last = cells.start + self.zcells[cells].partition_point(|z| z.0 <= z_hi);
                 let run = self.zcells[first].1 as usize..self.zcells[last].1 as usize;
                 for (p, &l) in self.xyz[run.clone()].iter().zip(&self.order[run]) {
@@ -396,13 +407,7 @@ impl<'a> NeighbourIndex<'a> {
     /// radius plus the f32 rounding bound is ranked exactly by (f64 distance, id) into
     /// `scratch.exact`. The answer stands when the exact k-th distance is inside the block;
     /// returns its squared distance, or None to fall back to the shell search.
-    fn grid_block_knn(
-        &self,
-        g: &Grid,
-        i: usize,
-        others: usize,
-        s: &mut KnnScratch,
-    ) -> Option<f64> {
+    fn grid_block_knn(&self, g: &Grid, i: usize, others: usize, s: &mut KnnScratch) -> Option<f64> {
         let q = self.xyz[i];
         let c = g.cell_of(q);
         if s.block.cell != Some(c) {
@@ -470,7 +475,8 @@ impl<'a> NeighbourIndex<'a> {
         for &j in &s.keys[..n] {
             let l = b.local[j as usize];
             if l as usize != i {
-                s.exact.push((self.dist2(q, l as usize), self.ids[l as usize], l));
+                s.exact
+                    .push((self.dist2(q, l as usize), self.ids[l as usize], l));
             }
         }
         if s.exact.len() < others {
@@ -701,6 +707,58 @@ mod tests {
             Some(Backend::Grid(_))
         ));
         check_both_backends(&xyz, &ids, &[1, 5, 8, 9, 13, 30]);
+    }
+
+    #[test]
+    fn block_path_is_exact_on_terrain_with_vegetation() {
+        // A bumpy surface at UTM offsets with a vegetated patch (points spread in z), snapped to
+        // a 1 cm lattice so that equal distances (ties broken by id) occur.
+        let mut state = 4242u64;
+        let mut unit = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut xyz = Vec::new();
+        for _ in 0..6000 {
+            let (x, y) = (40.0 * unit(), 40.0 * unit());
+            let mut z = 3.0 * (x / 7.0).sin() * (y / 5.0).cos();
+            if x < 12.0 && y < 12.0 && unit() < 0.5 {
+                z += 15.0 * unit(); // canopy
+            }
+            let snap = |v: f64| (v * 100.0).round() / 100.0;
+            xyz.push([500_000.0 + snap(x), 4_000_000.0 + snap(y), 120.0 + snap(z)]);
+        }
+        let ids: Vec<u64> = (0..xyz.len() as u64)
+            .map(|i| (i * 104_729) % 7919)
+            .collect();
+        for k in [2, 10, 30, 31, 64] {
+            let index = NeighbourIndex::build(&xyz, &ids, k).expect("index");
+            let Backend::Grid(g) = &index.backend else {
+                panic!("a surface gets the grid");
+            };
+            let mut s = KnnScratch::default();
+            let mut out = Vec::new();
+            let mut by_block = 0;
+            for i in 0..xyz.len() {
+                let want = brute(&xyz, &ids, i, k);
+                if index.grid_block_knn(g, i, k - 1, &mut s).is_some() {
+                    by_block += 1;
+                    let got: Vec<u32> = std::iter::once(i as u32)
+                        .chain(s.exact[..k - 1].iter().map(|r| r.2))
+                        .collect();
+                    assert_eq!(got, want, "block path, point {i} k {k}");
+                }
+                index.knn(i, k, &mut s, &mut out);
+                assert_eq!(out, want, "point {i} k {k}");
+            }
+            // The fast path must carry most queries (the shell search is the exception).
+            assert!(
+                by_block * 10 > xyz.len() * 8,
+                "k {k}: {by_block} by the block"
+            );
+        }
     }
 
     #[test]

@@ -75,6 +75,7 @@ pub fn orient(n: V3, p: V3, how: Orientation) -> V3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::normalize;
 
     #[test]
     fn plane_normal_is_z_and_oriented() {
