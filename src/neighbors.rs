@@ -2,10 +2,12 @@
 //! distance, original id), so the neighbour set and its order never depend on the index, the
 //! tile or the thread. Two interchangeable backends find the candidates:
 //!
-//! - a uniform 3D grid with cells about the k-NN radius, searched in growing shells until the
-//!   k-th distance is provably inside the searched box (cells farther than the k-th candidate
-//!   are skipped): about 20% faster than the k-d tree on a 52k-point forest tile of bcts_1.laz
-//!   at k = 30 (3.1 against 3.8 us per query, one thread, busy machine), and used whenever the
+//! - a uniform 3D grid with cells of 1.25 times the k-NN radius. A query ranks the 27 cells
+//!   around its own (gathered once per cell in f32, see [`Block`]): an f32 pass finds a radius
+//!   holding a few more than k points, and only those are ranked exactly. When the k-th
+//!   distance is not provably inside those cells, a shell search grows rings of cells until it
+//!   is. On one 25k-point tile of the 2M terrain at k = 30: 0.84-0.97 us per query against
+//!   2.35-2.9 us for kiddo's `nearest_n` (benches/stages.rs, one thread). Used whenever the
 //!   density is even enough for one cell size, which is most LIDAR tiles;
 //! - kiddo's k-d tree on tile-local f32 coordinates, with exact re-ranking, for tiles whose
 //!   density is too uneven for one cell size (a terrestrial scan near its scanner).
@@ -292,10 +294,10 @@ impl Grid {
                 }
             }
         }
-        // Gathered coordinates are within 1.5 cells of the centre on each axis, so each is
-        // rounded by at most 2^-24 * 1.5 cell; the error of an f32 squared distance (inputs,
-        // difference, products, sum) is below 50 * 2^-24 * R^2 with R = 1.5 * sqrt(3) cells
-        // (derivation in docs/architecture.md, k-NN). Doubled for safety.
+        // Gathered coordinates are within 1.5 cells of the centre on each axis, so the error of
+        // an f32 squared distance (inputs, difference, products, sum) is at most
+        // 28 * 2^-24 * R^2 with R = 1.5 * sqrt(3) cells (derivation in docs/architecture.md,
+        // k-NN); 100 for margin.
         let r = 1.5 * 3f64.sqrt() * self.cell;
         b.slack2 = 100.0 * (f32::EPSILON as f64 / 2.0) * r * r;
     }
