@@ -9,11 +9,13 @@
 #   python3 scripts/bench_pgeof.py IN OUT.las $K                      (laspy read, pgeof.knn_search
 #                                                                      + compute_features on all
 #                                                                      cores, laspy write)
-# with /usr/bin/time -v, and prints points/s of each, their ratio, and the peak RSS of each.
-# The input is read once before each run so that both start from a warm page cache.
+# with /usr/bin/time -v, and prints points/s of each, their ratio, and the peak RSS of each;
+# then tilecurv again with --threads 1 for the thread scaling (SCALING=0 skips it).
+# The input is read once before each run so that all start from a warm page cache.
 #
 # Environment: TILECURV_BENCH_DIR (cache and outputs), K (default 30), THREADS (tilecurv
-# threads, default 2), SEED (terrain seed, default 1), KEEP_OUTPUTS=1 to keep the outputs.
+# threads, default 2), SEED (terrain seed, default 1), KEEP_OUTPUTS=1 to keep the outputs,
+# SCALING=0 to skip the one-thread run.
 # The two tools do not compute the same thing: tilecurv writes normals and H, K, k1, k2 (CNC
 # estimator); pgeof writes PCA eigenvalue features and a normal. Both do a k-NN search and a
 # per-point PCA over K neighbours, which dominate pgeof's time.
@@ -62,12 +64,23 @@ for size in "${SIZES[@]}"; do
     t_pg=$(wall_s "$BENCH_DIR/time_pgeof_$size.txt")
     m_pg=$(rss_mib "$BENCH_DIR/time_pgeof_$size.txt")
 
+    t_tc1=0
+    if [ "${SCALING:-1}" != 0 ]; then
+        cat "$in" >/dev/null
+        rm -f "$out_tc"
+        /usr/bin/time -v -o "$BENCH_DIR/time_tilecurv1_$size.txt" \
+            "$BIN" process "$in" -o "$out_tc" -k "$K" --threads 1 -q
+        t_tc1=$(wall_s "$BENCH_DIR/time_tilecurv1_$size.txt")
+    fi
+
     [ "${KEEP_OUTPUTS:-0}" = 1 ] || rm -f "$out_tc" "$out_pg"
     awk -v size="$size" -v n="$points" -v ttc="$t_tc" -v tpg="$t_pg" -v mtc="$m_tc" -v mpg="$m_pg" \
-        -v threads="$THREADS" -v cores="$(nproc)" 'BEGIN {
+        -v ttc1="$t_tc1" -v threads="$THREADS" -v cores="$(nproc)" 'BEGIN {
         printf "%-6s %-9s %10.1f %12.0f %10d   (--threads %d)\n", size, "tilecurv", ttc, n / ttc, mtc, threads
         printf "%-6s %-9s %10.1f %12.0f %10d   (all %d cores)\n", size, "pgeof", tpg, n / tpg, mpg, cores
         printf "%-6s ratio tilecurv/pgeof points/s: %.2f; RSS: %.2f\n", size, tpg / ttc, mtc / mpg
+        if (ttc1 > 0)
+            printf "%-6s tilecurv --threads 1: %.1f s, %.0f points/s; speed-up at %d threads: %.2f\n", size, ttc1, n / ttc1, threads, ttc1 / ttc
     }' >>"$BENCH_DIR/summary.txt"
 done
 cat "$BENCH_DIR/summary.txt"
