@@ -124,10 +124,37 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
     }
     Ok(out)
 }
-/// Result files merged at once; more are first merged into runs (bounded memory: one read
-/// buffer per open file).
-pub const FAN_IN: usize = 64;
-const READ_BUFFER: usize = 128 << 10;
+/// Most result files merged at once (one read buffer each: 64 MiB in all); more are first
+/// partly merged into runs. Lowered to what the open-file limit allows (see [`fan_in`]).
+pub const MAX_FAN_IN: usize = 1024;
+const READ_BUFFER: usize = 64 << 10;
+
+/// How many result files one merge may open: [`MAX_FAN_IN`], or less when the process's
+/// open-file limit is low (its soft limit is first raised to the hard limit, as a batch tool
+/// may), keeping 64 descriptors for everything else.
+pub fn fan_in() -> usize {
+    let mut lim = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit/setrlimit only read or write the struct passed.
+    let soft = unsafe {
+        if libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) != 0 {
+            return 64;
+        }
+        if lim.rlim_cur < lim.rlim_max {
+            let raised = libc::rlimit {
+                rlim_cur: lim.rlim_max,
+                rlim_max: lim.rlim_max,
+            };
+            if libc::setrlimit(libc::RLIMIT_NOFILE, &raised) == 0 {
+                lim.rlim_cur = lim.rlim_max;
+            }
+        }
+        lim.rlim_cur
+    };
+    (soft.saturating_sub(64) as usize).clamp(16, MAX_FAN_IN)
+}
 
 /// The result file of a tile.
 pub fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
@@ -345,42 +372,52 @@ pub struct Merger {
 }
 
 impl Merger {
-    /// Opens a merge over `files`. With more than [`FAN_IN`] files, groups of them are first
-    /// merged into run files in `dir`, so that at most FAN_IN files are open at once.
+    /// Opens a merge over `files`, at most [`fan_in`] open at once.
     pub fn open(dir: &Path, files: &[PathBuf], cols: &ColumnSet) -> Result<Self> {
-        let mut files = files.to_vec();
-        let mut pass = 0;
-        while files.len() > FAN_IN {
-            let mut runs = Vec::new();
-            for (i, group) in files.chunks(FAN_IN).enumerate() {
-                let run = dir.join(format!("run_{pass}_{i}.res"));
-                let mut m = Merger::open_direct(group, cols)?;
-                let count = group
-                    .iter()
-                    .map(|f| TileResults::open(f, cols).map(|r| r.remaining))
-                    .sum::<Result<u64>>()?;
-                let mut rec = Vec::new();
-                // Runs only serve this assemble pass: no need to make them durable.
-                let tmp = write_file(&run, count, cols, |w| {
-                    while let Some(id) = m.next(&mut rec)? {
-                        w.write_all(&id.to_le_bytes())
-                            .and_then(|_| w.write_all(&rec))
-                            .map_err(|e| Error::write(&run, e))?;
-                    }
-                    Ok(())
-                })?;
-                std::fs::rename(&tmp, &run).map_err(|e| Error::write(&run, e))?;
-                if pass > 0 {
-                    for f in group {
-                        let _ = std::fs::remove_file(f);
-                    }
+        Self::open_with_fan_in(dir, files, cols, fan_in())
+    }
+
+    /// Opens a merge over `files` with at most `fan_in` (>= 2) files open at once: while there
+    /// are more, the first ones are merged into a run file in `dir` (at most `fan_in` of them,
+    /// and only as many as needed to bring the count down to `fan_in`, so that the least data
+    /// is written twice), and the run takes their place at the end.
+    pub fn open_with_fan_in(
+        dir: &Path,
+        files: &[PathBuf],
+        cols: &ColumnSet,
+        fan_in: usize,
+    ) -> Result<Self> {
+        let fan_in = fan_in.max(2);
+        let mut files: std::collections::VecDeque<PathBuf> = files.iter().cloned().collect();
+        let mut runs = std::collections::HashSet::new();
+        while files.len() > fan_in {
+            let take = (files.len() - fan_in + 1).min(fan_in);
+            let group: Vec<PathBuf> = files.drain(..take).collect();
+            let run = dir.join(format!("run_{}.res", runs.len()));
+            let mut m = Merger::open_direct(&group, cols)?;
+            let count = group
+                .iter()
+                .map(|f| TileResults::open(f, cols).map(|r| r.remaining))
+                .sum::<Result<u64>>()?;
+            let mut rec = Vec::new();
+            // Runs only serve this assemble pass: no need to make them durable.
+            let tmp = write_file(&run, count, cols, |w| {
+                while let Some(id) = m.next(&mut rec)? {
+                    w.write_all(&id.to_le_bytes())
+                        .and_then(|_| w.write_all(&rec))
+                        .map_err(|e| Error::write(&run, e))?;
                 }
-                runs.push(run);
+                Ok(())
+            })?;
+            std::fs::rename(&tmp, &run).map_err(|e| Error::write(&run, e))?;
+            // Tile files are the journal and stay until the output exists; merged runs go.
+            for f in group.iter().filter(|f| runs.contains(*f)) {
+                let _ = std::fs::remove_file(f);
             }
-            files = runs;
-            pass += 1;
+            runs.insert(run.clone());
+            files.push_back(run);
         }
-        Merger::open_direct(&files, cols)
+        Merger::open_direct(files.make_contiguous(), cols)
     }
 
     fn open_direct(files: &[PathBuf], cols: &ColumnSet) -> Result<Self> {
@@ -404,13 +441,19 @@ impl Merger {
 
     /// The next record in id order: its id, with its column bytes copied to `out`.
     pub fn next(&mut self, out: &mut Vec<u8>) -> Result<Option<u64>> {
-        let Some(Reverse((id, i))) = self.heap.pop() else {
+        // The top is replaced in place: one sift, which stops at once while the same file
+        // holds the smallest ids (runs of consecutive points in one tile are the common case).
+        let Some(mut top) = self.heap.peek_mut() else {
             return Ok(None);
         };
+        let Reverse((id, i)) = *top;
         out.clear();
         out.extend_from_slice(&self.heads[i]);
-        if let Some(next) = self.readers[i].next(&mut self.heads[i])? {
-            self.heap.push(Reverse((next, i)));
+        match self.readers[i].next(&mut self.heads[i])? {
+            Some(next) => *top = Reverse((next, i)),
+            None => {
+                std::collections::binary_heap::PeekMut::pop(top);
+            }
         }
         Ok(Some(id))
     }
@@ -432,7 +475,8 @@ mod tests {
             features: false,
             unit: "m".into(),
         };
-        // 150 tiles (more than FAN_IN, so runs are made), ids interleaved across tiles.
+        // 150 tiles, ids interleaved across tiles, merged 8 at a time (so runs are made, and
+        // runs of runs).
         let mut files = Vec::new();
         let mut journal = Journal::new(dir.path());
         for t in 0..150u64 {
@@ -456,7 +500,7 @@ mod tests {
         assert!(files
             .iter()
             .all(|p| is_complete(p, 7, &cols) && !is_complete(p, 8, &cols)));
-        let mut m = Merger::open(dir.path(), &files, &cols).expect("merge");
+        let mut m = Merger::open_with_fan_in(dir.path(), &files, &cols, 8).expect("merge");
         let mut rec = Vec::new();
         let mut expect = 0;
         while let Some(id) = m.next(&mut rec).expect("next") {
@@ -473,5 +517,15 @@ mod tests {
             expect += 1;
         }
         assert_eq!(expect, 150 * 7);
+        // Every tile file is kept (the journal); only the last runs remain besides.
+        assert!(files.iter().all(|f| f.exists()));
+        let runs = std::fs::read_dir(dir.path())
+            .expect("list")
+            .filter(|e| {
+                e.as_ref()
+                    .is_ok_and(|e| e.file_name().to_string_lossy().starts_with("run_"))
+            })
+            .count();
+        assert!((1..=8).contains(&runs), "{runs} run files left");
     }
 }
