@@ -135,8 +135,20 @@ pub fn initial_halo(count: u64, size: f64, k: usize) -> f64 {
 }
 
 /// Plans the tiles for `stats` with tile edge `size` (file units) and `k` neighbours.
+///
+/// A tile's initial halo follows the densest of it and its eight neighbours: a sliver of a few
+/// points at the edge of the scene has its neighbours in the next tile, at that tile's density,
+/// while its own count would ask for a halo hundreds of metres wide (loading millions of points
+/// for one). Points whose neighbourhoods reach further are found by verification and retried.
 pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
     let grid = TileGrid { size };
+    let densest_around = |(x, y): TileKey| {
+        (-1..=1)
+            .flat_map(|dx| (-1..=1).map(move |dy| (x + dx, y + dy)))
+            .filter_map(|n| stats.per_tile.get(&n).copied())
+            .max()
+            .unwrap_or(1)
+    };
     let tiles = stats
         .per_tile
         .iter()
@@ -145,7 +157,7 @@ pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
             index: index as u32,
             key,
             count,
-            halo: initial_halo(count, size, k),
+            halo: initial_halo(densest_around(key), size, k),
         })
         .collect();
     TilePlan {
@@ -190,5 +202,29 @@ mod tests {
         let h = initial_halo(10_000, 100.0, 30);
         // density 1 pt/unit^2: r_k = sqrt(30/pi) = 3.09, halo = 9.27
         assert!((h - 3.0 * (30.0 / std::f64::consts::PI).sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_sliver_tile_takes_the_halo_of_its_dense_neighbour() {
+        // Tile (1, 0) holds 2 points at the scene's edge next to 10,000 in tile (0, 0); tile
+        // (5, 5) stands alone with 2 points.
+        let per_tile: BTreeMap<TileKey, u64> = [((0, 0), 10_000), ((1, 0), 2), ((5, 5), 2)]
+            .into_iter()
+            .collect();
+        let stats = ScanStats {
+            count: 10_004,
+            min: [0.0; 3],
+            max: [600.0, 600.0, 1.0],
+            per_tile,
+            centroid: [0.0; 3],
+        };
+        let p = plan(&stats, 100.0, 30);
+        let halo = |key| p.tiles.iter().find(|t| t.key == key).map(|t| t.halo);
+        let dense = initial_halo(10_000, 100.0, 30); // 9.27 units
+        assert_eq!(halo((0, 0)), Some(dense));
+        assert_eq!(halo((1, 0)), Some(dense));
+        // Alone, a sparse tile keeps the halo its own density asks for (655 units).
+        assert_eq!(halo((5, 5)), Some(initial_halo(2, 100.0, 30)));
+        assert!(initial_halo(2, 100.0, 30) > 600.0);
     }
 }
