@@ -150,13 +150,8 @@ mod tests {
     fn sym3_smallest_matches_the_iterative_solver() {
         // Covariances of flat, curved, elongated and nearly isotropic neighbourhoods, at UTM-like
         // and tiny scales, against nalgebra's iterative solver.
-        let mut state = 7u64;
-        let mut unit = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = crate::estimate::rng::Rng::new(7);
+        let mut unit = || rng.uniform() - 0.5;
         for case in 0..2000 {
             let spread = [1.0, 10f64.powi(-(case % 7)), 10f64.powi(-(case % 11) / 2)];
             let scale = 10f64.powi(case % 5 - 2);
@@ -172,7 +167,11 @@ mod tests {
                 }
             }
             let (want_l, want_v) = sym3_eigen(&m);
-            let (l, v) = sym3_smallest(&m).expect("defined");
+            let Some((l, v)) = sym3_smallest(&m) else {
+                // Undefined only for a multiple of the identity (up to rounding).
+                assert!(spread[1] == 1.0 && spread[2] == 1.0, "case {case}: {m:?}");
+                continue;
+            };
             for a in 0..3 {
                 assert!(
                     (l[a] - want_l[a]).abs() <= 1e-13 * want_l[2],

@@ -707,13 +707,8 @@ mod tests {
     fn matches_brute_force_with_duplicates_and_utm_offsets() {
         // A grid with exact duplicates and many equal distances, far from the origin (UTM-like).
         let mut xyz = Vec::new();
-        let mut state = 12345u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            state
-        };
+        let mut rng = crate::estimate::rng::Rng::new(12345);
+        let mut next = || rng.next_u64();
         for gx in 0..20 {
             for gy in 0..20 {
                 let p = [
@@ -748,13 +743,8 @@ mod tests {
     fn block_path_is_exact_on_terrain_with_vegetation() {
         // A bumpy surface at UTM offsets with a vegetated patch (points spread in z), snapped to
         // a 1 cm lattice so that equal distances (ties broken by id) occur.
-        let mut state = 4242u64;
-        let mut unit = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::estimate::rng::Rng::new(4242);
+        let mut unit = || rng.uniform();
         let mut xyz = Vec::new();
         for _ in 0..6000 {
             let (x, y) = (40.0 * unit(), 40.0 * unit());
@@ -805,13 +795,8 @@ mod tests {
     fn uneven_density_uses_the_tree_and_stays_exact() {
         // 2000 points in a 1 cm blob and 200 spread over 100 m: no single cell size fits.
         let mut xyz = Vec::new();
-        let mut state = 99u64;
-        let mut unit = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::estimate::rng::Rng::new(99);
+        let mut unit = || rng.uniform();
         for _ in 0..2000 {
             xyz.push([0.01 * unit(), 0.01 * unit(), 0.01 * unit()]);
         }

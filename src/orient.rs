@@ -648,21 +648,10 @@ pub fn flip_curvature(c: &Curvature) -> Curvature {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimate::rng::Rng;
     use crate::geometry::{cross, norm, normalize};
     use crate::neighbors::{KnnScratch, NeighbourIndex};
     use crate::normals::pca_normal;
-
-    /// A deterministic pseudo-random stream in [0, 1).
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
 
     /// Fibonacci sphere of radius `r` around `c` with exact outward normals.
     fn sphere(n: usize, r: f64, c: V3) -> (Vec<V3>, Vec<V3>) {
@@ -680,14 +669,14 @@ mod tests {
 
     /// A torus (R, r) in the xy plane with exact outward normals, on a jittered grid.
     fn torus(nu: usize, nv: usize, big: f64, small: f64) -> (Vec<V3>, Vec<V3>) {
-        let mut rng = Lcg(7);
+        let mut rng = Rng::new(7);
         let tau = std::f64::consts::TAU;
         let mut p = Vec::new();
         let mut n = Vec::new();
         for a in 0..nu {
             for b in 0..nv {
-                let u = (a as f64 + 0.3 * rng.next()) * tau / nu as f64;
-                let v = (b as f64 + 0.3 * rng.next()) * tau / nv as f64;
+                let u = (a as f64 + 0.3 * rng.uniform()) * tau / nu as f64;
+                let v = (b as f64 + 0.3 * rng.uniform()) * tau / nv as f64;
                 let dir = [v.cos() * u.cos(), v.cos() * u.sin(), v.sin()];
                 let ring = [big * u.cos(), big * u.sin(), 0.0];
                 p.push(add(ring, scale(dir, small)));
@@ -712,9 +701,17 @@ mod tests {
 
     /// PCA normals with random signs (PCA's own signs are arbitrary already; randomise anyway).
     fn scrambled_pca(xyz: &[V3], knn: &[Vec<u32>], seed: u64) -> Vec<Option<V3>> {
-        let mut rng = Lcg(seed);
+        let mut rng = Rng::new(seed);
         knn.iter()
-            .map(|l| pca_normal(xyz, l).map(|n| if rng.next() < 0.5 { scale(n, -1.0) } else { n }))
+            .map(|l| {
+                pca_normal(xyz, l).map(|n| {
+                    if rng.uniform() < 0.5 {
+                        scale(n, -1.0)
+                    } else {
+                        n
+                    }
+                })
+            })
             .collect()
     }
 
