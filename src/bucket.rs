@@ -11,6 +11,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
+use rayon::prelude::*;
+
 use crate::error::{Error, Result};
 use crate::plan::{Rect, ScanStats, TileGrid, TileKey};
 use crate::source::{PointSource, SourcePoint};
@@ -106,16 +108,24 @@ fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Vec<SourcePoint>> {
     Ok(out)
 }
 
-/// Appends one frame of `points` to the bucket file of `key`.
-fn spill(dir: &Path, key: TileKey, points: &[SourcePoint]) -> Result<()> {
-    let path = bucket_file(dir, key);
-    let frame = encode_frame(points).map_err(|e| Error::write(&path, e))?;
-    let mut f = OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(&path)
-        .map_err(|e| Error::write(&path, e))?;
-    f.write_all(&frame).map_err(|e| Error::write(&path, e))
+/// Appends one frame per bucket of `buckets` to its bucket file. The frames are compressed in
+/// parallel (on the caller's rayon pool), then appended in the given order.
+fn spill(dir: &Path, buckets: Vec<(TileKey, Vec<SourcePoint>)>) -> Result<()> {
+    let frames: Vec<(TileKey, std::io::Result<Vec<u8>>)> = buckets
+        .into_par_iter()
+        .map(|(key, points)| (key, encode_frame(&points)))
+        .collect();
+    for (key, frame) in frames {
+        let path = bucket_file(dir, key);
+        let frame = frame.map_err(|e| Error::write(&path, e))?;
+        let mut f = OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&path)
+            .map_err(|e| Error::write(&path, e))?;
+        f.write_all(&frame).map_err(|e| Error::write(&path, e))?;
+    }
+    Ok(())
 }
 
 /// One source of a scan and the id of its first point in the scene.
@@ -176,15 +186,17 @@ impl Buckets {
                         let mut sizes: Vec<(usize, TileKey)> =
                             mem.iter().map(|(k, v)| (v.len(), *k)).collect();
                         sizes.sort_unstable_by(|a, b| b.cmp(a));
+                        let mut out = Vec::new();
                         for (len, key) in sizes {
                             if held <= mem_budget / 2 {
                                 break;
                             }
                             if let Some(v) = mem.remove(&key) {
-                                spill(spill_dir, key, &v)?;
+                                out.push((key, v));
                                 held -= len * POINT_BYTES;
                             }
                         }
+                        spill(spill_dir, out)?;
                     }
                     progress(n as u64)
                 })?;
@@ -192,19 +204,15 @@ impl Buckets {
         stats.centroid = centroid.get().unwrap_or_default();
         if spilled {
             // Everything goes to disk, so that the buckets can be reused by a resumed run.
-            let mut keys: Vec<TileKey> = mem.keys().copied().collect();
-            keys.sort_unstable();
-            for key in keys {
-                if let Some(v) = mem.remove(&key) {
-                    spill(spill_dir, key, &v)?;
-                }
-            }
-            for key in stats.per_tile.keys() {
-                let p = bucket_file(spill_dir, *key);
-                if let Ok(f) = std::fs::File::open(&p) {
-                    f.sync_all().map_err(|e| Error::write(&p, e))?;
-                }
-            }
+            let mut rest: Vec<(TileKey, Vec<SourcePoint>)> = mem.drain().collect();
+            rest.sort_unstable_by_key(|(key, _)| *key);
+            spill(spill_dir, rest)?;
+            let files: Vec<PathBuf> = stats
+                .per_tile
+                .keys()
+                .map(|key| bucket_file(spill_dir, *key))
+                .collect();
+            crate::workdir::sync_files(spill_dir, files.iter().map(PathBuf::as_path))?;
             crate::workdir::write_durably(&spill_dir.join(DONE), stats_text(&stats).as_bytes())?;
         }
         let mem = mem.into_iter().map(|(k, v)| (k, Arc::new(v))).collect();

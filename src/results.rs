@@ -254,7 +254,7 @@ impl Journal {
         if self.pending.is_empty() {
             return Ok(());
         }
-        sync_filesystem(&self.dir, &self.pending)?;
+        crate::workdir::sync_files(&self.dir, self.pending.iter().map(|(tmp, _)| tmp.as_path()))?;
         for (tmp, path) in self.pending.drain(..) {
             std::fs::rename(&tmp, &path).map_err(|e| Error::write(&path, e))?;
         }
@@ -262,28 +262,6 @@ impl Journal {
         self.since = std::time::Instant::now();
         Ok(())
     }
-}
-
-/// Flushes the written files to disk: `syncfs` on the directory's file system where the OS has
-/// it, else an fsync per file.
-fn sync_filesystem(dir: &Path, files: &[(PathBuf, PathBuf)]) -> Result<()> {
-    #[cfg(target_os = "linux")]
-    {
-        use std::os::fd::AsRawFd;
-        if let Ok(d) = File::open(dir) {
-            // SAFETY: syncfs only reads the descriptor, which stays open for the call.
-            if unsafe { libc::syncfs(d.as_raw_fd()) } == 0 {
-                return Ok(());
-            }
-        }
-    }
-    let _ = dir;
-    for (tmp, _) in files {
-        File::open(tmp)
-            .and_then(|f| f.sync_all())
-            .map_err(|e| Error::write(tmp, e))?;
-    }
-    Ok(())
 }
 
 /// Whether the result file of a tile is complete: it exists, its header matches the column
