@@ -1,6 +1,7 @@
 //! The run: scan the inputs into buckets, plan the tiles, push the tiles not yet done through a
-//! bounded pipeline (loader -> compute -> result writer, in scoped threads joined by crossbeam
-//! channels, one rayon pool for the per-point work), then assemble one output per input. The
+//! bounded pipeline (two tile drivers that load and compute -> result writer, in scoped threads
+//! joined by a crossbeam channel, one rayon pool for the per-point work), then assemble one
+//! output per input. The
 //! work directory keeps buckets and finished tiles, so an interrupted run resumes where it
 //! stopped; it is removed only after every output is written.
 
@@ -595,7 +596,12 @@ fn scan(
     Ok(r)
 }
 
-/// Runs `todo` through loader -> compute -> writer. Returns (undefined points, retried points).
+/// Runs `todo` with `in_flight` drivers and a result writer. Each driver takes the next tile,
+/// loads it (part by part when it is too dense for its share of the budget) and computes it on
+/// the shared rayon pool, so that one tile's loading and serial steps overlap another's parallel
+/// ones; the writer journals each finished tile. Tiles finish in any order: each has its own
+/// result file, and the parts of a tile stay with one driver, in order (patch numbering).
+/// Returns (undefined points, retried points).
 #[allow(clippy::too_many_arguments)]
 fn run_tiles(
     todo: &[TileSpec],
@@ -611,44 +617,51 @@ fn run_tiles(
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<(u64, u64)> {
-    type Loaded = (TileSpec, Part, usize, TilePoints);
-    std::thread::scope(|s| -> Result<(u64, u64)> {
-        let (tile_tx, tile_rx) = bounded::<Result<Loaded>>(in_flight - 1);
-        let (res_tx, res_rx) = bounded::<(TileSpec, Vec<PointResult>, Option<TileSidecar>)>(1);
-        let loader = s.spawn(move || {
-            let load = |spec: &TileSpec,
-                        tx: &crossbeam_channel::Sender<Result<Loaded>>|
-             -> Result<bool> {
-                // A tile too dense for the budget is computed in quadtree parts.
-                let whole = Part::whole(grid.rect(spec.key));
-                let parts = if (spec.count as usize) <= max_core_points {
-                    vec![whole]
-                } else {
-                    split_parts(&buckets.core(spec.key)?, whole, max_core_points)
-                };
-                let n = parts.len();
-                for part in parts {
-                    let t = load_tile(buckets, spec.key, &part, spec.halo, None, &tplan.per_tile)?;
-                    if tx.send(Ok((spec.clone(), part, n, t))).is_err() {
-                        return Ok(false);
-                    }
-                }
-                Ok(true)
-            };
-            for spec in todo {
-                if cancel.load(Ordering::Relaxed) {
-                    return;
-                }
-                match load(spec, &tile_tx) {
-                    Ok(true) => {}
-                    Ok(false) => return, // the compute stage stopped
-                    Err(e) => {
-                        let _ = tile_tx.send(Err(e));
-                        return;
-                    }
-                }
+    type Finished = (TileSpec, Vec<PointResult>, Option<TileSidecar>);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let failure: std::sync::Mutex<Option<Error>> = std::sync::Mutex::new(None);
+    let fail = |e: Error| {
+        stop.store(true, Ordering::Relaxed);
+        if let Ok(mut f) = failure.lock() {
+            f.get_or_insert(e);
+        }
+    };
+    let undefined = std::sync::atomic::AtomicU64::new(0);
+    let retried = std::sync::atomic::AtomicU64::new(0);
+    // One tile, all its parts: the results and the orientation sidecar.
+    let tile = |spec: &TileSpec| -> Result<(Vec<PointResult>, TileSidecar)> {
+        let whole = Part::whole(grid.rect(spec.key));
+        let parts = if (spec.count as usize) <= max_core_points {
+            vec![whole]
+        } else {
+            split_parts(&buckets.core(spec.key)?, whole, max_core_points)
+        };
+        let mut gathered = Vec::new();
+        let mut sidecar = TileSidecar::default();
+        for part in parts {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
             }
-        });
+            let t = load_tile(buckets, spec.key, &part, spec.halo, None, &tplan.per_tile)?;
+            let (mut results, again) = pool.install(|| {
+                compute_verified(buckets, tplan, spec, &part, t, params, &mut sidecar)
+            })?;
+            retried.fetch_add(again, Ordering::Relaxed);
+            undefined.fetch_add(
+                results
+                    .iter()
+                    .filter(|r| r.curvature.flags & flags::UNDEFINED != 0)
+                    .count() as u64,
+                Ordering::Relaxed,
+            );
+            reporter.advance(results.len() as u64);
+            gathered.append(&mut results);
+        }
+        Ok((gathered, sidecar))
+    };
+    std::thread::scope(|s| -> Result<(u64, u64)> {
+        let (res_tx, res_rx) = bounded::<Finished>(1);
         let writer = s.spawn(move || -> Result<()> {
             let mut journal = crate::results::Journal::new(results_dir);
             for (spec, mut results, sidecar) in res_rx {
@@ -657,72 +670,51 @@ fn run_tiles(
             // Also after an interruption: the tiles finished so far become durable.
             journal.commit()
         });
-        let mut undefined = 0u64;
-        let mut retried = 0u64;
-        let mut failure = None;
-        // Parts of one tile arrive one after the other; their results are written together.
-        let mut gathered: Vec<PointResult> = Vec::new();
-        let mut sidecar = TileSidecar::default();
-        let mut parts_seen = 0usize;
-        for item in tile_rx.iter() {
-            if cancel.load(Ordering::Relaxed) {
-                failure = Some(Error::Interrupted);
-                break;
-            }
-            let (spec, part, n_parts, tile) = match item {
-                Ok(v) => v,
-                Err(e) => {
-                    failure = Some(e);
-                    break;
+        for _ in 0..in_flight.max(1) {
+            let res_tx = res_tx.clone();
+            let (next, stop, tile, fail) = (&next, &stop, &tile, &fail);
+            s.spawn(move || loop {
+                if stop.load(Ordering::Relaxed) {
+                    return;
                 }
-            };
-            let r = pool.install(|| {
-                compute_verified(buckets, tplan, &spec, &part, tile, params, &mut sidecar)
+                if cancel.load(Ordering::Relaxed) {
+                    fail(Error::Interrupted);
+                    return;
+                }
+                let Some(spec) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
+                    return;
+                };
+                match tile(spec) {
+                    Ok((results, sidecar)) => {
+                        let sidecar = params.propagate.map(|_| sidecar);
+                        if res_tx.send((spec.clone(), results, sidecar)).is_err() {
+                            // The writer failed; its error is reported below.
+                            stop.store(true, Ordering::Relaxed);
+                            return;
+                        }
+                    }
+                    Err(e) => {
+                        fail(e);
+                        return;
+                    }
+                }
             });
-            let (mut results, again) = match r {
-                Ok(v) => v,
-                Err(e) => {
-                    failure = Some(e);
-                    break;
-                }
-            };
-            retried += again;
-            undefined += results
-                .iter()
-                .filter(|r| r.curvature.flags & flags::UNDEFINED != 0)
-                .count() as u64;
-            reporter.advance(results.len() as u64);
-            gathered.append(&mut results);
-            parts_seen += 1;
-            if parts_seen < n_parts {
-                continue;
-            }
-            parts_seen = 0;
-            if res_tx
-                .send((
-                    spec,
-                    std::mem::take(&mut gathered),
-                    params.propagate.map(|_| std::mem::take(&mut sidecar)),
-                ))
-                .is_err()
-            {
-                break; // the writer failed; its error is reported below
-            }
         }
-        drop(tile_rx);
         drop(res_tx);
-        let _ = loader.join();
         let written = writer
             .join()
             .map_err(|_| Error::Internal("result writer panicked".into()))?;
-        if let Some(e) = failure {
+        if let Some(e) = failure.lock().ok().and_then(|mut f| f.take()) {
             return Err(e);
         }
         written?;
         if cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
         }
-        Ok((undefined, retried))
+        Ok((
+            undefined.load(Ordering::Relaxed),
+            retried.load(Ordering::Relaxed),
+        ))
     })
 }
 
