@@ -54,15 +54,21 @@ struct Grid {
     /// Rounding allowance when comparing a distance with a cell face: cell membership and face
     /// positions are computed in f64 at the coordinates' magnitude (1e6 for UTM).
     face_eps: f64,
+    /// Unique per grid built in this process (see [`Block`]).
+    uid: u64,
 }
+
+/// Source of [`Grid::uid`].
+static NEXT_GRID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 /// The 3 x 3 x 3 cells around one grid cell, gathered as f32 coordinates relative to the cell's
 /// centre (structure of arrays, so the distance pass vectorises). Every query in that cell
 /// reuses it: queries arrive in Morton order, so consecutive ones mostly share a cell.
 #[derive(Default)]
 struct Block {
-    /// The centre cell, or None before the first gather.
-    cell: Option<[usize; 3]>,
+    /// The grid (its [`Grid::uid`]) and centre cell gathered, or None before the first gather:
+    /// a scratch reused with another index must not reuse another grid's block.
+    cell: Option<(u64, [usize; 3])>,
     centre: V3,
     x: Vec<f32>,
     y: Vec<f32>,
@@ -233,6 +239,7 @@ impl Grid {
             .fold(cell, f64::max);
         Some(Grid {
             face_eps: 16.0 * f64::EPSILON * magnitude,
+            uid: NEXT_GRID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             lo,
             cell,
             dims,
@@ -270,7 +277,7 @@ impl Grid {
 
     /// Gathers the points of the 3 x 3 x 3 cells around cell `c` into `b`.
     fn gather(&self, c: [usize; 3], b: &mut Block) {
-        b.cell = Some(c);
+        b.cell = Some((self.uid, c));
         b.centre = [0, 1, 2].map(|a| self.lo[a] + (c[a] as f64 + 0.5) * self.cell);
         b.x.clear();
         b.y.clear();
@@ -433,7 +440,7 @@ impl<'a> NeighbourIndex<'a> {
     ) -> Result<f64, usize> {
         let q = self.xyz[i];
         let c = g.cell_of(q);
-        if s.block.cell != Some(c) {
+        if s.block.cell != Some((g.uid, c)) {
             g.gather(c, &mut s.block);
         }
         let b = &s.block;
@@ -788,6 +795,36 @@ mod tests {
                 by_block < xyz.len(),
                 "k {k}: no query reached the shell search"
             );
+        }
+    }
+
+    #[test]
+    fn a_scratch_reused_with_another_index_stays_exact() {
+        // Two clouds whose grids have the same cell indices at different places: a block
+        // cached for the first must not answer for the second.
+        let mut rng = crate::estimate::rng::Rng::new(5);
+        let a: Vec<V3> = (0..3000)
+            .map(|_| {
+                [
+                    30.0 * rng.uniform(),
+                    30.0 * rng.uniform(),
+                    0.1 * rng.uniform(),
+                ]
+            })
+            .collect();
+        let b: Vec<V3> = a.iter().map(|p| [p[1], p[0], p[2] + 0.05]).collect();
+        let ids: Vec<u64> = (0..a.len() as u64).collect();
+        let (ia, ib) = (
+            NeighbourIndex::build(&a, &ids, 20).expect("index"),
+            NeighbourIndex::build(&b, &ids, 20).expect("index"),
+        );
+        let mut s = KnnScratch::default();
+        let mut out = Vec::new();
+        for i in (0..a.len()).step_by(7) {
+            ia.knn(i, 20, &mut s, &mut out);
+            assert_eq!(out, brute(&a, &ids, i, 20), "first cloud, point {i}");
+            ib.knn(i, 20, &mut s, &mut out);
+            assert_eq!(out, brute(&b, &ids, i, 20), "second cloud, point {i}");
         }
     }
 
