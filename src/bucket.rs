@@ -204,9 +204,7 @@ impl Buckets {
         stats.centroid = centroid.get().unwrap_or_default();
         if spilled {
             // Everything goes to disk, so that the buckets can be reused by a resumed run.
-            let mut rest: Vec<(TileKey, Vec<SourcePoint>)> = mem.drain().collect();
-            rest.sort_unstable_by_key(|(key, _)| *key);
-            spill(spill_dir, rest)?;
+            spill(spill_dir, mem.drain().collect())?;
             let files: Vec<PathBuf> = stats
                 .per_tile
                 .keys()

@@ -71,10 +71,6 @@ pub struct PointResult {
 /// The patch of a point outside any propagation patch.
 pub const NO_PATCH: u32 = u32::MAX;
 
-/// Marks, inside `compute_tile` only, a core point to recompute with a wider halo (patch
-/// numbers stay far below: they count patches of one pass).
-const RETRY: u32 = u32::MAX - 1;
-
 /// The outcome of one pass over a loaded tile.
 #[derive(Debug, Default)]
 pub struct TileOutcome {
@@ -225,31 +221,34 @@ pub fn compute_tile(
         nrm: Vec<V3>,
         ids: Vec<u64>,
     }
-    // Written in place (an indexed collect): partition_map's intermediate lists and appends
-    // were half of all page faults. Unverified points are marked and removed below.
-    let mut done: Vec<PointResult> = Vec::with_capacity(n_core);
-    (0..n_core)
+    // A core point is computed only if its list and its neighbours' lists are complete; the
+    // others are retried with a wider halo.
+    let verified: Vec<bool> = (0..n_core)
         .into_par_iter()
+        .map(|i| {
+            info[i].complete
+                && list(i).iter().all(|&j| {
+                    let lj = info[j as usize];
+                    lj.len > 0 && lj.complete
+                })
+        })
+        .collect();
+    let todo: Vec<usize> = (0..n_core).filter(|&i| verified[i]).collect();
+    let retry: Vec<u64> = (0..n_core)
+        .filter(|&i| !verified[i])
+        .map(|i| t.ids[i])
+        .collect();
+    // Written in place (an indexed collect): partition_map's intermediate lists and appends
+    // were half of all page faults.
+    let mut done: Vec<PointResult> = Vec::with_capacity(todo.len());
+    todo.par_iter()
         .map_init(
             || Scratch {
                 pos: Vec::with_capacity(k),
                 nrm: Vec::with_capacity(k),
                 ids: Vec::with_capacity(k),
             },
-            |s, i| {
-                let verified = info[i].complete
-                    && list(i).iter().all(|&j| {
-                        let lj = info[j as usize];
-                        lj.len > 0 && lj.complete
-                    });
-                if !verified {
-                    return PointResult {
-                        id: t.ids[i],
-                        normal: [f64::NAN; 3],
-                        curvature: Curvature::undefined(0),
-                        patch: RETRY,
-                    };
-                }
+            |s, &i| {
                 let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
                     flags::FILE_NORMAL
                 } else {
@@ -296,14 +295,6 @@ pub fn compute_tile(
         )
         .collect_into_vec(&mut done);
     LIST_BUFFERS.with_borrow_mut(|b| *b = (lists, info));
-    let mut retry = Vec::new();
-    done.retain(|r| {
-        let keep = r.patch != RETRY;
-        if !keep {
-            retry.push(r.id);
-        }
-        keep
-    });
     TileOutcome {
         done,
         retry,

@@ -250,9 +250,7 @@ impl Grid {
             ids: sorted_ids,
         })
     }
-}
 
-impl Grid {
     /// The cell holding `q` (a point inside the grid's bounds).
     #[inline]
     fn cell_of(&self, q: V3) -> [usize; 3] {
@@ -394,16 +392,20 @@ impl<'a> NeighbourIndex<'a> {
                 Err(shell) => first_shell = shell,
             }
         }
-        let KnnScratch { ranked, exact, .. } = scratch;
+        let KnnScratch {
+            ranked,
+            exact,
+            keys,
+            ..
+        } = scratch;
         ranked.clear();
         match &self.backend {
             Backend::Grid(g) => {
                 if first_shell > 0 {
-                    // The block's best are exact for the 27 cells: seed the heap with them and
-                    // search only the shells beyond.
-                    for &c in &exact[..others] {
-                        heap_offer(ranked, others, c);
-                    }
+                    // The block's best are exact for the 27 cells: seed the heap with them (in
+                    // descending order they already form a max-heap) and search only the
+                    // shells beyond.
+                    ranked.extend(exact[..others].iter().rev());
                 }
                 self.grid_candidates(g, i, others, first_shell, ranked)
             }
@@ -418,7 +420,7 @@ impl<'a> NeighbourIndex<'a> {
             ranked.select_nth_unstable_by(others - 1, rank);
             ranked.truncate(others);
         }
-        ranked.sort_unstable_by(rank);
+        sort_ranked(ranked, keys, exact);
         out.extend(ranked.iter().map(|r| r.2));
         ranked.last().map(|r| r.0.sqrt()).unwrap_or(0.0)
     }
@@ -466,6 +468,7 @@ impl<'a> NeighbourIndex<'a> {
             (0.5 * g.cell * g.cell) as f32
         };
         let window = need + need / 4 + 2;
+        let aim = (need + need / 8 + 1) as f32;
         for _ in 0..8 {
             let n = count(t);
             if n >= need {
@@ -476,7 +479,6 @@ impl<'a> NeighbourIndex<'a> {
             } else {
                 below = t;
             }
-            let aim = (need + need / 8 + 1) as f32;
             let mut next = if n == 0 {
                 4.0 * t
             } else {
