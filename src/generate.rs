@@ -72,8 +72,6 @@ const STRIP_INTERVAL_S: f64 = 600.0;
 /// Points generated in parallel per batch: the memory of the generator is about one batch of
 /// 60-byte records (60 MB), whatever the number of points.
 const BATCH_POINTS: u64 = 1_000_000;
-/// Points per LAZ chunk.
-const LAZ_CHUNK_POINTS: u32 = 50_000;
 /// Salt of the bump streams, so that they differ from the point streams of the same seed.
 const BUMP_SALT: u64 = 0x6275_6d70_7321;
 
@@ -581,15 +579,8 @@ pub fn generate_terrain(
     ];
     let laz_vlr = if compressed {
         let extra = (RECORD_LENGTH - POINT_FORMAT_SIZES[POINT_FORMAT as usize] as usize) as u16;
-        let lv = laz::LazVlrBuilder::default()
-            .with_point_format(POINT_FORMAT, extra)
-            .map_err(|e| Error::Internal(format!("no LAZ layout for point format 1: {e}")))?
-            .with_fixed_chunk_size(LAZ_CHUNK_POINTS)
-            .build();
-        let mut data = Vec::new();
-        lv.write_to(&mut data)
-            .map_err(|e| Error::Internal(format!("LASzip VLR: {e}")))?;
-        vlrs.push(Vlr::new("laszip encoded", 22204, "http://laszip.org", data));
+        let (lv, vlr) = crate::las::vlr::laszip(POINT_FORMAT, extra)?;
+        vlrs.push(vlr);
         Some(lv)
     } else {
         None

@@ -258,20 +258,8 @@ impl LasWriter {
         ));
         let laz_vlr = if compressed {
             let extra = record_length - POINT_FORMAT_SIZES[h.point_format as usize];
-            let lv = laz::LazVlrBuilder::default()
-                .with_point_format(h.point_format, extra)
-                .map_err(|e| {
-                    Error::Internal(format!(
-                        "no LAZ layout for point format {}: {e}",
-                        h.point_format
-                    ))
-                })?
-                .with_fixed_chunk_size(50_000)
-                .build();
-            let mut data = Vec::new();
-            lv.write_to(&mut data)
-                .map_err(|e| Error::Internal(format!("LASzip VLR: {e}")))?;
-            vlrs.push(Vlr::new("laszip encoded", 22204, "http://laszip.org", data));
+            let (lv, vlr) = crate::las::vlr::laszip(h.point_format, extra)?;
+            vlrs.push(vlr);
             Some(lv)
         } else {
             None

@@ -35,6 +35,29 @@ pub fn padded<const N: usize>(s: &str) -> [u8; N] {
     out
 }
 
+/// Points per LAZ chunk in the files we write (LASzip's default).
+pub const LAZ_CHUNK_POINTS: u32 = 50_000;
+
+/// The LASzip layout of `point_format` records followed by `extra` bytes, in fixed chunks of
+/// [`LAZ_CHUNK_POINTS`], and the "laszip encoded" VLR that describes it (to be written among the
+/// file's VLRs).
+pub fn laszip(point_format: u8, extra: u16) -> Result<(laz::LazVlr, Vlr)> {
+    let lv = laz::LazVlrBuilder::default()
+        .with_point_format(point_format, extra)
+        .map_err(|e| {
+            Error::Internal(format!(
+                "no LAZ layout for point format {point_format}: {e}"
+            ))
+        })?
+        .with_fixed_chunk_size(LAZ_CHUNK_POINTS)
+        .build();
+    let mut data = Vec::new();
+    lv.write_to(&mut data)
+        .map_err(|e| Error::Internal(format!("LASzip VLR: {e}")))?;
+    let vlr = Vlr::new("laszip encoded", 22204, "http://laszip.org", data);
+    Ok((lv, vlr))
+}
+
 impl Vlr {
     /// A new record with the given identity and payload.
     pub fn new(user_id: &str, record_id: u16, description: &str, data: Vec<u8>) -> Self {
