@@ -15,7 +15,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
-use tilecurv::estimate::{build, EstimatorParams, Neighbourhood};
+use tilecurv::compute::NeighbourhoodBuf;
+use tilecurv::estimate::{build, EstimatorParams};
 use tilecurv::geometry::{sub, V3};
 use tilecurv::neighbors::{KnnScratch, NeighbourIndex};
 use tilecurv::normals::{orient, pca_normal, Orientation};
@@ -149,29 +150,20 @@ fn main() {
         }
     });
     let estimator = build("cnc-avg-hexagram", &EstimatorParams::default()).expect("estimator");
-    let (mut pos, mut nrm, mut ids) = (Vec::new(), Vec::new(), Vec::new());
+    let mut buf = NeighbourhoodBuf::with_capacity(k);
     let mut h_sum = 0.0;
     let est = best(a.repeat, n, || {
         for i in 0..n {
-            pos.clear();
-            nrm.clear();
-            ids.clear();
-            for &j in &lists[i * k..(i + 1) * k] {
-                if let Some(nj) = normals[j as usize] {
-                    pos.push(sub(t.xyz[j as usize], t.xyz[i]));
-                    nrm.push(nj);
-                    ids.push(t.ids[j as usize]);
-                }
-            }
-            if pos.len() >= 3 {
-                let c = estimator.estimate(&Neighbourhood {
-                    positions: &pos,
-                    normals: &nrm,
-                    ids: &ids,
-                });
-                if c.h.is_finite() {
-                    h_sum += c.h;
-                }
+            let c = buf.estimate(
+                estimator.as_ref(),
+                &t.xyz,
+                &t.ids,
+                &normals,
+                i,
+                &lists[i * k..(i + 1) * k],
+            );
+            if c.h.is_finite() {
+                h_sum += c.h;
             }
         }
     });

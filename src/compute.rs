@@ -83,6 +83,56 @@ pub struct TileOutcome {
     pub orientation: Option<crate::orient::TileOrientation>,
 }
 
+/// Reusable buffers for one point's estimator input (no allocation per point).
+pub struct NeighbourhoodBuf {
+    pos: Vec<V3>,
+    nrm: Vec<V3>,
+    ids: Vec<u64>,
+}
+
+impl NeighbourhoodBuf {
+    /// Buffers for neighbourhoods of up to `k` points.
+    pub fn with_capacity(k: usize) -> Self {
+        NeighbourhoodBuf {
+            pos: Vec::with_capacity(k),
+            nrm: Vec::with_capacity(k),
+            ids: Vec::with_capacity(k),
+        }
+    }
+
+    /// Runs `estimator` on point `i` with its neighbour list `list` (local indices, `i` first):
+    /// positions relative to point `i`, and only the neighbours that have a normal (the others
+    /// cannot contribute to a measure); fewer than 3 such points give FEW_NEIGHBOURS.
+    pub fn estimate(
+        &mut self,
+        estimator: &dyn Estimator,
+        xyz: &[V3],
+        ids: &[u64],
+        normals: &[Option<V3>],
+        i: usize,
+        list: &[u32],
+    ) -> Curvature {
+        self.pos.clear();
+        self.nrm.clear();
+        self.ids.clear();
+        for &j in list {
+            if let Some(nj) = normals[j as usize] {
+                self.pos.push(sub(xyz[j as usize], xyz[i]));
+                self.nrm.push(nj);
+                self.ids.push(ids[j as usize]);
+            }
+        }
+        if self.pos.len() < 3 {
+            return Curvature::undefined(flags::FEW_NEIGHBOURS);
+        }
+        estimator.estimate(&Neighbourhood {
+            positions: &self.pos,
+            normals: &self.nrm,
+            ids: &self.ids,
+        })
+    }
+}
+
 /// What the k-NN of one point left in its slot of the tile's flat list array.
 #[derive(Clone, Copy, Default)]
 struct ListInfo {
@@ -216,11 +266,6 @@ pub fn compute_tile(
             .unwrap_or(NO_PATCH)
     };
     // 4. Estimator for the verified core points.
-    struct Scratch {
-        pos: Vec<V3>,
-        nrm: Vec<V3>,
-        ids: Vec<u64>,
-    }
     // A core point is computed only if its list and its neighbours' lists are complete; the
     // others are retried with a wider halo.
     let verified: Vec<bool> = (0..n_core)
@@ -243,11 +288,7 @@ pub fn compute_tile(
     let mut done: Vec<PointResult> = Vec::with_capacity(todo.len());
     todo.par_iter()
         .map_init(
-            || Scratch {
-                pos: Vec::with_capacity(k),
-                nrm: Vec::with_capacity(k),
-                ids: Vec::with_capacity(k),
-            },
+            || NeighbourhoodBuf::with_capacity(k),
             |s, &i| {
                 let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
                     flags::FILE_NORMAL
@@ -262,28 +303,7 @@ pub fn compute_tile(
                         patch: NO_PATCH,
                     };
                 };
-                s.pos.clear();
-                s.nrm.clear();
-                s.ids.clear();
-                let q = t.xyz[i];
-                for &j in list(i) {
-                    // Neighbours without a defined normal cannot contribute to a measure.
-                    if let Some(nj) = normals[j as usize] {
-                        s.pos.push(sub(t.xyz[j as usize], q));
-                        s.nrm.push(nj);
-                        s.ids.push(t.ids[j as usize]);
-                    }
-                }
-                let curvature = if s.pos.len() < 3 {
-                    Curvature::undefined(flags::FEW_NEIGHBOURS)
-                } else {
-                    p.estimator.estimate(&Neighbourhood {
-                        positions: &s.pos,
-                        normals: &s.nrm,
-                        ids: &s.ids,
-                    })
-                };
-                let mut curvature = curvature;
+                let mut curvature = s.estimate(p.estimator, &t.xyz, &t.ids, &normals, i, list(i));
                 curvature.flags |= file_flag;
                 PointResult {
                     id: t.ids[i],
