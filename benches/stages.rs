@@ -15,14 +15,14 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
-use tilecurv::compute::NeighbourhoodBuf;
-use tilecurv::estimate::{build, EstimatorParams};
-use tilecurv::geometry::{sub, V3};
-use tilecurv::neighbors::{KnnScratch, NeighbourIndex};
-use tilecurv::normals::{orient, pca_normal, Orientation};
-use tilecurv::plan::Rect;
-use tilecurv::source::open;
-use tilecurv::tile::TilePoints;
+use tilecurv::core::compute::NeighbourhoodBuf;
+use tilecurv::core::estimate::{build, EstimatorParams};
+use tilecurv::core::geometry::{sub, V3};
+use tilecurv::core::neighbors::{KnnScratch, NeighbourIndex};
+use tilecurv::core::normals::{orient, pca_normal, Orientation};
+use tilecurv::core::plan::Rect;
+use tilecurv::core::tile::TilePoints;
+use tilecurv::io::source::open;
 
 struct Args {
     file: PathBuf,

@@ -32,16 +32,21 @@
 //! noise levels, the 25k Lloyd clouds and a 200-point subset for the slow estimators, in well
 //! under two minutes.
 
+#[path = "../tests/kit/mod.rs"]
+mod kit;
+
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use tilecurv::estimate::{build, Curvature, Estimator, EstimatorParams, Neighbourhood, NAMES};
-use tilecurv::geometry::{sub, V3};
-use tilecurv::synthetic::{
+use kit::synthetic::{
     evaluate, goursat_curvature, knn_brute, read_pts, sample_goursat, sample_torus,
     torus_curvature_at, Cloud, ErrorStats, TrueCurvature,
 };
+use tilecurv::core::estimate::{
+    build, Curvature, Estimator, EstimatorParams, Neighbourhood, NAMES,
+};
+use tilecurv::core::geometry::{sub, V3};
 
 /// Torus radii of the paper (section 1.10).
 const TORUS_R: (f64, f64) = (6.0, 2.0);

@@ -8,8 +8,8 @@ use clap::{Parser, Subcommand};
 
 use crate::config::OrientMode;
 use crate::config::{ColumnType, Config, Length};
+use crate::core::estimate::EstimatorParams;
 use crate::error::{Error, ExitClass};
-use crate::estimate::EstimatorParams;
 use crate::progress::TermReporter;
 
 /// Exit codes, as documented in `--help` and the README.
@@ -85,7 +85,7 @@ struct TerrainArgs {
 
     /// Number of points: 2000000, 2M, 500k, 1e6 (k, M, G = powers of ten). At most 4294967295
     /// (LAS 1.2).
-    #[arg(long, value_parser = crate::generate::parse_count)]
+    #[arg(long, value_parser = crate::tools::generate::parse_count)]
     points: u64,
 
     /// Points per square metre; the terrain covers a square of points/density square metres.
@@ -221,7 +221,7 @@ struct ProcessArgs {
     /// are fan-triangulated; counter-clockwise vertex order is outward), used as a file normal.
     /// N as for `generate --points`: 200k, 1M. The sample comes from --seed and does not depend
     /// on --threads or --chunk-size. The mesh is held in memory, the samples are streamed.
-    #[arg(long, value_name = "N", value_parser = crate::generate::parse_count)]
+    #[arg(long, value_name = "N", value_parser = crate::tools::generate::parse_count)]
     sample_faces: Option<u64>,
 
     /// Print only warnings and errors.
@@ -338,14 +338,14 @@ pub fn main_with_args() -> i32 {
         Command::Generate(GenerateArgs {
             kind: GenerateKind::Terrain(args),
         }) => {
-            let opts = crate::generate::TerrainOptions {
+            let opts = crate::tools::generate::TerrainOptions {
                 points: args.points,
                 density_per_m2: args.density,
                 seed: args.seed,
                 noise_m: args.noise,
             };
             install_signal_handlers();
-            match crate::generate::generate_terrain(&opts, &args.output, &CANCEL) {
+            match crate::tools::generate::generate_terrain(&opts, &args.output, &CANCEL) {
                 Ok(s) => {
                     if !args.quiet {
                         eprintln!(
@@ -381,7 +381,7 @@ pub fn main_with_args() -> i32 {
                     return exit_code(&e);
                 }
             };
-            match crate::pipeline::run(&cfg, &reporter, &CANCEL) {
+            match crate::run::run(&cfg, &reporter, &CANCEL) {
                 Ok(s) => {
                     if !quiet && !cfg.dry_run {
                         {

@@ -3,11 +3,11 @@
 
 use std::path::PathBuf;
 
-use crate::crs::LengthUnit;
+use crate::core::estimate::EstimatorParams;
+use crate::core::geometry::V3;
+use crate::core::normals::Orientation;
 use crate::error::{Error, Result};
-use crate::estimate::EstimatorParams;
-use crate::geometry::V3;
-use crate::normals::Orientation;
+use crate::io::crs::LengthUnit;
 
 /// A length with its unit as the user wrote it (`50m`, `150ft`, `150usft`, or a bare number in
 /// file units).
@@ -242,11 +242,11 @@ impl Config {
         if self.chunk_points == 0 {
             return Err(Error::Usage("--chunk-size must be at least 1 point".into()));
         }
-        if crate::estimate::build(&self.estimator, &self.params).is_none() {
+        if crate::core::estimate::build(&self.estimator, &self.params).is_none() {
             return Err(Error::Usage(format!(
                 "unknown estimator {:?}; choose one of: {}",
                 self.estimator,
-                crate::estimate::NAMES.join(", ")
+                crate::core::estimate::NAMES.join(", ")
             )));
         }
         if self.features && self.estimator != "vcm" {

@@ -5,31 +5,21 @@
 //! source -> plan -> bucket -> tile (core + halo) -> neighbors -> normals -> estimate -> results -> assemble
 //!                                     \______________ compute (per tile) ______________/
 //! ```
-//! `pipeline` runs it; `las_out` writes the file; `progress` reports.
+//! `core` is the pure computation, `io` the formats and files, `run` the stages over the work
+//! directory (`process` runs them in one process), `cli` the command line, `tools` generators.
 
-pub mod assemble;
-pub mod bucket;
 pub mod cli;
-pub mod columns;
-pub mod compute;
 pub mod config;
-pub mod crs;
+pub mod core;
 pub mod error;
-pub mod estimate;
-pub mod generate;
-pub mod geometry;
-pub mod las;
-pub mod las_out;
-pub mod neighbors;
-pub mod normals;
-pub mod orient;
-pub mod pipeline;
-pub mod plan;
-pub mod ply_out;
+pub mod io;
 pub mod progress;
-pub mod results;
-pub mod sink;
-pub mod source;
-pub mod synthetic;
-pub mod tile;
-pub mod workdir;
+pub mod run;
+pub mod tools;
+
+// The library's unit tests use the test kit of tests/kit, which names the library `tilecurv`.
+#[cfg(test)]
+extern crate self as tilecurv;
+#[cfg(test)]
+#[path = "../tests/kit/mod.rs"]
+mod kit;

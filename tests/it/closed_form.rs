@@ -14,7 +14,7 @@
 
 use std::path::Path;
 
-use tilecurv::synthetic::{
+use crate::kit::synthetic::{
     sample_height_field, sample_sphere, sample_torus, torus_curvature_at, HeightField, Paraboloid,
     Saddle, TrueCurvature,
 };
@@ -75,7 +75,7 @@ fn sphere_with_file_normals() {
             flags.iter().all(|&f| f as u8 & 32 != 0),
             "the file's normals are used (flag 32)"
         );
-        let e = rms_errors(&out, |_| Some(tilecurv::synthetic::sphere_curvature(r)));
+        let e = rms_errors(&out, |_| Some(crate::kit::synthetic::sphere_curvature(r)));
         eprintln!("sphere r=2 N=20000 K=30 file normals, tile {tile}: RMS H {:.2e} K {:.2e} k1 {:.2e} k2 {:.2e}", e.h, e.k, e.k1, e.k2);
         // Section 7: sphere r = 2, K = 30 gives H = 0.5000 and k in 0.4993..0.5005 on exact
         // data, i.e. errors up to 7e-4 = 1.4e-3 relative. Our sampling is random (less regular

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use tilecurv::source::{LasSource, PointSource};
+use tilecurv::io::source::{LasSource, PointSource};
 
 /// The project root.
 pub fn root() -> PathBuf {
@@ -79,7 +79,8 @@ pub fn column(path: &Path, name: &str) -> Vec<f64> {
         .find(|d| d.name == name)
         .unwrap_or_else(|| panic!("{} has no column {name}", path.display()))
         .clone();
-    let base = tilecurv::las::header::POINT_FORMAT_SIZES[s.header.point_format as usize] as usize;
+    let base =
+        tilecurv::io::las::header::POINT_FORMAT_SIZES[s.header.point_format as usize] as usize;
     all.chunks_exact(s.header.record_length as usize)
         .map(|r| d.read(&r[base..]).expect("in range"))
         .collect()
@@ -94,7 +95,8 @@ pub fn column_bytes(path: &Path, name: &str) -> Vec<u8> {
         .find(|d| d.name == name)
         .unwrap_or_else(|| panic!("no column {name}"))
         .clone();
-    let base = tilecurv::las::header::POINT_FORMAT_SIZES[s.header.point_format as usize] as usize;
+    let base =
+        tilecurv::io::las::header::POINT_FORMAT_SIZES[s.header.point_format as usize] as usize;
     all.chunks_exact(s.header.record_length as usize)
         .flat_map(|r| r[base + d.offset..base + d.offset + d.size].to_vec())
         .collect()

@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use tilecurv::source::PointSource;
+use tilecurv::io::source::PointSource;
 
 use crate::common::{column, median, process, read_ply, records, root, shared, tilecurv, Table};
 

@@ -6,6 +6,9 @@ mod common;
 mod features;
 mod formats;
 mod invariance;
+#[path = "../kit/mod.rs"]
+mod kit;
+mod kit_checks;
 mod orientation;
 mod outofcore;
 mod real_files;

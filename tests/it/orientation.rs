@@ -8,13 +8,13 @@
 
 use std::path::Path;
 
-use tilecurv::geometry::{add, cross, dot, normalize, scale, sub, V3};
-use tilecurv::neighbors::{KnnScratch, NeighbourIndex};
-use tilecurv::normals::{orient, pca_normal, Orientation};
-use tilecurv::orient::{
+use tilecurv::core::geometry::{add, cross, dot, normalize, scale, sub, V3};
+use tilecurv::core::neighbors::{KnnScratch, NeighbourIndex};
+use tilecurv::core::normals::{orient, pca_normal, Orientation};
+use tilecurv::core::orient::{
     orient_outward, orient_tile, patch_signs, propagate, votes_from_shared, Centroid, Seed,
 };
-use tilecurv::source::open;
+use tilecurv::io::source::open;
 
 use crate::common::shared;
 

@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use tilecurv::las::header::OutputLayout;
-use tilecurv::source::PointSource;
+use tilecurv::io::las::header::OutputLayout;
+use tilecurv::io::source::PointSource;
 
 use crate::common::{column, process, records, shared, tilecurv, COLUMNS};
 
@@ -283,7 +283,7 @@ fn killed_runs_resume_to_a_byte_identical_output() {
     assert!(tiles >= 200, "{tiles} tiles");
 
     let out = dir.path().join("resumed.las");
-    let work = tilecurv::workdir::default_path(&out);
+    let work = tilecurv::io::workdir::default_path(&out);
     let args = [
         "process",
         s(&input),
@@ -367,7 +367,7 @@ fn stale_work_is_discarded() {
     let input = dir.path().join("terrain.las");
     generate(&input, "300k", "4");
     let out = dir.path().join("out.las");
-    let work = tilecurv::workdir::default_path(&out);
+    let work = tilecurv::io::workdir::default_path(&out);
     let log = dir.path().join("stderr.txt");
     let run = |k: &str| {
         vec![
@@ -489,7 +489,8 @@ struct PointColumns {
 fn point_columns(path: &Path, names: &[&str]) -> PointColumns {
     let (src, recs) = records(path);
     let len = src.header.record_length as usize;
-    let base = tilecurv::las::header::POINT_FORMAT_SIZES[src.header.point_format as usize] as usize;
+    let base =
+        tilecurv::io::las::header::POINT_FORMAT_SIZES[src.header.point_format as usize] as usize;
     let descs: Vec<_> = names
         .iter()
         .map(|n| {
@@ -597,7 +598,7 @@ fn terrain_curvature_matches_its_closed_form() {
     let out = dir.path().join("out.las");
     process(&input, &out, &["-k", "30"]);
     let got = ["H", "K", "k1", "k2"].map(|c| column(&out, c));
-    let truth = tilecurv::generate::TRUTH_COLUMNS.map(|c| column(&out, c));
+    let truth = tilecurv::tools::generate::TRUTH_COLUMNS.map(|c| column(&out, c));
     let flags = column(&out, "CurvatureFlags");
     let (src, recs) = records(&out);
     let len = src.header.record_length as usize;
@@ -607,8 +608,8 @@ fn terrain_curvature_matches_its_closed_form() {
         .map(|(i, r)| {
             let p = src.decode(i as u64, r).xyz;
             [
-                p[0] - tilecurv::generate::ORIGIN_M[0],
-                p[1] - tilecurv::generate::ORIGIN_M[1],
+                p[0] - tilecurv::tools::generate::ORIGIN_M[0],
+                p[1] - tilecurv::tools::generate::ORIGIN_M[1],
             ]
         })
         .collect();

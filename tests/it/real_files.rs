@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use tilecurv::source::PointSource;
+use tilecurv::io::source::PointSource;
 
 use crate::common::{process, records, shared, COLUMNS};
 
@@ -81,7 +81,7 @@ fn check_preserved(input: &Path, output: &Path) {
     // Every input VLR is kept in order (the LAZ and COPC ones are rebuilt or dropped; the
     // extra-bytes VLR keeps its descriptors as a prefix).
     let keep =
-        |v: &&tilecurv::las::vlr::Vlr| !(v.is("laszip encoded", 22204) || v.user_id == "copc");
+        |v: &&tilecurv::io::las::vlr::Vlr| !(v.is("laszip encoded", 22204) || v.user_id == "copc");
     let va: Vec<_> = a.vlrs.iter().filter(keep).collect();
     let vb: Vec<_> = b.vlrs.iter().filter(keep).collect();
     for v in &va {

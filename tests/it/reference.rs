@@ -13,7 +13,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use tilecurv::synthetic::{goursat_curvature, torus_curvature_at, TrueCurvature};
+use crate::kit::synthetic::{goursat_curvature, torus_curvature_at, TrueCurvature};
 
 use crate::common::{process, read_ply, shared};
 

@@ -1,0 +1,327 @@
+//! One tile's computation: k-NN for the core points and for the halo points they reach, normals
+//! (the file's, or PCA oriented), halo verification, and the estimator for the core points whose
+//! whole neighbourhood is verified complete. Parallel over points with rayon; no I/O.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use rayon::prelude::*;
+
+use crate::core::estimate::{flags, Curvature, Estimator, Neighbourhood};
+use crate::core::geometry::{sub, V3};
+use crate::core::neighbors::{KnnScratch, NeighbourIndex};
+use crate::core::normals::{orient, pca_normal, Orientation};
+use crate::core::plan::Rect;
+use crate::core::tile::TilePoints;
+
+/// What to compute per point.
+#[derive(Clone, Copy)]
+pub struct ComputeParams<'e> {
+    /// Neighbours per point, the point itself included.
+    pub k: usize,
+    /// Orientation of PCA normals.
+    pub orientation: Orientation,
+    /// Use the file's normals where present.
+    pub use_file_normals: bool,
+    /// The estimator.
+    pub estimator: &'e dyn Estimator,
+    /// `--orient propagate`: the cloud's centroid, from which each tile's propagation is seeded
+    /// (orient.rs); None for the per-point rules.
+    pub propagate: Option<V3>,
+}
+
+/// Which loaded points of a pass another pass also orients (for the cross-tile votes of
+/// `--orient propagate`).
+#[derive(Debug, Clone, Copy)]
+pub enum Shared {
+    /// Every loaded point (a wider-halo retry: its points were oriented by earlier passes).
+    All,
+    /// Points within `width` of the edge of the core rectangle `rect`, inside or outside it.
+    Band {
+        /// The core (tile or part) rectangle.
+        rect: Rect,
+        /// The initial halo width.
+        width: f64,
+    },
+}
+
+impl Shared {
+    fn contains(&self, p: V3) -> bool {
+        match *self {
+            Shared::All => true,
+            // Outside the inner rectangle (empty when the band is wider than half the core).
+            Shared::Band { rect, width } => !rect.grown(-width).contains(p[0], p[1]),
+        }
+    }
+}
+
+/// One point's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointResult {
+    /// Original point id.
+    pub id: u64,
+    /// Oriented unit normal (NaN when undefined).
+    pub normal: V3,
+    /// Curvature and flags.
+    pub curvature: Curvature,
+    /// With `--orient propagate`: the point's patch, numbered within its tile (see orient.rs);
+    /// [`NO_PATCH`] otherwise.
+    pub patch: u32,
+}
+
+/// The patch of a point outside any propagation patch.
+pub const NO_PATCH: u32 = u32::MAX;
+
+/// The outcome of one pass over a loaded tile.
+#[derive(Debug, Default)]
+pub struct TileOutcome {
+    /// Results of the core points whose neighbourhoods were verified complete.
+    pub done: Vec<PointResult>,
+    /// Ids of core points whose neighbourhood (or a neighbour's) may reach past the loaded
+    /// region: to be recomputed with a wider halo.
+    pub retry: Vec<u64>,
+    /// With `--orient propagate`: the pass's patch anchors and shared normals.
+    pub orientation: Option<crate::core::orient::TileOrientation>,
+}
+
+/// Reusable buffers for one point's estimator input (no allocation per point).
+pub struct NeighbourhoodBuf {
+    pos: Vec<V3>,
+    nrm: Vec<V3>,
+    ids: Vec<u64>,
+}
+
+impl NeighbourhoodBuf {
+    /// Buffers for neighbourhoods of up to `k` points.
+    pub fn with_capacity(k: usize) -> Self {
+        NeighbourhoodBuf {
+            pos: Vec::with_capacity(k),
+            nrm: Vec::with_capacity(k),
+            ids: Vec::with_capacity(k),
+        }
+    }
+
+    /// Runs `estimator` on point `i` with its neighbour list `list` (local indices, `i` first):
+    /// positions relative to point `i`, and only the neighbours that have a normal (the others
+    /// cannot contribute to a measure); fewer than 3 such points give FEW_NEIGHBOURS.
+    pub fn estimate(
+        &mut self,
+        estimator: &dyn Estimator,
+        xyz: &[V3],
+        ids: &[u64],
+        normals: &[Option<V3>],
+        i: usize,
+        list: &[u32],
+    ) -> Curvature {
+        self.pos.clear();
+        self.nrm.clear();
+        self.ids.clear();
+        for &j in list {
+            if let Some(nj) = normals[j as usize] {
+                self.pos.push(sub(xyz[j as usize], xyz[i]));
+                self.nrm.push(nj);
+                self.ids.push(ids[j as usize]);
+            }
+        }
+        if self.pos.len() < 3 {
+            return Curvature::undefined(flags::FEW_NEIGHBOURS);
+        }
+        estimator.estimate(&Neighbourhood {
+            positions: &self.pos,
+            normals: &self.nrm,
+            ids: &self.ids,
+        })
+    }
+}
+
+/// What the k-NN of one point left in its slot of the tile's flat list array.
+#[derive(Clone, Copy, Default)]
+struct ListInfo {
+    /// Entries of the list (0: no list computed for this point).
+    len: u32,
+    /// Whether the list is provably the point's true k-NN (nothing nearer is outside the
+    /// loaded region).
+    complete: bool,
+}
+
+thread_local! {
+    /// `compute_tile`'s flat neighbour lists and their [`ListInfo`], kept between tiles.
+    static LIST_BUFFERS: std::cell::RefCell<(Vec<u32>, Vec<ListInfo>)> = Default::default();
+}
+
+/// k-NN of point `i` into `slot` (its k entries of the flat list array).
+#[allow(clippy::too_many_arguments)]
+fn knn_into(
+    t: &TilePoints,
+    index: &NeighbourIndex<'_>,
+    scene: &Rect,
+    k: usize,
+    i: usize,
+    scratch: &mut KnnScratch,
+    list: &mut Vec<u32>,
+    slot: &mut [u32],
+) -> ListInfo {
+    let far = index.knn(i, k, scratch, list);
+    slot[..list.len()].copy_from_slice(list);
+    let p = t.xyz[i];
+    let room = t.region.distance_to_open_side(p[0], p[1], scene);
+    // Any point not loaded is strictly farther than `room`; with fewer than k points loaded,
+    // only a region covering the whole scene proves the list complete.
+    let complete = if list.len() < k {
+        room.is_infinite()
+    } else {
+        far <= room
+    };
+    ListInfo {
+        len: list.len() as u32,
+        complete,
+    }
+}
+
+/// Computes the core points of `t`. `scene` is the x/y extent of the whole cloud.
+/// With `--orient propagate`, the pass's patches are numbered from `first_patch` and `shared`
+/// says which of its points other passes also orient.
+pub fn compute_tile(
+    t: &TilePoints,
+    scene: &Rect,
+    p: &ComputeParams<'_>,
+    first_patch: u32,
+    shared: Shared,
+) -> TileOutcome {
+    let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids, p.k) else {
+        return TileOutcome::default();
+    };
+    let n = t.xyz.len();
+    let k = p.k;
+    let n_core = t.n_core;
+    // Neighbour lists, flat (point i: lists[i k .. i k + info[i].len]): no allocation per point.
+    // Reused across tiles by each worker thread: fresh buffers cost a zeroed page per 4 KiB
+    // every tile (page faults were a tenth of the run's CPU time).
+    let (mut lists, mut info) = LIST_BUFFERS.with_borrow_mut(std::mem::take);
+    lists.clear();
+    lists.resize(n * k, 0);
+    info.clear();
+    info.resize(n, ListInfo::default());
+    let scratch = || (KnnScratch::default(), Vec::with_capacity(k));
+    // 1. k-NN of the core points.
+    lists[..n_core * k]
+        .par_chunks_mut(k)
+        .zip(info[..n_core].par_iter_mut())
+        .enumerate()
+        .for_each_init(scratch, |(s, list), (i, (slot, li))| {
+            *li = knn_into(t, &index, scene, k, i, s, list, slot);
+        });
+    // 2. k-NN of the halo points that core neighbourhoods reach (their normals are used).
+    let needed: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
+    lists[..n_core * k]
+        .par_chunks(k)
+        .zip(info[..n_core].par_iter())
+        .for_each(|(l, li)| {
+            for &j in &l[..li.len as usize] {
+                needed[j as usize].store(true, Ordering::Relaxed);
+            }
+        });
+    lists[n_core * k..]
+        .par_chunks_mut(k)
+        .zip(info[n_core..].par_iter_mut())
+        .enumerate()
+        .for_each_init(scratch, |(s, list), (h, (slot, li))| {
+            let j = n_core + h;
+            if needed[j].load(Ordering::Relaxed) {
+                *li = knn_into(t, &index, scene, k, j, s, list, slot);
+            }
+        });
+    let list = |i: usize| &lists[i * k..i * k + info[i].len as usize];
+    // 3. Normals of every point with a neighbour list.
+    let mut normals: Vec<Option<V3>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if info[i].len == 0 {
+                return None;
+            }
+            if p.use_file_normals {
+                if let Some(fnorm) = t.file_normals[i] {
+                    return crate::core::geometry::normalize(fnorm);
+                }
+            }
+            pca_normal(&t.xyz, list(i)).map(|nrm| orient(nrm, t.xyz[i], p.orientation))
+        })
+        .collect();
+    // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.
+    let orientation = p.propagate.filter(|_| !p.use_file_normals).map(|centre| {
+        let lists: Vec<&[u32]> = (0..n).map(list).collect();
+        crate::core::orient::orient_tile(
+            &t.xyz,
+            &t.ids,
+            &lists,
+            &mut normals,
+            centre,
+            first_patch,
+            |i| shared.contains(t.xyz[i]),
+        )
+    });
+    let patch_of = |i: usize| {
+        orientation
+            .as_ref()
+            .and_then(|o| o.patch(i))
+            .unwrap_or(NO_PATCH)
+    };
+    // 4. Estimator for the verified core points.
+    // A core point is computed only if its list and its neighbours' lists are complete; the
+    // others are retried with a wider halo.
+    let verified: Vec<bool> = (0..n_core)
+        .into_par_iter()
+        .map(|i| {
+            info[i].complete
+                && list(i).iter().all(|&j| {
+                    let lj = info[j as usize];
+                    lj.len > 0 && lj.complete
+                })
+        })
+        .collect();
+    let todo: Vec<usize> = (0..n_core).filter(|&i| verified[i]).collect();
+    let retry: Vec<u64> = (0..n_core)
+        .filter(|&i| !verified[i])
+        .map(|i| t.ids[i])
+        .collect();
+    // Written in place (an indexed collect): partition_map's intermediate lists and appends
+    // were half of all page faults.
+    let mut done: Vec<PointResult> = Vec::with_capacity(todo.len());
+    todo.par_iter()
+        .map_init(
+            || NeighbourhoodBuf::with_capacity(k),
+            |s, &i| {
+                let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
+                    flags::FILE_NORMAL
+                } else {
+                    0
+                };
+                let Some(n0) = normals[i] else {
+                    return PointResult {
+                        id: t.ids[i],
+                        normal: [f64::NAN; 3],
+                        curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag),
+                        patch: NO_PATCH,
+                    };
+                };
+                let mut curvature = s.estimate(p.estimator, &t.xyz, &t.ids, &normals, i, list(i));
+                curvature.flags |= file_flag;
+                PointResult {
+                    id: t.ids[i],
+                    normal: n0,
+                    curvature,
+                    patch: patch_of(i),
+                }
+            },
+        )
+        .collect_into_vec(&mut done);
+    LIST_BUFFERS.with_borrow_mut(|b| *b = (lists, info));
+    TileOutcome {
+        done,
+        retry,
+        // Each result carries its patch; the per-point components are not needed any more.
+        orientation: orientation.map(|o| crate::core::orient::TileOrientation {
+            component: Vec::new(),
+            ..o
+        }),
+    }
+}

@@ -1,0 +1,14 @@
+//! The pure computation: numbers in, numbers out. Nothing here touches a file, a thread, a
+//! channel or a clock (rayon's data parallelism inside one call is the one exception), and
+//! nothing imports from `io` or `run`, so every piece is tested on numbers alone.
+
+pub mod compute;
+pub mod estimate;
+pub mod geometry;
+pub mod neighbors;
+pub mod normals;
+pub mod orient;
+pub mod plan;
+pub mod rng;
+pub mod surface;
+pub mod tile;

@@ -1,0 +1,263 @@
+//! The horizontal length unit of a file's CRS, from its OGC WKT VLR or its GeoTIFF keys, so that
+//! `--tile 50m` means 50 metres in a file stored in feet. Pure: works on VLR payloads.
+
+use crate::io::las::vlr::Vlr;
+
+/// A horizontal length unit: its name and its size in metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LengthUnit {
+    /// Name as the CRS spells it (or a canonical name for GeoTIFF codes).
+    pub name: String,
+    /// Metres per unit.
+    pub metres: f64,
+}
+
+impl LengthUnit {
+    /// The metre.
+    pub fn metre() -> Self {
+        LengthUnit {
+            name: "metre".into(),
+            metres: 1.0,
+        }
+    }
+
+    /// A short symbol for messages and column descriptions ("m", "ft", "ftUS" or the name).
+    pub fn symbol(&self) -> String {
+        if (self.metres - 1.0).abs() < 1e-12 {
+            "m".into()
+        } else if (self.metres - 0.3048).abs() < 1e-12 {
+            "ft".into()
+        } else if (self.metres - 1200.0 / 3937.0).abs() < 1e-12 {
+            "ftUS".into()
+        } else {
+            self.name.clone()
+        }
+    }
+}
+
+/// Where the unit came from, for the log.
+#[derive(Debug, Clone, PartialEq)]
+pub enum UnitSource {
+    /// From the OGC WKT VLR.
+    Wkt(LengthUnit),
+    /// From the GeoTIFF key directory.
+    GeoTiff(LengthUnit),
+    /// The file has no usable CRS: lengths are in file units.
+    Unknown(String),
+}
+
+impl UnitSource {
+    /// The unit, if known.
+    pub fn unit(&self) -> Option<&LengthUnit> {
+        match self {
+            UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => Some(u),
+            UnitSource::Unknown(_) => None,
+        }
+    }
+}
+
+/// Determines the horizontal unit from a file's VLRs (and EVLRs, where LAS 1.4 may keep the WKT).
+pub fn horizontal_unit<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> UnitSource {
+    let records: Vec<&Vlr> = records.into_iter().collect();
+    if let Some(v) = records.iter().find(|v| v.is("LASF_Projection", 2112)) {
+        let text = String::from_utf8_lossy(&v.data);
+        if let Some(u) = wkt_unit(&text) {
+            return UnitSource::Wkt(u);
+        }
+    }
+    if let Some(v) = records.iter().find(|v| v.is("LASF_Projection", 34735)) {
+        let doubles = records
+            .iter()
+            .find(|v| v.is("LASF_Projection", 34736))
+            .map(|v| v.data.as_slice());
+        match geotiff_unit(&v.data, doubles) {
+            Ok(u) => return UnitSource::GeoTiff(u),
+            Err(why) => return UnitSource::Unknown(why),
+        }
+    }
+    UnitSource::Unknown("the file has no CRS (no WKT or GeoTIFF VLR)".into())
+}
+
+/// Finds the end of the bracketed group that opens at `open` (the index of '[' or '(').
+fn group_end(s: &[u8], open: usize) -> Option<usize> {
+    let mut depth = 0usize;
+    let mut in_str = false;
+    for (i, &c) in s.iter().enumerate().skip(open) {
+        match c {
+            b'"' => in_str = !in_str,
+            b'[' | b'(' if !in_str => depth += 1,
+            b']' | b')' if !in_str => {
+                depth -= 1;
+                if depth == 0 {
+                    return Some(i);
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// The linear unit of the projected CRS in an OGC WKT (1 or 2) string.
+pub fn wkt_unit(wkt: &str) -> Option<LengthUnit> {
+    // Writers put spaces anywhere ("UNIT [ ..."): drop whitespace outside quoted names.
+    let mut in_str = false;
+    let wkt: String = wkt
+        .chars()
+        .filter(|&c| {
+            if c == '"' {
+                in_str = !in_str;
+            }
+            in_str || !c.is_whitespace()
+        })
+        .collect();
+    let wkt = wkt.as_str();
+    let upper = wkt.to_ascii_uppercase();
+    let start = ["PROJCRS[", "PROJCS[", "PROJECTEDCRS["]
+        .iter()
+        .filter_map(|k| upper.find(k))
+        .min()?;
+    let bytes = upper.as_bytes();
+    let open = start + upper[start..].find('[')?;
+    let end = group_end(bytes, open)?;
+    // Blank out the subtrees whose units are not the projected axes' (geographic base CRS, the
+    // WKT2 conversion parameters).
+    let mut body: Vec<u8> = bytes[open + 1..end].to_vec();
+    let mut orig: Vec<u8> = wkt.as_bytes()[open + 1..end].to_vec();
+    for key in [
+        "GEOGCS[",
+        "BASEGEOGCRS[",
+        "BASEGEODCRS[",
+        "GEOGCRS[",
+        "CONVERSION[",
+        "VERT_CS[",
+        "VERTCRS[",
+    ] {
+        while let Some(p) = find(&body, key.as_bytes()) {
+            let o = p + key.len() - 1;
+            let e = group_end(&body, o)?;
+            for i in p..=e {
+                body[i] = b' ';
+                orig[i] = b' ';
+            }
+        }
+    }
+    let p = ["LENGTHUNIT[", "UNIT["]
+        .iter()
+        .filter_map(|k| find(&body, k.as_bytes()).map(|p| (p, k.len())))
+        .min()?;
+    let inner_start = p.0 + p.1;
+    let inner_end = group_end(&body, inner_start - 1)?;
+    let inner = String::from_utf8_lossy(&orig[inner_start..inner_end]).into_owned();
+    let mut parts = inner.splitn(3, ',');
+    let name = parts.next()?.trim().trim_matches('"').to_string();
+    let metres: f64 = parts.next()?.trim().trim_end_matches(']').parse().ok()?;
+    (metres.is_finite() && metres > 0.0).then_some(LengthUnit { name, metres })
+}
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    hay.windows(needle.len()).position(|w| w == needle)
+}
+
+/// The linear unit from a GeoTIFF key directory (ProjLinearUnitsGeoKey 3076, or
+/// ProjLinearUnitSizeGeoKey 3077 for a user-defined unit).
+pub fn geotiff_unit(keys: &[u8], doubles: Option<&[u8]>) -> Result<LengthUnit, String> {
+    let w: Vec<u16> = keys
+        .chunks_exact(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect();
+    if w.len() < 4 {
+        return Err("the GeoTIFF key directory is shorter than its 8-byte header".into());
+    }
+    let n = w[3] as usize;
+    let entries = w
+        .get(4..4 + 4 * n)
+        .ok_or("the GeoTIFF key directory is shorter than its key count says")?;
+    let mut units = None;
+    let mut size = None;
+    let mut projected = None;
+    for e in entries.chunks_exact(4) {
+        match e[0] {
+            3076 if e[1] == 0 => units = Some(e[3]),
+            3077 if e[1] == 34736 => {
+                let d = doubles
+                    .ok_or("ProjLinearUnitSizeGeoKey points to a missing GeoDoubleParams VLR")?;
+                let o = e[3] as usize * 8;
+                let b = d
+                    .get(o..o + 8)
+                    .ok_or("ProjLinearUnitSizeGeoKey points past the GeoDoubleParams VLR")?;
+                size = Some(f64::from_le_bytes(b.try_into().map_err(|_| "bad double")?));
+            }
+            3072 if e[1] == 0 => projected = Some(e[3]),
+            _ => {}
+        }
+    }
+    let named = |name: &str, metres: f64| {
+        Ok(LengthUnit {
+            name: name.into(),
+            metres,
+        })
+    };
+    match units {
+        Some(9001) => named("metre", 1.0),
+        Some(9002) => named("foot", 0.3048),
+        Some(9003) => named("US survey foot", 1200.0 / 3937.0),
+        Some(9005) => named("Clarke's foot", 0.3047972654),
+        Some(9014) => named("fathom", 1.8288),
+        Some(9036) => named("kilometre", 1000.0),
+        Some(32767) | None if size.is_some_and(|s| s > 0.0) => named("user-defined", size.unwrap_or(1.0)),
+        Some(code) => Err(format!("the GeoTIFF linear unit code {code} is not one tilecurv knows")),
+        None => match projected {
+            Some(code) => projected_unit(code).ok_or_else(|| format!("the GeoTIFF keys name EPSG:{code} but no linear unit, and tilecurv does not know that code's unit")),
+            None => Err("the GeoTIFF keys define no projected CRS (geographic coordinates have no length unit)".into()),
+        },
+    }
+}
+
+/// The unit of common projected EPSG codes whose GeoTIFF keys often omit the unit key: the UTM
+/// zones (WGS 84, NAD83, ETRS89) are in metres.
+fn projected_unit(code: u16) -> Option<LengthUnit> {
+    let metre =
+        matches!(code, 32601..=32660 | 32701..=32760 | 26901..=26923 | 25828..=25838 | 3005 | 2949);
+    metre.then(LengthUnit::metre)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wkt1_projected_foot_not_geographic_degree() {
+        let wkt = r#"PROJCS["NAD83 / Oregon GIC Lambert (ft)",GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101]],UNIT["degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic_2SP"],UNIT["foot",0.3048,AUTHORITY["EPSG","9002"]]]"#;
+        let u = wkt_unit(wkt).expect("unit");
+        assert_eq!(u.metres, 0.3048);
+        assert_eq!(u.symbol(), "ft");
+    }
+
+    #[test]
+    fn wkt1_with_spaces_inside_compound_crs() {
+        // As written by a Leica pipeline (las14_pdrf6.laz).
+        let wkt = r#"COMPD_CS["Projected", PROJCS["UTM_10N", GEOGCS [ "WGS84", DATUM [ "WGS84", SPHEROID ["WGS 84", 6378137.000, 298.257223563 ] ], UNIT [ "degree", 0.0174532925] ], PROJECTION["Transverse_Mercator"], UNIT [ "US survey foot", 0.30480060960]] ], VERT_CS["NAVD88", UNIT [ "metres", 1.00000000] ] ]"#;
+        let u = wkt_unit(wkt).expect("unit");
+        assert_eq!(
+            (u.name.as_str(), u.metres),
+            ("US survey foot", 0.3048006096)
+        );
+    }
+
+    #[test]
+    fn wkt2_unit_from_axes_not_conversion() {
+        let wkt = r#"PROJCRS["x",BASEGEOGCRS["g",ANGLEUNIT["degree",0.01745]],CONVERSION["c",PARAMETER["False easting",0,LENGTHUNIT["metre",1]]],CS[Cartesian,2],AXIS["E",east,LENGTHUNIT["US survey foot",0.304800609601219]]]"#;
+        let u = wkt_unit(wkt).expect("unit");
+        assert!((u.metres - 0.304800609601219).abs() < 1e-15);
+    }
+
+    #[test]
+    fn geotiff_units_key() {
+        let mut k = Vec::new();
+        for w in [1u16, 1, 0, 2, 3072, 0, 1, 2994, 3076, 0, 1, 9002] {
+            k.extend_from_slice(&w.to_le_bytes());
+        }
+        assert_eq!(geotiff_unit(&k, None).expect("unit").metres, 0.3048);
+    }
+}

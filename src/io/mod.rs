@@ -1,0 +1,12 @@
+//! Formats and files: reading point sources, writing outputs atomically, the work directory
+//! (lock, manifest, buckets, the tile results journal). No curvature is computed here.
+
+pub mod bucket;
+pub mod columns;
+pub mod crs;
+pub mod las;
+pub mod ply;
+pub mod results;
+pub mod sink;
+pub mod source;
+pub mod workdir;

@@ -1,0 +1,192 @@
+//! PLY output: one `vertex` element with every property of the input (names and types as the
+//! input declares them; for LAS input x, y, z as double and the standard fields) followed by
+//! tilecurv's columns under their own names, binary little endian or ASCII. Written to a
+//! temporary file renamed over the output by `finish`, like the LAS writer.
+
+use std::fmt::Write as _;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::io::columns::ColumnSet;
+use crate::io::las::extra_bytes::ScalarType;
+use crate::io::sink::{commit, temp_path, PointSink};
+use crate::io::source::ply::ply_type_name;
+use crate::io::source::{encode_le, PointSource, Property};
+
+/// A PLY output being written.
+pub struct PlyWriter {
+    tmp: PathBuf,
+    output: PathBuf,
+    w: BufWriter<File>,
+    ascii: bool,
+    /// The input's properties with the type each is written as.
+    props: Vec<(Property, ScalarType)>,
+    /// Bytes per input record.
+    record_length: usize,
+    /// The new columns' types, in record order.
+    columns: Vec<ScalarType>,
+    /// Bytes of new columns per record.
+    columns_len: usize,
+    buf: Vec<u8>,
+    text: String,
+}
+
+/// A property name PLY can carry: no whitespace (LAS extra dimensions may have some).
+fn ply_name(name: &str) -> String {
+    let n = name.split_whitespace().collect::<Vec<_>>().join("_");
+    if n.is_empty() {
+        "unnamed".into()
+    } else {
+        n
+    }
+}
+
+impl PlyWriter {
+    /// Creates the temporary output beside `output` and writes the header: the provenance and
+    /// the column descriptions as comments, then the vertex element.
+    pub fn create(
+        source: &dyn PointSource,
+        output: &Path,
+        cols: &ColumnSet,
+        provenance: &str,
+        ascii: bool,
+    ) -> Result<Self> {
+        // PLY has no 64-bit integers: those (from LAS extra bytes or PCD) are written as double.
+        let props: Vec<(Property, ScalarType)> = source
+            .properties()
+            .into_iter()
+            .map(|p| {
+                let ty = if ply_type_name(p.ty).is_some() {
+                    p.ty
+                } else {
+                    ScalarType::F64
+                };
+                (p, ty)
+            })
+            .collect();
+        let new = cols.columns();
+        for c in &new {
+            if props
+                .iter()
+                .any(|(p, _)| p.name.eq_ignore_ascii_case(&c.name))
+            {
+                return Err(Error::bad_input(source.path(), None, format!(
+                    "the input already has a property named {:?} (is it a tilecurv output?); process the original file instead",
+                    c.name
+                )));
+            }
+        }
+        let mut head = String::from("ply\n");
+        head += if ascii {
+            "format ascii 1.0\n"
+        } else {
+            "format binary_little_endian 1.0\n"
+        };
+        for line in provenance.lines() {
+            let _ = writeln!(head, "comment {line}");
+        }
+        for c in &new {
+            let _ = writeln!(head, "comment {}: {}", c.name, c.description);
+        }
+        let _ = writeln!(head, "element vertex {}", source.len());
+        let typed = props
+            .iter()
+            .map(|(p, ty)| (*ty, ply_name(&p.name)))
+            .chain(new.iter().map(|c| (c.ty, c.name.clone())));
+        for (ty, name) in typed {
+            let ty = ply_type_name(ty).unwrap_or("double");
+            let _ = writeln!(head, "property {ty} {name}");
+        }
+        head += "end_header\n";
+        let tmp = temp_path(output);
+        let file = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
+        let mut w = BufWriter::with_capacity(4 << 20, file);
+        w.write_all(head.as_bytes())
+            .map_err(|e| Error::write(&tmp, e))?;
+        Ok(PlyWriter {
+            tmp,
+            output: output.to_path_buf(),
+            w,
+            ascii,
+            props,
+            record_length: source.record_length(),
+            columns: new.iter().map(|c| c.ty).collect(),
+            columns_len: cols.record_size(),
+            buf: Vec::new(),
+            text: String::new(),
+        })
+    }
+
+    /// Appends one record as binary little endian.
+    fn binary(&mut self, rec: &[u8]) {
+        for (p, ty) in &self.props {
+            if *ty == p.ty {
+                p.put_le(rec, &mut self.buf);
+            } else {
+                encode_le(*ty, p.value(rec), &mut self.buf);
+            }
+        }
+        self.buf.extend_from_slice(&rec[self.record_length..]);
+    }
+
+    /// Appends one record as an ASCII line.
+    fn ascii(&mut self, rec: &[u8]) {
+        let values = self.props.iter().map(|(p, ty)| (*ty, p.value(rec)));
+        let mut at = self.record_length;
+        let columns = self.columns.iter().map(|&ty| {
+            let v = ty.decode(&rec[at..]);
+            at += ty.size();
+            (ty, v)
+        });
+        for (i, (ty, v)) in values.chain(columns).enumerate() {
+            if i > 0 {
+                self.text.push(' ');
+            }
+            // Display prints the shortest text that reads back to the same value.
+            let _ = match ty {
+                ScalarType::F32 => write!(self.text, "{}", v as f32),
+                ScalarType::F64 => write!(self.text, "{v}"),
+                _ => write!(self.text, "{}", v as i64),
+            };
+        }
+        self.text.push('\n');
+    }
+}
+
+impl PointSink for PlyWriter {
+    fn write_points(&mut self, records: &[u8]) -> Result<()> {
+        self.buf.clear();
+        self.text.clear();
+        for rec in records.chunks_exact(self.record_length + self.columns_len) {
+            if self.ascii {
+                self.ascii(rec);
+            } else {
+                self.binary(rec);
+            }
+        }
+        let bytes = if self.ascii {
+            self.text.as_bytes()
+        } else {
+            &self.buf
+        };
+        self.w
+            .write_all(bytes)
+            .map_err(|e| Error::write(&self.tmp, e))
+    }
+
+    fn finish(self: Box<Self>) -> Result<()> {
+        let file = self
+            .w
+            .into_inner()
+            .map_err(|e| Error::write(&self.tmp, e.into_error()))?;
+        commit(file, &self.tmp, &self.output)
+    }
+
+    fn abandon(self: Box<Self>) {
+        let tmp = self.tmp.clone();
+        drop(self);
+        let _ = std::fs::remove_file(tmp);
+    }
+}

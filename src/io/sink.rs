@@ -1,0 +1,101 @@
+//! Writing points. A [`PointSink`] receives each input record followed by its new column bytes,
+//! in file order, and makes the output appear atomically on `finish`. [`create_sink`] picks the
+//! writer from the output's extension; [`temp_path`] and [`commit`] are the atomic-output steps
+//! every writer shares.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::io::columns::ColumnSet;
+use crate::io::las::writer::LasWriter;
+use crate::io::ply::PlyWriter;
+use crate::io::source::PointSource;
+
+/// An output being written: records in, a complete file (or nothing) out.
+pub trait PointSink {
+    /// Appends whole output records (input record + new columns), in file order.
+    fn write_points(&mut self, records: &[u8]) -> Result<()>;
+    /// Completes the file and renames it over the output.
+    fn finish(self: Box<Self>) -> Result<()>;
+    /// Removes the temporary file (after a failure or an interruption).
+    fn abandon(self: Box<Self>);
+}
+
+/// The output formats, chosen by the output's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// `.las`
+    Las,
+    /// `.laz`
+    Laz,
+    /// `.ply`: binary little endian, or ASCII when the name ends in `.ascii.ply`.
+    Ply {
+        /// Whether to write ASCII PLY.
+        ascii: bool,
+    },
+}
+
+/// The format an output path asks for.
+pub fn output_format(output: &Path) -> Result<OutputFormat> {
+    let name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let ext = name.rsplit_once('.').map(|(_, e)| e);
+    match ext {
+        Some("las") => Ok(OutputFormat::Las),
+        Some("laz") => Ok(OutputFormat::Laz),
+        Some("ply") => Ok(OutputFormat::Ply {
+            ascii: name.ends_with(".ascii.ply"),
+        }),
+        _ => Err(Error::Usage(format!(
+            "{}: the output must end in .las, .laz or .ply (.ascii.ply for ASCII PLY): the extension chooses the format",
+            output.display()
+        ))),
+    }
+}
+
+/// Checks that the output path has a supported extension before any work is done.
+pub fn check_output_path(output: &Path) -> Result<()> {
+    output_format(output).map(|_| ())
+}
+
+/// Creates the writer for `output`: LAS/LAZ (a LAS input's records kept byte for byte, any
+/// other input converted) or PLY.
+pub fn create_sink(
+    source: &dyn PointSource,
+    output: &Path,
+    cols: &ColumnSet,
+    provenance: &str,
+) -> Result<Box<dyn PointSink>> {
+    Ok(match output_format(output)? {
+        OutputFormat::Las | OutputFormat::Laz => match source.as_las() {
+            Some(las) => Box::new(LasWriter::create(las, output, cols, provenance)?),
+            None => Box::new(LasWriter::create_converted(
+                source, output, cols, provenance,
+            )?),
+        },
+        OutputFormat::Ply { ascii } => {
+            Box::new(PlyWriter::create(source, output, cols, provenance, ascii)?)
+        }
+    })
+}
+
+/// The temporary file an output is written to: hidden, beside the output (the same file
+/// system, so that the final rename is atomic), named after the output and this process.
+pub fn temp_path(output: &Path) -> PathBuf {
+    let file_name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "output".into());
+    output.with_file_name(format!(".{file_name}.tilecurv-{}.tmp", std::process::id()))
+}
+
+/// Makes a completely written temporary file the output: syncs it, renames it over the output
+/// and syncs the directory so that the rename is durable.
+pub fn commit(file: File, tmp: &Path, output: &Path) -> Result<()> {
+    file.sync_all().map_err(|e| Error::write(tmp, e))?;
+    drop(file);
+    crate::io::workdir::commit_file(tmp, output)
+}

@@ -1,0 +1,287 @@
+//! LAS and LAZ input: a file opened once, memory-mapped, validated against its size, and
+//! streamed in file order as chunks of raw point records. Uncompressed LAS is decoded straight from
+//! the map; LAZ is decompressed chunk by chunk (in parallel over LAZ chunks). The raw records are
+//! what `assemble` copies to the output untouched.
+
+use std::fs::File;
+use std::io::{Cursor, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+
+use memmap2::Mmap;
+
+use crate::error::{Error, Result};
+use crate::io::crs::{horizontal_unit, UnitSource};
+use crate::io::las::extra_bytes::{self, Descriptor};
+use crate::io::las::header::{LasHeader, POINT_FORMAT_SIZES};
+use crate::io::las::vlr::{read_evlrs, read_vlrs, Vlr};
+
+use super::{PointSource, SourcePoint};
+
+/// An opened LAS or LAZ file.
+pub struct LasSource {
+    path: PathBuf,
+    map: Mmap,
+    /// The parsed header.
+    pub header: LasHeader,
+    /// The VLRs, in file order.
+    pub vlrs: Vec<Vlr>,
+    /// The EVLRs with their original byte offsets.
+    pub evlrs: Vec<(u64, Vlr)>,
+    /// Extra-bytes descriptors of the input (empty if none).
+    pub extra: Vec<Descriptor>,
+    normal_dims: Option<[Descriptor; 3]>,
+    laz: Option<laz::LazVlr>,
+}
+
+impl LasSource {
+    /// Opens, maps and validates a LAS/LAZ file. Nothing is decoded yet.
+    pub fn open(path: &Path) -> Result<Self> {
+        let file = File::open(path).map_err(|e| Error::ReadIo {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+        let len = file
+            .metadata()
+            .map_err(|e| Error::ReadIo {
+                path: path.to_path_buf(),
+                source: e,
+            })?
+            .len();
+        if len == 0 {
+            return Err(Error::bad_input(
+                path,
+                None,
+                "the file is empty (0 bytes); expected a LAS or LAZ file",
+            ));
+        }
+        // SAFETY: the map is read-only and tilecurv never writes its inputs. Another process
+        // truncating the file while we run would fault; that is the usual mmap contract, and the
+        // CLI documents that inputs must not change during a run.
+        let map = unsafe { Mmap::map(&file) }.map_err(|e| Error::ReadIo {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+        let header = LasHeader::parse(path, &map, len)?;
+        let vlrs = read_vlrs(path, &map, &header)?;
+        let evlrs = read_evlrs(path, &map, &header)?;
+        let mut extra = Vec::new();
+        if let Some(v) = vlrs
+            .iter()
+            .chain(evlrs.iter().map(|(_, v)| v))
+            .find(|v| extra_bytes::is_extra_bytes(v))
+        {
+            extra = extra_bytes::parse(&v.data).map_err(|why| {
+                Error::bad_input(
+                    path,
+                    None,
+                    format!("{why}; fix or remove the extra-bytes VLR"),
+                )
+            })?;
+            let total: usize = extra.iter().map(|d| d.size).sum();
+            if total > header.extra_bytes_len() as usize {
+                return Err(Error::bad_input(path, Some(105), format!(
+                    "the extra-bytes VLR describes {total} bytes per point but the records have only {} extra bytes",
+                    header.extra_bytes_len())));
+            }
+        }
+        let normal_dims = {
+            let find = |n: &str| {
+                extra
+                    .iter()
+                    .find(|d| d.name.eq_ignore_ascii_case(n) && d.scalar().is_some())
+                    .cloned()
+            };
+            match (find("NormalX"), find("NormalY"), find("NormalZ")) {
+                (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+                _ => None,
+            }
+        };
+        let laz = if header.compressed {
+            let v = vlrs.iter().find(|v| v.is("laszip encoded", 22204)).ok_or_else(|| Error::bad_input(path, Some(104),
+                "the point format says LAZ-compressed but there is no LASzip VLR (\"laszip encoded\", 22204)"))?;
+            let lv = laz::LazVlr::from_buffer(&v.data).map_err(|e| {
+                Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}"))
+            })?;
+            if lv.items_size() != header.record_length as u64 {
+                return Err(Error::bad_input(
+                    path,
+                    Some(105),
+                    format!(
+                        "the LASzip VLR describes {}-byte points but the header says {}",
+                        lv.items_size(),
+                        header.record_length
+                    ),
+                ));
+            }
+            Some(lv)
+        } else {
+            let need = (header.point_count)
+                .checked_mul(header.record_length as u64)
+                .and_then(|b| b.checked_add(header.offset_to_point_data as u64));
+            let end = header.point_data_end(len);
+            if need.is_none_or(|n| n > end) {
+                let whole = (end.saturating_sub(header.offset_to_point_data as u64))
+                    / header.record_length as u64;
+                return Err(Error::bad_input(path, Some(header.offset_to_point_data as u64), format!(
+                    "the header says {} points of {} bytes, but the point data ends at byte {end}: only {whole} whole points are present. The file is truncated (re-copy it) or its point count is wrong",
+                    header.point_count, header.record_length)));
+            }
+            None
+        };
+        if header.point_count == 0 {
+            return Err(Error::bad_input(
+                path,
+                Some(107),
+                "the file contains no points; there is nothing to compute",
+            ));
+        }
+        Ok(LasSource {
+            path: path.to_path_buf(),
+            map,
+            header,
+            vlrs,
+            evlrs,
+            extra,
+            normal_dims,
+            laz,
+        })
+    }
+}
+
+impl LasSource {
+    /// Drops the mapped pages between `from` and `to` (rounded down to a page) from memory;
+    /// returns the new release mark. Only hints the kernel: the data stays readable.
+    fn release(&self, from: usize, to: usize) -> usize {
+        const PAGE: usize = 4096;
+        let to = to / PAGE * PAGE;
+        if to > from {
+            // SAFETY: the map is a private read-only file mapping; MADV_DONTNEED on it only
+            // drops cached pages, which the kernel re-reads from the file if touched again.
+            let _ = unsafe {
+                self.map
+                    .unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, from, to - from)
+            };
+            to
+        } else {
+            from
+        }
+    }
+}
+
+impl PointSource for LasSource {
+    /// The file's path.
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Number of points.
+    fn len(&self) -> u64 {
+        self.header.point_count
+    }
+
+    /// Whether the file carries NormalX/Y/Z extra dimensions.
+    fn has_normals(&self) -> bool {
+        self.normal_dims.is_some()
+    }
+
+    /// The horizontal unit of the file's CRS.
+    fn unit(&self) -> UnitSource {
+        horizontal_unit(self.vlrs.iter().chain(self.evlrs.iter().map(|(_, v)| v)))
+    }
+
+    /// Decodes one raw record into a [`SourcePoint`].
+    fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
+        let h = &self.header;
+        let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as f64;
+        let xyz = [
+            c(0) * h.scale[0] + h.offset[0],
+            c(4) * h.scale[1] + h.offset[1],
+            c(8) * h.scale[2] + h.offset[2],
+        ];
+        let normal = self.normal_dims.as_ref().and_then(|d| {
+            let extra = &rec[POINT_FORMAT_SIZES[h.point_format as usize] as usize..];
+            Some([d[0].read(extra)?, d[1].read(extra)?, d[2].read(extra)?])
+        });
+        SourcePoint { id, xyz, normal }
+    }
+
+    /// Streams the raw point records in file order, about `chunk_points` at a time, calling
+    /// `f(first_point_index, records)`. Stops at the first error `f` returns.
+    fn for_each_chunk(
+        &self,
+        chunk_points: usize,
+        f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+    ) -> Result<()> {
+        let rl = self.header.record_length as usize;
+        let n = self.header.point_count;
+        let start = self.header.offset_to_point_data as usize;
+        // Pages already streamed are handed back to the kernel, so that resident memory does
+        // not grow with the file size (mapped pages count in RSS).
+        let mut released = 0usize;
+        match &self.laz {
+            None => {
+                let chunk = chunk_points.max(1);
+                let mut first = 0u64;
+                while first < n {
+                    let m = (n - first).min(chunk as u64) as usize;
+                    let a = start + first as usize * rl;
+                    f(first, &self.map[a..a + m * rl])?;
+                    released = self.release(released, a + m * rl);
+                    first += m as u64;
+                }
+                Ok(())
+            }
+            Some(vlr) => {
+                // Decode whole LAZ chunks at a time so the parallel decompressor has work for
+                // every thread; variable-size chunks fall back to the requested size.
+                let laz_chunk = if vlr.uses_variable_size_chunks() {
+                    50_000
+                } else {
+                    vlr.chunk_size().max(1) as usize
+                };
+                let per_call = chunk_points.max(1).div_ceil(laz_chunk) * laz_chunk;
+                let mut cursor = Cursor::new(&self.map[..]);
+                cursor
+                    .seek(SeekFrom::Start(start as u64))
+                    .map_err(|e| Error::ReadIo {
+                        path: self.path.clone(),
+                        source: e,
+                    })?;
+                let mut dec = laz::ParLasZipDecompressor::new(cursor, vlr.clone())
+                    .map_err(|e| Error::bad_input(&self.path, Some(start as u64), format!("cannot start LAZ decompression: {e}; the file may be truncated or not a valid LAZ file")))?;
+                let mut buf = vec![0u8; per_call.min(n as usize) * rl];
+                let mut first = 0u64;
+                while first < n {
+                    let m = (n - first).min(per_call as u64) as usize;
+                    let out = &mut buf[..m * rl];
+                    dec.decompress_many(out).map_err(|e| Error::bad_input(&self.path, None, format!(
+                        "LAZ decompression failed in points {first}..{}: {e}; the file is truncated or corrupt (the header says {n} points)", first + m as u64)))?;
+                    f(first, out)?;
+                    let pos = dec.get_mut().position() as usize;
+                    released = self.release(released, pos);
+                    first += m as u64;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn record_length(&self) -> usize {
+        self.header.record_length as usize
+    }
+
+    fn describe(&self) -> String {
+        let h = &self.header;
+        format!(
+            "LAS {}.{} format {}{}",
+            h.version.0,
+            h.version.1,
+            h.point_format,
+            if h.compressed { " (LAZ)" } else { "" }
+        )
+    }
+
+    fn as_las(&self) -> Option<&LasSource> {
+        Some(self)
+    }
+}

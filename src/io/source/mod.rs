@@ -1,0 +1,428 @@
+//! Reading points. A [`PointSource`] streams a file's points in file order as chunks of raw
+//! records (the bytes `assemble` carries to the output) and decodes coordinates and file normals
+//! from them. One module per format; [`open`] picks by content and extension.
+
+pub mod las;
+pub mod mesh;
+pub mod pcd;
+pub mod ply;
+pub mod sampled;
+pub mod text;
+
+use std::path::Path;
+
+use memmap2::Mmap;
+
+use crate::error::{Error, Result};
+use crate::io::crs::UnitSource;
+use crate::io::las::extra_bytes::ScalarType;
+use crate::io::las::header::POINT_FORMAT_SIZES;
+
+pub use las::LasSource;
+
+/// One point as the engine sees it: original index, coordinates, and the file's normal if any.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SourcePoint {
+    /// Index of the point in its file (file order).
+    pub id: u64,
+    /// Coordinates in file units.
+    pub xyz: [f64; 3],
+    /// The normal stored in the file, if any.
+    pub normal: Option<[f64; 3]>,
+}
+
+/// A point cloud file opened for streaming.
+pub trait PointSource: Send + Sync {
+    /// The file's path.
+    fn path(&self) -> &Path;
+    /// Number of points (never 0: opening rejects empty clouds).
+    fn len(&self) -> u64;
+    /// Always false (kept for clippy's `len` convention).
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Whether the file carries normals.
+    fn has_normals(&self) -> bool;
+    /// The horizontal unit of the file's CRS.
+    fn unit(&self) -> UnitSource;
+    /// Bytes per raw record in the chunks passed to `for_each_chunk`.
+    fn record_length(&self) -> usize;
+    /// Streams the raw records in file order, about `chunk_points` at a time, calling
+    /// `f(first_point_index, records)`; stops at the first error.
+    fn for_each_chunk(
+        &self,
+        chunk_points: usize,
+        f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+    ) -> Result<()>;
+    /// Decodes one raw record.
+    fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
+    /// A short description of the format for the log, e.g. "LAS 1.4 format 6 (LAZ)".
+    fn describe(&self) -> String;
+    /// The LAS/LAZ source, when this is one (its records can be written back as LAS untouched).
+    fn as_las(&self) -> Option<&LasSource>;
+    /// The per-point properties of the raw records (name, type and where each value sits), for
+    /// writers that re-encode records in another format. Non-LAS sources list every property of
+    /// their file, x, y and z included; the default describes a LAS record (see
+    /// [`las_properties`]) and is empty for anything else.
+    fn properties(&self) -> Vec<Property> {
+        self.as_las().map(las_properties).unwrap_or_default()
+    }
+    /// The exact bounds (min, max) of the coordinates. The default decodes every point once;
+    /// readers that already validated every point in `open` return what they found there.
+    fn bounds(&self) -> Result<[[f64; 3]; 2]> {
+        let mut b = Bounds::default();
+        let rl = self.record_length();
+        self.for_each_chunk(1 << 16, &mut |first, records| {
+            for (i, rec) in records.chunks_exact(rl).enumerate() {
+                b.add(self.decode(first + i as u64, rec).xyz);
+            }
+            Ok(())
+        })?;
+        Ok(b.get())
+    }
+}
+
+/// Where and how a property's value is stored in a raw record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Stored {
+    /// A value of the property's type at this byte offset, little endian.
+    Le(usize),
+    /// A value of the property's type at this byte offset, big endian.
+    Be(usize),
+    /// An f64 (little endian) at this byte offset holding a value of the property's type: the
+    /// fixed-width encoding the text readers give their records.
+    F64(usize),
+    /// `raw * scale + offset` from a little-endian `raw` at byte offset `at` (LAS coordinates and
+    /// scaled extra bytes); the property's type is f64.
+    Scaled {
+        /// The stored type.
+        raw: ScalarType,
+        /// Byte offset in the record.
+        at: usize,
+        /// Scale factor.
+        scale: f64,
+        /// Offset added after scaling.
+        offset: f64,
+    },
+    /// An unsigned field of `width` bits starting at bit `shift` of the byte at `at` (LAS return
+    /// numbers, legacy classification); the property's type is u8.
+    Bits {
+        /// Byte offset in the record.
+        at: usize,
+        /// Lowest bit of the field.
+        shift: u8,
+        /// Number of bits.
+        width: u8,
+    },
+}
+
+impl Stored {
+    /// The byte offset of the value in a record.
+    pub fn offset(&self) -> usize {
+        match *self {
+            Stored::Le(at) | Stored::Be(at) | Stored::F64(at) => at,
+            Stored::Scaled { at, .. } | Stored::Bits { at, .. } => at,
+        }
+    }
+}
+
+/// One per-point property of a source: its name and type as the file declares them, and where
+/// its value sits in a raw record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Property {
+    /// Name as in the file (e.g. `x`, `nx`, `segment_index`, `intensity`).
+    pub name: String,
+    /// The value's type (the type a writer declares for it).
+    pub ty: ScalarType,
+    /// Where the value is in a raw record.
+    pub stored: Stored,
+}
+
+impl Property {
+    /// A property of type `ty` stored at `stored`.
+    pub fn new(name: impl Into<String>, ty: ScalarType, stored: Stored) -> Self {
+        Property {
+            name: name.into(),
+            ty,
+            stored,
+        }
+    }
+
+    /// The value in `rec`, as f64 (exact for every type but 64-bit integers above 2^53).
+    pub fn value(&self, rec: &[u8]) -> f64 {
+        match self.stored {
+            Stored::Le(at) => self.ty.decode(&rec[at..]),
+            Stored::Be(at) => self.ty.decode(&swapped(&rec[at..at + self.ty.size()])),
+            Stored::F64(at) => ScalarType::F64.decode(&rec[at..]),
+            Stored::Scaled {
+                raw,
+                at,
+                scale,
+                offset,
+            } => raw.decode(&rec[at..]) * scale + offset,
+            Stored::Bits { at, shift, width } => {
+                ((rec[at] >> shift) & ((1u16 << width) - 1) as u8) as f64
+            }
+        }
+    }
+
+    /// Appends the value in `rec` to `out` as the property's type, little endian. Values stored
+    /// in their own type are copied bit for bit.
+    pub fn put_le(&self, rec: &[u8], out: &mut Vec<u8>) {
+        let n = self.ty.size();
+        match self.stored {
+            Stored::Le(at) => out.extend_from_slice(&rec[at..at + n]),
+            Stored::Be(at) => out.extend_from_slice(&swapped(&rec[at..at + n])[..n]),
+            _ => encode_le(self.ty, self.value(rec), out),
+        }
+    }
+}
+
+/// The bytes of a big-endian value reversed into a little-endian buffer.
+fn swapped(b: &[u8]) -> [u8; 8] {
+    let mut a = [0u8; 8];
+    for (d, s) in a.iter_mut().zip(b.iter().rev()) {
+        *d = *s;
+    }
+    a
+}
+
+/// Appends `v` as a little-endian value of type `ty` (integers rounded and saturated: the text
+/// readers only let integral, in-range values through for integer properties).
+pub fn encode_le(ty: ScalarType, v: f64, out: &mut Vec<u8>) {
+    use ScalarType::*;
+    let r = v.round();
+    match ty {
+        U8 => out.push(r as u8),
+        I8 => out.push(r as i8 as u8),
+        U16 => out.extend_from_slice(&(r as u16).to_le_bytes()),
+        I16 => out.extend_from_slice(&(r as i16).to_le_bytes()),
+        U32 => out.extend_from_slice(&(r as u32).to_le_bytes()),
+        I32 => out.extend_from_slice(&(r as i32).to_le_bytes()),
+        U64 => out.extend_from_slice(&(r as u64).to_le_bytes()),
+        I64 => out.extend_from_slice(&(r as i64).to_le_bytes()),
+        F32 => out.extend_from_slice(&(v as f32).to_le_bytes()),
+        F64 => out.extend_from_slice(&v.to_le_bytes()),
+    }
+}
+
+/// The properties of a LAS record that a non-LAS writer keeps: x, y, z as f64 (scale and offset
+/// applied), the standard fields that decode without tables (intensity, return numbers,
+/// classification, user data, point source id, GPS time and RGB when the format has them), and
+/// every scalar extra dimension (as f64 when it has a scale or offset).
+pub fn las_properties(las: &LasSource) -> Vec<Property> {
+    use ScalarType::*;
+    let h = &las.header;
+    let mut v: Vec<Property> = (0..3)
+        .map(|a| {
+            let stored = Stored::Scaled {
+                raw: I32,
+                at: 4 * a,
+                scale: h.scale[a],
+                offset: h.offset[a],
+            };
+            Property::new(["x", "y", "z"][a], F64, stored)
+        })
+        .collect();
+    v.push(Property::new("intensity", U16, Stored::Le(12)));
+    let legacy = h.point_format < 6;
+    let bits = |at, shift, width| Stored::Bits { at, shift, width };
+    let (rn, nr, class) = if legacy {
+        (bits(14, 0, 3), bits(14, 3, 3), bits(15, 0, 5))
+    } else {
+        (bits(14, 0, 4), bits(14, 4, 4), Stored::Le(16))
+    };
+    v.push(Property::new("return_number", U8, rn));
+    v.push(Property::new("number_of_returns", U8, nr));
+    v.push(Property::new("classification", U8, class));
+    let (user, source_id) = if legacy { (17, 18) } else { (17, 20) };
+    v.push(Property::new("user_data", U8, Stored::Le(user)));
+    v.push(Property::new("point_source_id", U16, Stored::Le(source_id)));
+    let gps = match h.point_format {
+        1 | 3 | 4 | 5 => Some(20),
+        6..=10 => Some(22),
+        _ => None,
+    };
+    if let Some(at) = gps {
+        v.push(Property::new("gps_time", F64, Stored::Le(at)));
+    }
+    let rgb = match h.point_format {
+        2 => Some(20),
+        3 | 5 => Some(28),
+        7 | 8 | 10 => Some(30),
+        _ => None,
+    };
+    if let Some(at) = rgb {
+        for (i, c) in ["red", "green", "blue"].into_iter().enumerate() {
+            v.push(Property::new(c, U16, Stored::Le(at + 2 * i)));
+        }
+    }
+    let base = POINT_FORMAT_SIZES[h.point_format as usize] as usize;
+    for d in &las.extra {
+        let Some(raw) = d.scalar() else { continue };
+        let at = base + d.offset;
+        if d.scale == 1.0 && d.value_offset == 0.0 {
+            v.push(Property::new(d.name.clone(), raw, Stored::Le(at)));
+        } else {
+            let stored = Stored::Scaled {
+                raw,
+                at,
+                scale: d.scale,
+                offset: d.value_offset,
+            };
+            v.push(Property::new(d.name.clone(), F64, stored));
+        }
+    }
+    v
+}
+
+/// Running coordinate bounds.
+#[derive(Debug, Clone, Copy)]
+pub struct Bounds {
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Bounds {
+            lo: [f64::INFINITY; 3],
+            hi: [f64::NEG_INFINITY; 3],
+        }
+    }
+}
+
+impl Bounds {
+    /// Extends the bounds by one point.
+    pub fn add(&mut self, p: [f64; 3]) {
+        for ((lo, hi), c) in self.lo.iter_mut().zip(&mut self.hi).zip(p) {
+            *lo = lo.min(c);
+            *hi = hi.max(c);
+        }
+    }
+
+    /// (min, max).
+    pub fn get(&self) -> [[f64; 3]; 2] {
+        [self.lo, self.hi]
+    }
+}
+
+/// The indices of x, y, z and of the normal (nx ny nz or normal_x normal_y normal_z) among
+/// property names; `None` for x/y/z when one is missing.
+pub fn xyz_and_normals<'a>(
+    names: impl Iterator<Item = &'a str> + Clone,
+) -> (Option<[usize; 3]>, Option<[usize; 3]>) {
+    let find = |n: &str| names.clone().position(|m| m == n);
+    let three = |a: &str, b: &str, c: &str| Some([find(a)?, find(b)?, find(c)?]);
+    let normals = three("nx", "ny", "nz").or_else(|| three("normal_x", "normal_y", "normal_z"));
+    (three("x", "y", "z"), normals)
+}
+
+/// A file normal as the engine wants it: `None` when it is not finite or zero (PCL writes NaN
+/// normals where its estimate failed), so that PCA takes over for that point.
+pub fn usable_normal(n: [f64; 3]) -> Option<[f64; 3]> {
+    (n.iter().all(|c| c.is_finite()) && n != [0.0; 3]).then_some(n)
+}
+
+/// Memory-maps an input file read-only.
+pub fn map_file(path: &Path) -> Result<Mmap> {
+    let io = |e| Error::ReadIo {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    if file.metadata().map_err(io)?.len() == 0 {
+        return Err(Error::bad_input(path, None, "the file is empty (0 bytes)"));
+    }
+    // SAFETY: the map is read-only and tilecurv never writes its inputs; another process
+    // truncating the file during the run would fault, the usual mmap contract (see LasSource).
+    unsafe { Mmap::map(&file) }.map_err(io)
+}
+
+/// The unit of every format without a CRS.
+pub fn no_crs(format: &str) -> UnitSource {
+    UnitSource::Unknown(format!("{format} has no CRS"))
+}
+
+/// The input formats, as [`detect`] tells them apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// LAS or LAZ.
+    Las,
+    /// PLY (any encoding).
+    Ply,
+    /// PCD.
+    Pcd,
+    /// XYZ text (`.xyz`, `.pts`, `.txt`).
+    Xyz,
+    /// ASCII OFF mesh.
+    Off,
+    /// OBJ mesh.
+    Obj,
+}
+
+/// The format of a file, from its extension, or from a LAS or PLY signature when the extension
+/// is unknown.
+pub fn detect(path: &Path) -> Result<Format> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    Ok(match ext.as_str() {
+        "las" | "laz" => Format::Las,
+        "ply" => Format::Ply,
+        "pcd" => Format::Pcd,
+        "xyz" | "pts" | "txt" => Format::Xyz,
+        "off" => Format::Off,
+        "obj" => Format::Obj,
+        _ => {
+            let mut sig = [0u8; 4];
+            let sig = std::fs::File::open(path)
+                .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut sig))
+                .map(|_| sig)
+                .unwrap_or_default();
+            if &sig == b"LASF" {
+                Format::Las
+            } else if &sig[..3] == b"ply" {
+                Format::Ply
+            } else if !path.exists() {
+                return Err(Error::ReadIo {
+                    path: path.to_path_buf(),
+                    source: std::io::Error::from(std::io::ErrorKind::NotFound),
+                });
+            } else {
+                return Err(Error::bad_input(
+                    path,
+                    None,
+                    format!(
+                        "unsupported input format {ext:?}: tilecurv reads .las, .laz, .ply, .pcd, .xyz, .pts, .txt, .off and .obj"
+                    ),
+                ));
+            }
+        }
+    })
+}
+
+/// Opens a point cloud file, choosing the reader from its signature and extension.
+pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
+    open_format(path, detect(path)?)
+}
+
+/// Opens a file with the reader of `format`.
+pub fn open_format(path: &Path, format: Format) -> Result<Box<dyn PointSource>> {
+    Ok(match format {
+        Format::Las => Box::new(LasSource::open(path)?),
+        Format::Ply => ply::open(path)?,
+        Format::Pcd => pcd::open(path)?,
+        Format::Xyz => Box::new(text::TextSource::open_xyz(path)?),
+        Format::Off => Box::new(mesh::open_off(path)?),
+        Format::Obj => Box::new(mesh::open_obj(path)?),
+    })
+}
+
+/// Opens a mesh file as `n` points sampled uniformly by area on its faces, with the faces'
+/// normals, from the run's `seed` (`process --sample-faces`; see [`sampled`]).
+pub fn open_sampled(path: &Path, n: u64, seed: u64) -> Result<Box<dyn PointSource>> {
+    sampled::open(path, n, seed)
+}
