@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use tilecurv::core::compute::NeighbourhoodBuf;
-use tilecurv::core::estimate::{build, EstimatorParams};
+use tilecurv::core::estimate::{EstimatorKind, EstimatorParams};
 use tilecurv::core::geometry::{sub, V3};
 use tilecurv::core::neighbors::{KnnScratch, NeighbourIndex};
 use tilecurv::core::normals::{orient, pca_normal, Orientation};
@@ -149,7 +149,7 @@ fn main() {
                 .map(|v| orient(v, t.xyz[i], Orientation::Up));
         }
     });
-    let estimator = build("cnc-avg-hexagram", &EstimatorParams::default()).expect("estimator");
+    let estimator = EstimatorKind::CncAvgHexagram.build(&EstimatorParams::default());
     let mut buf = NeighbourhoodBuf::with_capacity(k);
     let mut h_sum = 0.0;
     let est = best(a.repeat, n, || {

@@ -10,7 +10,7 @@
 //!   product, 72 clouds;
 //! * the same K = 50 for every estimator (the query point included), and a "window" series with
 //!   K = 100 and 200 at N = 50k for the estimators that use a large window well;
-//! * every estimator of [`NAMES`] with its default parameters, plus `jet-d4` (the degree 4 jet of
+//! * every estimator of [`EstimatorKind::ALL`] with its default parameters, plus `jet-d4` (the degree 4 jet of
 //!   the paper's JetFitting baseline; the tool's `jet` is degree 2);
 //! * the truth is the closed form at the clean sample point (before the position noise);
 //! * errors: RMS and max of H, K, k1, k2 ([`evaluate`], the crate's one error function), and
@@ -44,7 +44,7 @@ use kit::synthetic::{
     torus_curvature_at, Cloud, ErrorStats, TrueCurvature,
 };
 use tilecurv::core::estimate::{
-    build, Curvature, Estimator, EstimatorParams, Neighbourhood, NAMES,
+    Curvature, Estimator, EstimatorKind, EstimatorParams, Neighbourhood, Scratch,
 };
 use tilecurv::core::geometry::{sub, V3};
 
@@ -114,21 +114,21 @@ struct Entry {
     slow: bool,
 }
 
-/// Every estimator of [`NAMES`] with default parameters, then `jet-d4`.
+/// Every estimator of [`EstimatorKind::ALL`] with default parameters, then `jet-d4`.
 fn entries(only: &Option<Vec<String>>) -> Vec<Entry> {
     let default = EstimatorParams::default();
     let d4 = EstimatorParams {
         jet_degree: 4,
         ..EstimatorParams::default()
     };
-    let mut v: Vec<Entry> = NAMES
-        .iter()
-        .map(|&name| (name, name, &default))
-        .chain(std::iter::once(("jet-d4", "jet", &d4)))
-        .map(|(label, name, params)| Entry {
+    let mut v: Vec<Entry> = EstimatorKind::ALL
+        .into_iter()
+        .map(|kind| (kind.name(), kind, &default))
+        .chain(std::iter::once(("jet-d4", EstimatorKind::Jet, &d4)))
+        .map(|(label, kind, params)| Entry {
             label,
-            est: build(name, params).expect("a registered estimator name"),
-            slow: SLOW.contains(&name),
+            est: kind.build(params),
+            slow: SLOW.contains(&kind.name()),
         })
         .collect();
     if let Some(only) = only {
@@ -284,7 +284,7 @@ impl Estimator for Replay<'_> {
         "replay"
     }
 
-    fn estimate(&self, nb: &Neighbourhood<'_>) -> Curvature {
+    fn estimate(&self, nb: &Neighbourhood<'_>, _: &mut Scratch) -> Curvature {
         self.results[nb.ids[0] as usize]
     }
 }
@@ -301,6 +301,7 @@ fn run_timed(
     let mut results = vec![Curvature::undefined(0); cloud.len()];
     let (mut pos, mut nrm, mut ids, mut ends) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut total = Times::default();
+    let mut scratch = Scratch::default();
     for batch in selected.chunks(BATCH) {
         pos.clear();
         nrm.clear();
@@ -318,11 +319,14 @@ fn run_timed(
         let t = Stopwatch::start();
         let mut start = 0;
         for (&i, &end) in batch.iter().zip(&ends) {
-            results[i] = est.estimate(&Neighbourhood {
-                positions: &pos[start..end],
-                normals: &nrm[start..end],
-                ids: &ids[start..end],
-            });
+            results[i] = est.estimate(
+                &Neighbourhood {
+                    positions: &pos[start..end],
+                    normals: &nrm[start..end],
+                    ids: &ids[start..end],
+                },
+                &mut scratch,
+            );
             start = end;
         }
         total += t.stop();

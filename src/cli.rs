@@ -8,7 +8,7 @@ use clap::{Parser, Subcommand};
 
 use crate::config::OrientMode;
 use crate::config::{ColumnType, Config, Length};
-use crate::core::estimate::EstimatorParams;
+use crate::core::estimate::{EstimatorKind, EstimatorParams};
 use crate::error::{Error, ExitClass};
 use crate::progress::TermReporter;
 
@@ -158,9 +158,9 @@ struct ProcessArgs {
     )]
     k: usize,
 
-    /// Curvature estimator.
+    /// Curvature estimator (docs/study.md compares their error and time per point).
     #[arg(long, default_value = "cnc-avg-hexagram")]
-    estimator: String,
+    estimator: EstimatorKind,
 
     /// Orientation of PCA normals: `up` (towards +Z, aerial scans), `outward` (away from the
     /// centroid of all points: closed, star-shaped objects), `propagate` (consistent over the
@@ -227,6 +227,16 @@ struct ProcessArgs {
     /// Print only warnings and errors.
     #[arg(short, long)]
     quiet: bool,
+}
+
+impl clap::ValueEnum for EstimatorKind {
+    fn value_variants<'a>() -> &'a [Self] {
+        &EstimatorKind::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.name()).help(self.summary()))
+    }
 }
 
 fn parse_orientation(s: &str) -> Result<OrientMode, String> {
@@ -381,7 +391,7 @@ pub fn main_with_args() -> i32 {
                     return exit_code(&e);
                 }
             };
-            match crate::run::run(&cfg, &reporter, &CANCEL) {
+            match crate::run::process(&cfg, &reporter, &CANCEL) {
                 Ok(s) => {
                     if !quiet && !cfg.dry_run {
                         {

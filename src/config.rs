@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use crate::core::estimate::EstimatorParams;
+use crate::core::estimate::{EstimatorKind, EstimatorParams};
 use crate::core::geometry::V3;
 use crate::core::normals::Orientation;
 use crate::error::{Error, Result};
@@ -189,8 +189,8 @@ pub struct Config {
     pub tile: Length,
     /// Neighbours per point, the point itself included.
     pub k: usize,
-    /// Estimator name (see `estimate::NAMES`).
-    pub estimator: String,
+    /// The curvature estimator.
+    pub estimator: EstimatorKind,
     /// Estimator parameters.
     pub params: EstimatorParams,
     /// Orientation of PCA normals (file normals are used as they are when present).
@@ -242,17 +242,23 @@ impl Config {
         if self.chunk_points == 0 {
             return Err(Error::Usage("--chunk-size must be at least 1 point".into()));
         }
-        if crate::core::estimate::build(&self.estimator, &self.params).is_none() {
+        if self.features
+            && self
+                .estimator
+                .build(&self.params)
+                .extra_columns()
+                .is_empty()
+        {
+            let with: Vec<String> = EstimatorKind::ALL
+                .into_iter()
+                .filter(|e| !e.build(&self.params).extra_columns().is_empty())
+                .map(|e| format!("--estimator {e}"))
+                .collect();
             return Err(Error::Usage(format!(
-                "unknown estimator {:?}; choose one of: {}",
+                "--features writes the values an estimator computes besides the curvature (the VCM's sharp-feature score and normal), which only {} computes (got --estimator {}); add {} or drop --features",
+                with.join(" or "),
                 self.estimator,
-                crate::core::estimate::NAMES.join(", ")
-            )));
-        }
-        if self.features && self.estimator != "vcm" {
-            return Err(Error::Usage(format!(
-                "--features writes the VCM's sharp-feature score and normal, which only --estimator vcm computes (got --estimator {}); add --estimator vcm or drop --features",
-                self.estimator
+                with.join(" or ")
             )));
         }
         Ok(())
@@ -301,7 +307,7 @@ mod tests {
             progress_json: None,
             tile: Length::Metres(50.0),
             k: 30,
-            estimator: "cnc-avg-hexagram".into(),
+            estimator: EstimatorKind::CncAvgHexagram,
             params: EstimatorParams::default(),
             orientation: OrientMode::Up,
             ignore_file_normals: false,
@@ -321,7 +327,7 @@ mod tests {
             e.contains("--features") && e.contains("--estimator vcm"),
             "{e}"
         );
-        cfg.estimator = "vcm".into();
+        cfg.estimator = EstimatorKind::Vcm;
         cfg.validate().expect("features with vcm");
     }
 

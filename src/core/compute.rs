@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-use crate::core::estimate::{flags, Curvature, Estimator, Neighbourhood};
+use crate::core::estimate::{flags, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{sub, V3};
 use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::{orient, pca_normal, Orientation};
@@ -83,11 +83,13 @@ pub struct TileOutcome {
     pub orientation: Option<crate::core::orient::TileOrientation>,
 }
 
-/// Reusable buffers for one point's estimator input (no allocation per point).
+/// Reusable buffers for one point's estimator input and the estimator's own scratch (no
+/// allocation per point).
 pub struct NeighbourhoodBuf {
     pos: Vec<V3>,
     nrm: Vec<V3>,
     ids: Vec<u64>,
+    scratch: Scratch,
 }
 
 impl NeighbourhoodBuf {
@@ -97,6 +99,7 @@ impl NeighbourhoodBuf {
             pos: Vec::with_capacity(k),
             nrm: Vec::with_capacity(k),
             ids: Vec::with_capacity(k),
+            scratch: Scratch::default(),
         }
     }
 
@@ -125,11 +128,14 @@ impl NeighbourhoodBuf {
         if self.pos.len() < 3 {
             return Curvature::undefined(flags::FEW_NEIGHBOURS);
         }
-        estimator.estimate(&Neighbourhood {
-            positions: &self.pos,
-            normals: &self.nrm,
-            ids: &self.ids,
-        })
+        estimator.estimate(
+            &Neighbourhood {
+                positions: &self.pos,
+                normals: &self.nrm,
+                ids: &self.ids,
+            },
+            &mut self.scratch,
+        )
     }
 }
 
@@ -143,9 +149,13 @@ struct ListInfo {
     complete: bool,
 }
 
-thread_local! {
-    /// `compute_tile`'s flat neighbour lists and their [`ListInfo`], kept between tiles.
-    static LIST_BUFFERS: std::cell::RefCell<(Vec<u32>, Vec<ListInfo>)> = Default::default();
+/// `compute_tile`'s flat neighbour lists and their [`ListInfo`], owned by the caller and reused
+/// from tile to tile: fresh buffers cost a zeroed page per 4 KiB every tile (page faults were a
+/// tenth of the run's CPU time).
+#[derive(Default)]
+pub struct TileBuffers {
+    lists: Vec<u32>,
+    info: Vec<ListInfo>,
 }
 
 /// k-NN of point `i` into `slot` (its k entries of the flat list array).
@@ -177,40 +187,30 @@ fn knn_into(
     }
 }
 
-/// Computes the core points of `t`. `scene` is the x/y extent of the whole cloud.
-/// With `--orient propagate`, the pass's patches are numbered from `first_patch` and `shared`
-/// says which of its points other passes also orient.
-pub fn compute_tile(
+/// Steps 1 and 2: the k-NN lists of the core points, then of the halo points that core
+/// neighbourhoods reach (their normals are used), into `bufs` (point i: `lists[i k ..][..len]`).
+fn neighbour_lists(
     t: &TilePoints,
+    index: &NeighbourIndex<'_>,
     scene: &Rect,
-    p: &ComputeParams<'_>,
-    first_patch: u32,
-    shared: Shared,
-) -> TileOutcome {
-    let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids, p.k) else {
-        return TileOutcome::default();
-    };
+    k: usize,
+    bufs: &mut TileBuffers,
+) {
     let n = t.xyz.len();
-    let k = p.k;
     let n_core = t.n_core;
-    // Neighbour lists, flat (point i: lists[i k .. i k + info[i].len]): no allocation per point.
-    // Reused across tiles by each worker thread: fresh buffers cost a zeroed page per 4 KiB
-    // every tile (page faults were a tenth of the run's CPU time).
-    let (mut lists, mut info) = LIST_BUFFERS.with_borrow_mut(std::mem::take);
+    let TileBuffers { lists, info } = bufs;
     lists.clear();
     lists.resize(n * k, 0);
     info.clear();
     info.resize(n, ListInfo::default());
     let scratch = || (KnnScratch::default(), Vec::with_capacity(k));
-    // 1. k-NN of the core points.
     lists[..n_core * k]
         .par_chunks_mut(k)
         .zip(info[..n_core].par_iter_mut())
         .enumerate()
         .for_each_init(scratch, |(s, list), (i, (slot, li))| {
-            *li = knn_into(t, &index, scene, k, i, s, list, slot);
+            *li = knn_into(t, index, scene, k, i, s, list, slot);
         });
-    // 2. k-NN of the halo points that core neighbourhoods reach (their normals are used).
     let needed: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
     lists[..n_core * k]
         .par_chunks(k)
@@ -227,15 +227,34 @@ pub fn compute_tile(
         .for_each_init(scratch, |(s, list), (h, (slot, li))| {
             let j = n_core + h;
             if needed[j].load(Ordering::Relaxed) {
-                *li = knn_into(t, &index, scene, k, j, s, list, slot);
+                *li = knn_into(t, index, scene, k, j, s, list, slot);
             }
         });
-    let list = |i: usize| &lists[i * k..i * k + info[i].len as usize];
-    // 3. Normals of every point with a neighbour list.
-    let mut normals: Vec<Option<V3>> = (0..n)
+}
+
+impl TileBuffers {
+    /// The neighbour list of point `i` (empty if none was computed).
+    fn list(&self, i: usize, k: usize) -> &[u32] {
+        &self.lists[i * k..i * k + self.info[i].len as usize]
+    }
+
+    /// Whether core point `i` can be computed: its list and its neighbours' lists are complete
+    /// (otherwise it is retried with a wider halo).
+    fn verified(&self, i: usize, k: usize) -> bool {
+        self.info[i].complete
+            && self.list(i, k).iter().all(|&j| {
+                let lj = self.info[j as usize];
+                lj.len > 0 && lj.complete
+            })
+    }
+}
+
+/// Step 3: the normal of every point with a neighbour list: the file's, or PCA oriented.
+fn tile_normals(t: &TilePoints, p: &ComputeParams<'_>, bufs: &TileBuffers) -> Vec<Option<V3>> {
+    (0..t.xyz.len())
         .into_par_iter()
         .map(|i| {
-            if info[i].len == 0 {
+            if bufs.info[i].len == 0 {
                 return None;
             }
             if p.use_file_normals {
@@ -243,12 +262,76 @@ pub fn compute_tile(
                     return crate::core::geometry::normalize(fnorm);
                 }
             }
-            pca_normal(&t.xyz, list(i)).map(|nrm| orient(nrm, t.xyz[i], p.orientation))
+            pca_normal(&t.xyz, bufs.list(i, p.k)).map(|nrm| orient(nrm, t.xyz[i], p.orientation))
         })
-        .collect();
+        .collect()
+}
+
+/// Step 4: the estimator at the core points `todo` (verified), written in place (an indexed
+/// collect: partition_map's intermediate lists and appends were half of all page faults).
+fn estimate_points(
+    t: &TilePoints,
+    p: &ComputeParams<'_>,
+    bufs: &TileBuffers,
+    normals: &[Option<V3>],
+    todo: &[usize],
+    patch_of: &(dyn Fn(usize) -> u32 + Sync),
+) -> Vec<PointResult> {
+    let mut done: Vec<PointResult> = Vec::with_capacity(todo.len());
+    todo.par_iter()
+        .map_init(
+            || NeighbourhoodBuf::with_capacity(p.k),
+            |s, &i| {
+                let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
+                    flags::FILE_NORMAL
+                } else {
+                    0
+                };
+                let Some(n0) = normals[i] else {
+                    return PointResult {
+                        id: t.ids[i],
+                        normal: [f64::NAN; 3],
+                        curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag),
+                        patch: NO_PATCH,
+                    };
+                };
+                let list = bufs.list(i, p.k);
+                let mut curvature = s.estimate(p.estimator, &t.xyz, &t.ids, normals, i, list);
+                curvature.flags |= file_flag;
+                PointResult {
+                    id: t.ids[i],
+                    normal: n0,
+                    curvature,
+                    patch: patch_of(i),
+                }
+            },
+        )
+        .collect_into_vec(&mut done);
+    done
+}
+
+/// Computes the core points of `t`. `scene` is the x/y extent of the whole cloud.
+/// With `--orient propagate`, the pass's patches are numbered from `first_patch` and `shared`
+/// says which of its points other passes also orient. `bufs` are the caller's reusable buffers
+/// (fresh ones cost a zeroed page per 4 KiB every tile).
+pub fn compute_tile(
+    t: &TilePoints,
+    scene: &Rect,
+    p: &ComputeParams<'_>,
+    first_patch: u32,
+    shared: Shared,
+    bufs: &mut TileBuffers,
+) -> TileOutcome {
+    let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids, p.k) else {
+        return TileOutcome::default();
+    };
+    let (n, k, n_core) = (t.xyz.len(), p.k, t.n_core);
+    neighbour_lists(t, &index, scene, k, bufs);
+    let bufs = &*bufs;
+    let mut normals = tile_normals(t, p, bufs);
     // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.
     let orientation = p.propagate.filter(|_| !p.use_file_normals).map(|centre| {
-        let lists: Vec<&[u32]> = (0..n).map(list).collect();
+        let lists: Vec<&[u32]> = (0..n).map(|i| bufs.list(i, k)).collect();
         crate::core::orient::orient_tile(
             &t.xyz,
             &t.ids,
@@ -265,56 +348,16 @@ pub fn compute_tile(
             .and_then(|o| o.patch(i))
             .unwrap_or(NO_PATCH)
     };
-    // 4. Estimator for the verified core points.
-    // A core point is computed only if its list and its neighbours' lists are complete; the
-    // others are retried with a wider halo.
     let verified: Vec<bool> = (0..n_core)
         .into_par_iter()
-        .map(|i| {
-            info[i].complete
-                && list(i).iter().all(|&j| {
-                    let lj = info[j as usize];
-                    lj.len > 0 && lj.complete
-                })
-        })
+        .map(|i| bufs.verified(i, k))
         .collect();
     let todo: Vec<usize> = (0..n_core).filter(|&i| verified[i]).collect();
     let retry: Vec<u64> = (0..n_core)
         .filter(|&i| !verified[i])
         .map(|i| t.ids[i])
         .collect();
-    // Written in place (an indexed collect): partition_map's intermediate lists and appends
-    // were half of all page faults.
-    let mut done: Vec<PointResult> = Vec::with_capacity(todo.len());
-    todo.par_iter()
-        .map_init(
-            || NeighbourhoodBuf::with_capacity(k),
-            |s, &i| {
-                let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
-                    flags::FILE_NORMAL
-                } else {
-                    0
-                };
-                let Some(n0) = normals[i] else {
-                    return PointResult {
-                        id: t.ids[i],
-                        normal: [f64::NAN; 3],
-                        curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag),
-                        patch: NO_PATCH,
-                    };
-                };
-                let mut curvature = s.estimate(p.estimator, &t.xyz, &t.ids, &normals, i, list(i));
-                curvature.flags |= file_flag;
-                PointResult {
-                    id: t.ids[i],
-                    normal: n0,
-                    curvature,
-                    patch: patch_of(i),
-                }
-            },
-        )
-        .collect_into_vec(&mut done);
-    LIST_BUFFERS.with_borrow_mut(|b| *b = (lists, info));
+    let done = estimate_points(t, p, bufs, &normals, &todo, &patch_of);
     TileOutcome {
         done,
         retry,

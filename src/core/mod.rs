@@ -9,6 +9,7 @@ pub mod neighbors;
 pub mod normals;
 pub mod orient;
 pub mod plan;
+pub mod point;
 pub mod rng;
 pub mod surface;
 pub mod tile;

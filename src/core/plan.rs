@@ -171,6 +171,61 @@ pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
     }
 }
 
+/// How the memory budget (`--memory`) is shared between the stages: every fraction in one
+/// place, used by the scan, the tile drivers and `--dry-run` alike.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MemoryPlan {
+    /// The whole budget, bytes.
+    pub budget_bytes: usize,
+    /// Buckets the scan holds in memory before it spills the largest (2/5 of the budget).
+    pub buckets_bytes: usize,
+    /// What a spill frees the held buckets down to (half of `buckets_bytes`), so that the scan
+    /// does not spill again after every chunk.
+    pub buckets_after_spill_bytes: usize,
+    /// Decoded spilled buckets kept for neighbouring tiles' halos (1/5), once buckets are on disk.
+    pub bucket_cache_bytes: usize,
+    /// Tiles (or quadtree parts) in flight: one per tile driver.
+    pub tiles_in_flight: usize,
+    /// Bytes for each tile in flight: 2/5 of the budget shared by `tiles_in_flight`.
+    pub per_tile_bytes: usize,
+    /// Bytes a loaded tile needs per point (coordinates, ids, neighbour list, normal, result),
+    /// measured layout of `TilePoints` and `compute_tile`'s buffers, rounded up: 300 + 4 k.
+    pub tile_point_bytes: usize,
+    /// Most core points of one tile part: a tile with more is computed in quadtree parts
+    /// (2/3 of `per_tile_bytes` over `tile_point_bytes`, room for its halo; at least 1024).
+    pub max_core_points: usize,
+    /// Most bytes of one read chunk of raw records (1/16 of the budget).
+    pub chunk_bytes: usize,
+}
+
+impl MemoryPlan {
+    /// The plan for a budget of `budget_bytes` and `k` neighbours per point.
+    pub fn new(budget_bytes: usize, k: usize) -> Self {
+        let tiles_in_flight = 2;
+        let buckets_bytes = budget_bytes * 2 / 5;
+        let per_tile_bytes = budget_bytes * 2 / 5 / tiles_in_flight;
+        let tile_point_bytes = 300 + 4 * k;
+        MemoryPlan {
+            budget_bytes,
+            buckets_bytes,
+            buckets_after_spill_bytes: buckets_bytes / 2,
+            bucket_cache_bytes: budget_bytes / 5,
+            tiles_in_flight,
+            per_tile_bytes,
+            tile_point_bytes,
+            max_core_points: (per_tile_bytes / tile_point_bytes * 2 / 3).max(1024),
+            chunk_bytes: budget_bytes / 16,
+        }
+    }
+
+    /// Points per read chunk: the `requested` number, capped so that a chunk of raw records of
+    /// at most `record_bytes` each (plus 64 bytes of decoding per point) fits `chunk_bytes`;
+    /// never fewer than 1024.
+    pub fn chunk_points(&self, requested: usize, record_bytes: usize) -> usize {
+        requested.min((self.chunk_bytes / (record_bytes.max(1) + 64)).max(1024))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -194,6 +249,23 @@ mod tests {
             max: [200.0, 200.0],
         };
         assert!(all.distance_to_open_side(1.0, 3.0, &scene).is_infinite());
+    }
+
+    #[test]
+    fn memory_plan_shares_the_budget() {
+        let m = MemoryPlan::new(1 << 30, 30);
+        // Buckets during the scan and the tiles in flight after it never exceed the budget.
+        assert!(m.buckets_bytes + m.bucket_cache_bytes <= m.budget_bytes);
+        assert!(m.bucket_cache_bytes + m.tiles_in_flight * m.per_tile_bytes <= m.budget_bytes);
+        assert_eq!(m.tile_point_bytes, 420);
+        assert!(m.max_core_points * m.tile_point_bytes <= m.per_tile_bytes);
+        // A 2000-byte record: 1 GiB / 16 / 2064 = 32513 points per chunk at most.
+        assert_eq!(m.chunk_points(1_000_000, 2000), 32_513);
+        assert_eq!(m.chunk_points(500, 2000), 500);
+        assert_eq!(
+            MemoryPlan::new(64 << 20, 30).chunk_points(1 << 20, 1 << 20),
+            1024
+        );
     }
 
     #[test]

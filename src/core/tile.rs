@@ -1,12 +1,9 @@
 //! A loaded tile: its core points (the ones it answers for) followed by the halo points that
-//! their neighbourhoods may reach, gathered from the buckets.
-
-use std::collections::{BTreeMap, HashSet};
+//! their neighbourhoods may reach; the quadtree parts of a tile too dense for the budget; the
+//! Morton order of the points. Pure: `io::bucket::load_tile` fills it from the buckets.
 
 use crate::core::geometry::V3;
-use crate::core::plan::{Rect, TileKey};
-use crate::error::Result;
-use crate::io::bucket::Buckets;
+use crate::core::plan::Rect;
 
 /// The points of one tile in memory: `xyz[..n_core]` are the points to compute, the rest are
 /// context (other core points of the tile on a retry, and the halo).
@@ -25,7 +22,8 @@ pub struct TilePoints {
 }
 
 impl TilePoints {
-    fn push(&mut self, p: &crate::io::source::SourcePoint) {
+    /// Appends a point (as context unless it is counted in `n_core` afterwards).
+    pub fn push(&mut self, p: &crate::core::point::SourcePoint) {
         self.xyz.push(p.xyz);
         self.ids.push(p.id);
         self.file_normals.push(p.normal);
@@ -130,7 +128,7 @@ impl Part {
 /// Splits a tile whose `points` (its core) are too many into quadtree parts of at most
 /// `max_points` each (never deeper than 10 levels: duplicates cannot be split).
 pub fn split_parts(
-    points: &[crate::io::source::SourcePoint],
+    points: &[crate::core::point::SourcePoint],
     whole: Part,
     max_points: usize,
 ) -> Vec<Part> {
@@ -151,47 +149,10 @@ pub fn split_parts(
     out
 }
 
-/// Loads `part` of tile `key` with a halo of width `halo`. With `only`, just those core points
-/// (by id) are to be computed and the rest of the part is context (a wider-halo retry). `known`
-/// lists the tiles that hold points (the plan's counts).
-pub fn load_tile(
-    buckets: &Buckets,
-    key: TileKey,
-    part: &Part,
-    halo: f64,
-    only: Option<&HashSet<u64>>,
-    known: &BTreeMap<TileKey, u64>,
-) -> Result<TilePoints> {
-    let region = part.rect.grown(halo);
-    let core = buckets.core(key)?;
-    let mut t = TilePoints {
-        region,
-        ..Default::default()
-    };
-    let selected = |p: &&crate::io::source::SourcePoint| {
-        part.contains(&p.xyz) && only.is_none_or(|s| s.contains(&p.id))
-    };
-    for p in core.iter().filter(selected) {
-        t.push(p);
-    }
-    t.n_core = t.xyz.len();
-    // The rest of this tile's bucket in the region is context (other parts, or on a retry the
-    // points of this part already done).
-    for p in core
-        .iter()
-        .filter(|p| !selected(p) && region.contains(p.xyz[0], p.xyz[1]))
-    {
-        t.push(p);
-    }
-    buckets.gather(&region, key, known, |p| t.push(p))?;
-    t.morton_order();
-    Ok(t)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::source::SourcePoint;
+    use crate::core::point::SourcePoint;
 
     #[test]
     fn parts_partition_a_dense_tile() {

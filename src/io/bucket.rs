@@ -5,7 +5,7 @@
 //! tile reads its own bucket and its neighbours' (for the halo) through a small cache, so a
 //! wider-halo retry and a halo across file borders use the same path and nothing is written twice.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fs::OpenOptions;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -13,12 +13,13 @@ use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
-use crate::core::plan::{Rect, ScanStats, TileGrid, TileKey};
+use crate::core::plan::{MemoryPlan, Rect, ScanStats, TileGrid, TileKey};
+use crate::core::point::SourcePoint;
+use crate::core::tile::{Part, TilePoints};
 use crate::error::{Error, Result};
-use crate::io::source::{PointSource, SourcePoint};
+use crate::io::source::PointSource;
 
-/// In-memory size of one bucketed point, for the budget.
-pub const POINT_BYTES: usize = std::mem::size_of::<SourcePoint>() + 8;
+use crate::core::point::BUCKET_POINT_BYTES as POINT_BYTES;
 
 /// Name of the marker written once every bucket is on disk.
 const DONE: &str = "buckets.done";
@@ -138,14 +139,15 @@ pub struct ScanInput<'a> {
 
 impl Buckets {
     /// Streams the sources once, appending every point to its core tile's bucket, and gathers the
-    /// scan statistics. Buckets beyond `mem_budget` bytes are spilled to `spill_dir` (created on
+    /// scan statistics. Buckets beyond `memory.buckets_bytes` are spilled to `spill_dir` (down to
+    /// `memory.buckets_after_spill_bytes`; the directory is created on
     /// first use). `progress(n)` is called after each chunk with the points read; an error from
     /// it (cancellation) stops the scan.
     pub fn scan(
         inputs: &[ScanInput<'_>],
         grid: TileGrid,
         chunk_points: usize,
-        mem_budget: usize,
+        memory: &MemoryPlan,
         spill_dir: &Path,
         mut progress: impl FnMut(u64) -> Result<()>,
     ) -> Result<(Self, ScanStats)> {
@@ -178,7 +180,7 @@ impl Buckets {
                     }
                     held += n * POINT_BYTES;
                     stats.count += n as u64;
-                    if held > mem_budget {
+                    if held > memory.buckets_bytes {
                         // Spill the largest buckets until half the budget is free again.
                         std::fs::create_dir_all(spill_dir)
                             .map_err(|e| Error::write(spill_dir, e))?;
@@ -188,7 +190,7 @@ impl Buckets {
                         sizes.sort_unstable_by(|a, b| b.cmp(a));
                         let mut out = Vec::new();
                         for (len, key) in sizes {
-                            if held <= mem_budget / 2 {
+                            if held <= memory.buckets_after_spill_bytes {
                                 break;
                             }
                             if let Some(v) = mem.remove(&key) {
@@ -327,6 +329,42 @@ impl Buckets {
         }
         Ok(())
     }
+}
+
+/// Loads `part` of tile `key` with a halo of width `halo`. With `only`, just those core points
+/// (by id) are to be computed and the rest of the part is context (a wider-halo retry). `known`
+/// lists the tiles that hold points (the plan's counts).
+pub fn load_tile(
+    buckets: &Buckets,
+    key: TileKey,
+    part: &Part,
+    halo: f64,
+    only: Option<&HashSet<u64>>,
+    known: &BTreeMap<TileKey, u64>,
+) -> Result<TilePoints> {
+    let region = part.rect.grown(halo);
+    let core = buckets.core(key)?;
+    let mut t = TilePoints {
+        region,
+        ..Default::default()
+    };
+    let selected =
+        |p: &&SourcePoint| part.contains(&p.xyz) && only.is_none_or(|s| s.contains(&p.id));
+    for p in core.iter().filter(selected) {
+        t.push(p);
+    }
+    t.n_core = t.xyz.len();
+    // The rest of this tile's bucket in the region is context (other parts, or on a retry the
+    // points of this part already done).
+    for p in core
+        .iter()
+        .filter(|p| !selected(p) && region.contains(p.xyz[0], p.xyz[1]))
+    {
+        t.push(p);
+    }
+    buckets.gather(&region, key, known, |p| t.push(p))?;
+    t.morton_order();
+    Ok(t)
 }
 
 fn stats_text(s: &ScanStats) -> String {

@@ -1,16 +1,64 @@
-//! The final pass: streams each input in file order and takes the results of its points from
-//! the id-ordered merge of the tile result files, writing each input record untouched followed
-//! by its new columns.
+//! The assemble stage: streams each input in file order and takes the results of its points
+//! from the id-ordered merge of the tile result files in the work directory, writing each input
+//! record untouched followed by its new columns, one output per input. With `--orient
+//! propagate` the cross-tile signs are solved first (run::orientation).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use crate::config::OrientMode;
+use crate::core::plan::TilePlan;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
-use crate::io::results::Merger;
+use crate::io::results::{tile_path, Merger};
 use crate::io::sink::{create_sink, PointSink};
 use crate::io::source::PointSource;
+use crate::io::workdir::WorkDir;
 use crate::progress::Reporter;
+use crate::run::bucket::chunk_points;
+use crate::run::orientation::resolve_orientation;
+use crate::run::spec::RunSpec;
+use crate::run::Exec;
+
+/// Writes every output of `spec` from the tile results in `work` (the tiles of `tiles`, all
+/// finished).
+pub fn assemble_outputs(
+    work: &WorkDir,
+    spec: &RunSpec,
+    tiles: &TilePlan,
+    exec: &Exec<'_>,
+) -> Result<()> {
+    let results_dir = work.path().join("results");
+    let files: Vec<PathBuf> = tiles
+        .tiles
+        .iter()
+        .map(|t| tile_path(&results_dir, t.key))
+        .collect();
+    let flips = match spec.orientation {
+        OrientMode::Propagate => Some(resolve_orientation(&results_dir, tiles, exec.reporter)?),
+        _ => None,
+    };
+    let mut merger = Merger::open(&results_dir, &files, &spec.cols)?;
+    exec.reporter.phase("write", spec.total_points);
+    let provenance = spec.provenance();
+    let chunk = chunk_points(spec, exec);
+    for ((source, output), first) in spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids) {
+        assemble(
+            source.as_ref(),
+            *first,
+            &mut merger,
+            flips.as_deref(),
+            &spec.cols,
+            output,
+            &provenance,
+            chunk,
+            exec.reporter,
+            exec.cancel,
+        )?;
+    }
+    exec.reporter.finish_phase();
+    Ok(())
+}
 
 /// Writes `output` from `source` (whose point 0 has global id `first_id`) and the next results
 /// of `merger`; with `flips` (`--orient propagate`), the results of the patches marked there

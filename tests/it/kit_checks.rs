@@ -244,19 +244,21 @@ fn knn_matches_brute_force() {
 /// on a small sphere cap.
 #[test]
 fn all_names_build() {
+    use tilecurv::core::estimate::EstimatorKind;
     let params = tilecurv::core::estimate::EstimatorParams::default();
     let (pos, nrm) = testkit::sphere_cap(1.0, 30);
-    for name in tilecurv::core::estimate::NAMES {
-        let est = tilecurv::core::estimate::build(name, &params)
-            .unwrap_or_else(|| panic!("{name} does not build"));
-        assert_eq!(est.name(), *name);
+    for kind in EstimatorKind::ALL {
+        let name = kind.name();
+        let est = kind.build(&params);
+        assert_eq!(est.name(), name);
+        assert_eq!(EstimatorKind::from_name(name), Some(kind));
         let c = testkit::run(&*est, &pos, &nrm);
         testkit::assert_valid(&c, name);
         // VCM magnitudes are strongly biased on random samples (see estimate/vcm.rs).
-        let tol = if *name == "vcm" { 1.0 } else { 0.1 };
+        let tol = if name == "vcm" { 1.0 } else { 0.1 };
         assert!((c.h - 1.0).abs() < tol, "{name}: {c:?}");
     }
-    assert!(tilecurv::core::estimate::build("no-such", &params).is_none());
+    assert!(EstimatorKind::from_name("no-such").is_none());
 }
 
 #[test]

@@ -6,7 +6,7 @@
 //! `tilecurv::core::rng::Rng`, so clouds are identical across releases for a given seed.
 
 use std::f64::consts::{PI, TAU};
-use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood};
+use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood, Scratch};
 use tilecurv::core::geometry::{dot, normalize, scale, sub, M3, V3};
 use tilecurv::core::rng::Rng;
 pub use tilecurv::core::surface::{
@@ -462,11 +462,14 @@ pub fn estimate_point(
     let positions: Vec<V3> = nbrs.iter().map(|&j| sub(cloud.positions[j], q)).collect();
     let normals: Vec<V3> = nbrs.iter().map(|&j| cloud.normals[j]).collect();
     let ids: Vec<u64> = nbrs.iter().map(|&j| j as u64).collect();
-    estimator.estimate(&Neighbourhood {
-        positions: &positions,
-        normals: &normals,
-        ids: &ids,
-    })
+    estimator.estimate(
+        &Neighbourhood {
+            positions: &positions,
+            normals: &normals,
+            ids: &ids,
+        },
+        &mut Scratch::default(),
+    )
 }
 
 /// Root mean square and maximum of absolute errors.

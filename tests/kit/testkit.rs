@@ -6,7 +6,7 @@ use super::synthetic::*;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 use tilecurv::core::estimate::flags;
-use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood};
+use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood, Scratch};
 use tilecurv::core::geometry::{dot, norm, normalize, scale, sub, V3};
 use tilecurv::core::rng::Rng;
 
@@ -169,11 +169,14 @@ pub fn assert_valid(c: &Curvature, what: &str) {
 /// Runs `est` on one neighbourhood given as slices.
 pub fn run(est: &dyn Estimator, pos: &[V3], nrm: &[V3]) -> Curvature {
     let ids: Vec<u64> = (0..pos.len() as u64).collect();
-    est.estimate(&Neighbourhood {
-        positions: pos,
-        normals: nrm,
-        ids: &ids,
-    })
+    est.estimate(
+        &Neighbourhood {
+            positions: pos,
+            normals: nrm,
+            ids: &ids,
+        },
+        &mut Scratch::default(),
+    )
 }
 
 /// Degenerate inputs (algorithms.md 5.3) give flags, never a panic, never NaN without a flag.

@@ -11,7 +11,7 @@
 //! adds a spurious term to ASO's Hessian (measured on torus_025000 at K = 50: RMS H 3.16e-3
 //! instead of 3.02e-3). With this rule APSS/ASO reproduce Ponca's section 8 figures.
 
-use super::{flags, local, Curvature, Estimator, Neighbourhood};
+use super::{flags, local, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{dot, V3};
 use std::ops::{Add, Mul, Sub};
 
@@ -136,7 +136,7 @@ impl Estimator for Apss {
         "apss"
     }
 
-    fn estimate(&self, nb: &Neighbourhood<'_>) -> Curvature {
+    fn estimate(&self, nb: &Neighbourhood<'_>, _scratch: &mut Scratch) -> Curvature {
         let fit = prepare(nb).and_then(|r| fit_sphere::<f64>(nb, r));
         let fit = match fit {
             Ok(f) => f,

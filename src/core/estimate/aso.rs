@@ -4,7 +4,7 @@
 //! Hessian of F(x) = f(x; x) at the query point in one pass.
 
 use super::apss::{fit_sphere, prepare, FitScalar, SphereFit, SUPPORT_EDGE};
-use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood};
+use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{dot, norm, normalize, tangent_basis, M3, V3};
 use std::ops::{Add, Mul, Sub};
 
@@ -143,7 +143,7 @@ impl Estimator for Aso {
         "aso"
     }
 
-    fn estimate(&self, nb: &Neighbourhood<'_>) -> Curvature {
+    fn estimate(&self, nb: &Neighbourhood<'_>, _scratch: &mut Scratch) -> Curvature {
         let fit = match prepare(nb).and_then(|r| fit_sphere::<Jet>(nb, r)) {
             Ok(f) => f,
             Err(flag) => return Curvature::undefined(flag),

@@ -13,9 +13,8 @@
 //! points are unaffected.
 
 use super::cnc::CncMeasures;
-use super::{local, Curvature, Estimator, Neighbourhood};
+use super::{local, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{dot, tangent_basis};
-use std::cell::RefCell;
 
 /// Label of a Voronoi-cell edge that comes from the bounding square, not from a bisector.
 const BOX: usize = usize::MAX;
@@ -28,18 +27,14 @@ struct CellVertex {
     edge: usize,
 }
 
-/// Per-thread buffers (no allocation per point once warm).
+/// The estimator's buffers in [`super::Scratch`] (no allocation per point once warm).
 #[derive(Default)]
-struct Scratch {
+pub struct Buffers {
     /// Neighbours of the current umbrella centre: (squared distance, index, tangent coordinates).
     others: Vec<(f64, usize, [f64; 2])>,
     cell: Vec<CellVertex>,
     clipped: Vec<CellVertex>,
     triangles: Vec<[usize; 3]>,
-}
-
-thread_local! {
-    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
 }
 
 /// Clips the convex polygon `cell` by the half-plane <y | q> <= |q|^2/2 (the side of the
@@ -80,7 +75,7 @@ fn clip(cell: &[CellVertex], q: [f64; 2], label: usize, out: &mut Vec<CellVertex
 /// the Voronoi cell of `c` among the tangent projections of the other points, clipped by
 /// bisectors nearest first; two consecutive bisector edges meet at a Voronoi vertex, the
 /// circumcentre of a Delaunay triangle incident to `c`.
-fn umbrella(nb: &Neighbourhood<'_>, c: usize, s: &mut Scratch) {
+fn umbrella(nb: &Neighbourhood<'_>, c: usize, s: &mut Buffers) {
     let (e1, e2) = tangent_basis(nb.normals[c]);
     let origin = nb.positions[c];
     s.others.clear();
@@ -142,25 +137,23 @@ impl Estimator for CncDelaunay {
         "cnc-delaunay"
     }
 
-    fn estimate(&self, nb: &Neighbourhood<'_>) -> Curvature {
+    fn estimate(&self, nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Curvature {
         if let Err(f) = local::check(nb, 3) {
             return Curvature::undefined(f);
         }
-        SCRATCH.with(|cell| {
-            let s = &mut *cell.borrow_mut();
-            s.triangles.clear();
-            for c in 0..nb.positions.len() {
-                umbrella(nb, c, s);
-            }
-            // A triangle appears in up to three umbrellas: count it once (section 1.7, step 5).
-            s.triangles.sort_unstable();
-            s.triangles.dedup();
-            let mut m = CncMeasures::default();
-            for t in &s.triangles {
-                m.add_triangle(t.map(|j| nb.positions[j]), t.map(|j| nb.normals[j]));
-            }
-            m.finish(nb.normals[0], 0)
-        })
+        let s = &mut scratch.delaunay;
+        s.triangles.clear();
+        for c in 0..nb.positions.len() {
+            umbrella(nb, c, s);
+        }
+        // A triangle appears in up to three umbrellas: count it once (section 1.7, step 5).
+        s.triangles.sort_unstable();
+        s.triangles.dedup();
+        let mut m = CncMeasures::default();
+        for t in &s.triangles {
+            m.add_triangle(t.map(|j| nb.positions[j]), t.map(|j| nb.normals[j]));
+        }
+        m.finish(nb.normals[0], 0)
     }
 }
 
@@ -193,7 +186,7 @@ mod tests {
             normals: &nrm,
             ids: &ids,
         };
-        let mut s = Scratch::default();
+        let mut s = Buffers::default();
         umbrella(&nb, 0, &mut s);
         // A closed fan without overlaps: the angles at the centre sum to 2 pi, and every
         // neighbour of the fan is shared by exactly two triangles.

@@ -6,7 +6,7 @@
 //! jets). Coordinates are divided by the K-NN radius before the fit, as Cazals and Pouget recommend, to
 //! keep the normal equations well conditioned.
 
-use super::{flags, local, Curvature, Estimator, Neighbourhood};
+use super::{flags, local, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{add, dot, scale, tangent_basis, V3};
 
 /// Largest supported degree.
@@ -70,7 +70,7 @@ impl Estimator for Jet {
         "jet"
     }
 
-    fn estimate(&self, nb: &Neighbourhood<'_>) -> Curvature {
+    fn estimate(&self, nb: &Neighbourhood<'_>, _scratch: &mut Scratch) -> Curvature {
         let degree = self.degree.clamp(2, MAX_DEGREE);
         let nc = coefficients(degree);
         if let Err(f) = local::check(nb, nc) {

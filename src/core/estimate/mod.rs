@@ -111,12 +111,25 @@ impl Curvature {
     }
 }
 
+/// Buffers an estimator reuses from one point to the next, owned by the caller (one per worker):
+/// no estimator allocates per point once warm, and none keeps thread-local state.
+#[derive(Default)]
+pub struct Scratch {
+    delaunay: cnc_delaunay::Buffers,
+    vcm: vcm::Buffers,
+}
+
 /// A curvature estimator.
 pub trait Estimator: Sync + Send {
     /// The estimator's command-line name, e.g. `cnc-avg-hexagram`.
     fn name(&self) -> &'static str;
-    /// Estimates the curvature at `nb.positions[0]`.
-    fn estimate(&self, nb: &Neighbourhood<'_>) -> Curvature;
+    /// Names of the values this estimator computes besides the curvature (written by
+    /// `--features` as columns of these names); none for most estimators.
+    fn extra_columns(&self) -> &'static [&'static str] {
+        &[]
+    }
+    /// Estimates the curvature at `nb.positions[0]`, with `scratch` for its buffers.
+    fn estimate(&self, nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Curvature;
 }
 
 /// The principal curvatures and directions of a 2x2 symmetric tangent-plane operator `s` in the
@@ -161,36 +174,101 @@ impl Default for EstimatorParams {
     }
 }
 
-/// Command-line names of the available estimators, default first.
-pub const NAMES: &[&str] = &[
-    "cnc-avg-hexagram",
-    "cnc-hexagram",
-    "cnc-uniform",
-    "cnc-delaunay",
-    "apss",
-    "aso",
-    "wme",
-    "jet",
-    "vcm",
-];
+/// The estimators, by their command-line names (`--estimator`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EstimatorKind {
+    /// CNC-Avg-Hexagram (default): L = 2 averaged hexagram triangles (algorithms.md 1.5).
+    CncAvgHexagram,
+    /// CNC-Hexagram: the hexagram's two triangles (algorithms.md 1.4).
+    CncHexagram,
+    /// CNC-Uniform: L random triangles per point, seeded per point (algorithms.md 1.6).
+    CncUniform,
+    /// CNC-Delaunay: local Delaunay umbrellas (algorithms.md 1.7).
+    CncDelaunay,
+    /// APSS: algebraic sphere fit (algorithms.md 3).
+    Apss,
+    /// ASO: the algebraic shape operator (algorithms.md 4).
+    Aso,
+    /// WME: least-squares Weingarten map (algorithms.md 5).
+    Wme,
+    /// Osculating jet fit, degree 2 (algorithms.md 5.3).
+    Jet,
+    /// VCM: Voronoi covariance measure, unsigned (algorithms.md 2).
+    Vcm,
+}
 
-/// Builds the estimator called `name`, or None if there is no such estimator.
-pub fn build(name: &str, params: &EstimatorParams) -> Option<Box<dyn Estimator>> {
-    match name {
-        "cnc-avg-hexagram" => Some(Box::new(cnc::CncAvgHexagram)),
-        "cnc-hexagram" => Some(Box::new(cnc::CncHexagram)),
-        "cnc-uniform" => Some(Box::new(cnc::CncUniform {
-            triangles: params.triangles,
-            seed: params.seed,
-        })),
-        "cnc-delaunay" => Some(Box::new(cnc_delaunay::CncDelaunay)),
-        "apss" => Some(Box::new(apss::Apss)),
-        "aso" => Some(Box::new(aso::Aso)),
-        "wme" => Some(Box::new(wme::Wme)),
-        "vcm" => Some(Box::new(vcm::Vcm)),
-        "jet" => Some(Box::new(jet::Jet {
-            degree: params.jet_degree,
-        })),
-        _ => None,
+impl EstimatorKind {
+    /// Every estimator, default first.
+    pub const ALL: [EstimatorKind; 9] = [
+        EstimatorKind::CncAvgHexagram,
+        EstimatorKind::CncHexagram,
+        EstimatorKind::CncUniform,
+        EstimatorKind::CncDelaunay,
+        EstimatorKind::Apss,
+        EstimatorKind::Aso,
+        EstimatorKind::Wme,
+        EstimatorKind::Jet,
+        EstimatorKind::Vcm,
+    ];
+
+    /// The command-line name, e.g. `cnc-avg-hexagram`.
+    pub fn name(self) -> &'static str {
+        match self {
+            EstimatorKind::CncAvgHexagram => "cnc-avg-hexagram",
+            EstimatorKind::CncHexagram => "cnc-hexagram",
+            EstimatorKind::CncUniform => "cnc-uniform",
+            EstimatorKind::CncDelaunay => "cnc-delaunay",
+            EstimatorKind::Apss => "apss",
+            EstimatorKind::Aso => "aso",
+            EstimatorKind::Wme => "wme",
+            EstimatorKind::Jet => "jet",
+            EstimatorKind::Vcm => "vcm",
+        }
+    }
+
+    /// One line for `--help`.
+    pub fn summary(self) -> &'static str {
+        match self {
+            EstimatorKind::CncAvgHexagram => "corrected normal current, two averaged hexagram triangles: the most accurate CNC variant (default)",
+            EstimatorKind::CncHexagram => "corrected normal current on the hexagram's two triangles",
+            EstimatorKind::CncUniform => "corrected normal current on --triangles random triangles per point (seeded per point by --seed)",
+            EstimatorKind::CncDelaunay => "corrected normal current on local Delaunay umbrellas",
+            EstimatorKind::Apss => "algebraic point set surface: sphere fit, mean curvature only (k1 = k2 = H)",
+            EstimatorKind::Aso => "algebraic shape operator: full curvature tensor of the APSS sphere field",
+            EstimatorKind::Wme => "Weingarten map estimate by least squares on the normals",
+            EstimatorKind::Jet => "osculating jet (degree-2 height field fit), the classical baseline",
+            EstimatorKind::Vcm => "Voronoi covariance measure: unsigned curvature magnitudes; --features adds a sharp-edge score",
+        }
+    }
+
+    /// The estimator called `name`, if there is one.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|e| e.name() == name)
+    }
+
+    /// Builds the estimator with `params`.
+    pub fn build(self, params: &EstimatorParams) -> Box<dyn Estimator> {
+        match self {
+            EstimatorKind::CncAvgHexagram => Box::new(cnc::CncAvgHexagram),
+            EstimatorKind::CncHexagram => Box::new(cnc::CncHexagram),
+            EstimatorKind::CncUniform => Box::new(cnc::CncUniform {
+                triangles: params.triangles,
+                seed: params.seed,
+            }),
+            EstimatorKind::CncDelaunay => Box::new(cnc_delaunay::CncDelaunay),
+            EstimatorKind::Apss => Box::new(apss::Apss),
+            EstimatorKind::Aso => Box::new(aso::Aso),
+            EstimatorKind::Wme => Box::new(wme::Wme),
+            EstimatorKind::Vcm => Box::new(vcm::Vcm),
+            EstimatorKind::Jet => Box::new(jet::Jet {
+                degree: params.jet_degree,
+            }),
+        }
+    }
+}
+
+impl std::fmt::Display for EstimatorKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }

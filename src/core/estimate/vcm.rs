@@ -26,9 +26,8 @@
 //! VCM tangent plane (a local version of "calibrate on a plane at the same density"). What
 //! remains is biased at second order in R kappa.
 
-use super::{flags, local, Curvature, Estimator, Extra, Neighbourhood};
+use super::{flags, local, Curvature, Estimator, Extra, Neighbourhood, Scratch};
 use crate::core::geometry::{add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, M3, V3};
-use std::cell::RefCell;
 use std::sync::OnceLock;
 
 /// Quadrature nodes on the unit sphere around the z axis: (direction, weight), weights summing
@@ -64,17 +63,13 @@ fn quadrature() -> &'static [(V3, f64)] {
     })
 }
 
-/// Per-thread buffers: bisector planes of one cell as (w, |w|^2/2), w = q - p in the
-/// quadrature frame.
+/// The estimator's buffers in [`super::Scratch`]: bisector planes of one cell as (w, |w|^2/2),
+/// w = q - p in the quadrature frame.
 #[derive(Default)]
-struct Scratch {
+pub struct Buffers {
     planes: Vec<(V3, f64)>,
     /// The neighbourhood in the quadrature frame.
     points: Vec<V3>,
-}
-
-thread_local! {
-    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
 }
 
 /// Covariance of Vor(points[c]) ∩ B(points[c], big_r) about points[c], with `points` already
@@ -191,27 +186,25 @@ fn extra_of(frame: &M3, v: &M3) -> Extra {
 /// The query frame ([`frame_of`] the query's input normal) and, in it, the convolved VCM and
 /// the axis sums of the neighbourhood with the radii of the module documentation: offset
 /// R = `d_k`, convolution radius r = `d_k` / 2.
-fn convolved_in_frame(nb: &Neighbourhood<'_>, d_k: f64) -> (M3, M3, AxisSums) {
+fn convolved_in_frame(nb: &Neighbourhood<'_>, d_k: f64, s: &mut Buffers) -> (M3, M3, AxisSums) {
     let frame = frame_of(nb.normals[0]);
-    SCRATCH.with(|s| {
-        let Scratch { planes, points } = &mut *s.borrow_mut();
-        points.clear();
-        points.extend(nb.positions.iter().map(|&p| to_frame(&frame, p)));
-        let (v, ax) = convolved_vcm(points, d_k, 0.5 * d_k, planes);
-        (frame, v, ax)
-    })
+    let Buffers { planes, points } = s;
+    points.clear();
+    points.extend(nb.positions.iter().map(|&p| to_frame(&frame, p)));
+    let (v, ax) = convolved_vcm(points, d_k, 0.5 * d_k, planes);
+    (frame, v, ax)
 }
 
 /// The convolved VCM of the neighbourhood at the query point with the radii of the module
 /// documentation (R = d_K, r = d_K / 2), in world axes (for feature detection with
 /// [`sharp_feature_ratio`]). None for fewer than 3 points or a zero radius.
-pub fn neighbourhood_vcm(nb: &Neighbourhood<'_>) -> Option<M3> {
+pub fn neighbourhood_vcm(nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Option<M3> {
     local::check(nb, 3).ok()?;
     let d_k = local::knn_radius(nb.positions);
     if d_k.is_nan() || d_k <= 0.0 {
         return None;
     }
-    let (frame, v, _) = convolved_in_frame(nb, d_k);
+    let (frame, v, _) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
     Some(from_frame_matrix(&frame, &v))
 }
 
@@ -256,7 +249,11 @@ impl Estimator for Vcm {
         "vcm"
     }
 
-    fn estimate(&self, nb: &Neighbourhood<'_>) -> Curvature {
+    fn extra_columns(&self) -> &'static [&'static str] {
+        &["SharpFeature", "VcmNormalX", "VcmNormalY", "VcmNormalZ"]
+    }
+
+    fn estimate(&self, nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Curvature {
         if let Err(f) = local::check(nb, 3) {
             return Curvature::undefined(f);
         }
@@ -268,7 +265,7 @@ impl Estimator for Vcm {
         {
             return Curvature::undefined(flags::DEGENERATE);
         }
-        let (frame, v, ax) = convolved_in_frame(nb, d_k);
+        let (frame, v, ax) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
         let extra = Some(extra_of(&frame, &v));
         Curvature {
             extra,
@@ -524,11 +521,14 @@ mod tests {
             let pos: Vec<V3> = knn[i].iter().map(|&j| sub(cloud.positions[j], q)).collect();
             let nrm: Vec<V3> = knn[i].iter().map(|&j| cloud.normals[j]).collect();
             let ids: Vec<u64> = knn[i].iter().map(|&j| j as u64).collect();
-            let v = neighbourhood_vcm(&Neighbourhood {
-                positions: &pos,
-                normals: &nrm,
-                ids: &ids,
-            })
+            let v = neighbourhood_vcm(
+                &Neighbourhood {
+                    positions: &pos,
+                    normals: &nrm,
+                    ids: &ids,
+                },
+                &mut Scratch::default(),
+            )
             .expect("vcm");
             let written = vcm_extra(&cloud, &knn[i]).feature;
             let direct = sharp_feature_ratio(&v);

@@ -2,7 +2,7 @@
 //! the neighbours' normals are regressed on the tangent differences of their positions,
 //! B = A G, with neighbour normals first reoriented towards the query normal (4.1, 4.5).
 
-use super::{flags, local, principal_from_tangent, Curvature, Estimator, Neighbourhood};
+use super::{flags, local, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{dot, tangent_basis};
 
 /// Solves the 2x2 system (m + eps I) x = b for symmetric positive semi-definite `m`, with
@@ -27,7 +27,7 @@ impl Estimator for Wme {
         "wme"
     }
 
-    fn estimate(&self, nb: &Neighbourhood<'_>) -> Curvature {
+    fn estimate(&self, nb: &Neighbourhood<'_>, _scratch: &mut Scratch) -> Curvature {
         if let Err(f) = local::check(nb, 3) {
             return Curvature::undefined(f);
         }

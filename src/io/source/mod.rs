@@ -20,16 +20,7 @@ use crate::io::las::header::POINT_FORMAT_SIZES;
 
 pub use las::LasSource;
 
-/// One point as the engine sees it: original index, coordinates, and the file's normal if any.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SourcePoint {
-    /// Index of the point in its file (file order).
-    pub id: u64,
-    /// Coordinates in file units.
-    pub xyz: [f64; 3],
-    /// The normal stored in the file, if any.
-    pub normal: Option<[f64; 3]>,
-}
+pub use crate::core::point::SourcePoint;
 
 /// A point cloud file opened for streaming.
 pub trait PointSource: Send + Sync {

@@ -1,0 +1,102 @@
+//! `--dry-run`: the real stages on a scratch work directory, stopped after one tile. Scans the
+//! inputs (the plan needs every point's tile), plans, computes the median tile with the same
+//! code as a run, and prints the plan with its estimates of memory, disk and time; then removes
+//! the scratch directory. Nothing is written beside the output.
+
+use std::path::Path;
+use std::time::Instant;
+
+use crate::core::compute::TileBuffers;
+use crate::core::plan::{plan, TileSpec};
+use crate::core::point::BUCKET_POINT_BYTES;
+use crate::core::tile::Part;
+use crate::error::Result;
+use crate::io::bucket::load_tile;
+use crate::io::workdir::WorkDir;
+use crate::run::bucket::bucket;
+use crate::run::spec::RunSpec;
+use crate::run::tiles::{compute_params, TileJob};
+use crate::run::Exec;
+
+/// Runs the dry run for `spec`, whose real work directory would be `work_path`.
+pub fn dry_run(spec: &RunSpec, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
+    let scratch = WorkDir::open(&work_path.with_extension("dryrun"), &spec.manifest())?;
+    let r = estimate(&scratch, spec, exec, work_path);
+    scratch.remove();
+    r
+}
+
+/// Points a tile loads: its core plus the halo ring at the same density.
+fn estimated_loaded_points(t: &TileSpec, size: f64) -> usize {
+    let ring = ((size + 2.0 * t.halo) / size).powi(2);
+    (t.count as f64 * ring) as usize
+}
+
+fn estimate(scratch: &WorkDir, spec: &RunSpec, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
+    let t0 = Instant::now();
+    let scan = bucket(scratch, spec, exec)?;
+    let scan_s = t0.elapsed().as_secs_f64();
+    let params = compute_params(spec, &scan.stats);
+    let tplan = plan(&scan.stats, spec.grid.size, spec.k);
+    let mut counts: Vec<u64> = tplan.tiles.iter().map(|t| t.count).collect();
+    counts.sort_unstable();
+    let median = counts[counts.len() / 2];
+    let mut us_per_point = f64::NAN;
+    let mut halo_factor = 1.0;
+    if let Some(sample) = tplan.tiles.iter().find(|t| t.count == median) {
+        let whole = Part::whole(spec.grid.rect(sample.key));
+        let t = load_tile(
+            &scan.buckets,
+            sample.key,
+            &whole,
+            sample.halo,
+            None,
+            &tplan.per_tile,
+        )?;
+        halo_factor = t.xyz.len() as f64 / t.n_core.max(1) as f64;
+        drop(t);
+        let job = TileJob {
+            buckets: &scan.buckets,
+            plan: &tplan,
+            params: &params,
+            max_core_points: exec.memory.max_core_points,
+        };
+        let t1 = Instant::now();
+        let (r, _, _) = job.compute(sample, exec, &mut TileBuffers::default())?;
+        us_per_point = t1.elapsed().as_secs_f64() * 1e6 / r.len().max(1) as f64;
+    }
+    let n = scan.stats.count as f64;
+    let m = &exec.memory;
+    let biggest = tplan
+        .tiles
+        .iter()
+        .map(|t| estimated_loaded_points(t, spec.grid.size))
+        .max()
+        .unwrap_or(0);
+    let buckets_bytes = scan.stats.count as usize * BUCKET_POINT_BYTES;
+    let in_memory = buckets_bytes <= m.buckets_bytes;
+    let tiles_mem = (biggest * m.tile_point_bytes).min(m.per_tile_bytes) * m.tiles_in_flight;
+    let peak = if in_memory {
+        buckets_bytes + tiles_mem
+    } else {
+        m.bucket_cache_bytes + tiles_mem
+    };
+    // Spilled buckets take about 45 bytes a point compressed; results an id, a patch and the
+    // columns.
+    let result_bytes = crate::io::results::record_size(&spec.cols) + 8;
+    let disk = if in_memory { 0.0 } else { n * 45.0 } + n * result_bytes as f64;
+    let est = 2.0 * scan_s + n * us_per_point * 1e-6;
+    println!("plan: {} points in {} tiles of {:.3} (file units); points per tile: min {}, median {median}, max {}", scan.stats.count, tplan.tiles.len(), spec.grid.size, counts[0], counts[counts.len() - 1]);
+    println!(
+        "halo: {:.1}% extra points loaded on the median tile",
+        100.0 * (halo_factor - 1.0)
+    );
+    println!("memory: budget {} MiB; buckets {}; expected peak about {} MiB plus ~60 MiB for the program", m.budget_bytes >> 20, if in_memory { "in memory" } else { "spilled to disk" }, peak.min(m.budget_bytes) >> 20);
+    println!(
+        "work directory: {} (about {:.0} MiB at the peak)",
+        work_path.display(),
+        disk / (1 << 20) as f64
+    );
+    println!("time: scan {scan_s:.1} s; curvature {us_per_point:.2} us/point on the median tile with {} threads; estimated total {est:.0} s", exec.pool.current_num_threads());
+    Ok(())
+}

@@ -1,0 +1,194 @@
+//! The first stage: opens the inputs and runs every check that can fail before any work is
+//! done (output paths, inputs that would be overwritten, units, normals, column names), then
+//! resolves the configuration against the inputs into a [`RunSpec`].
+
+use std::path::{Path, PathBuf};
+
+use crate::config::Config;
+use crate::core::plan::TileGrid;
+use crate::error::{Error, Result};
+use crate::io::columns::ColumnSet;
+use crate::io::crs::UnitSource;
+use crate::io::source::PointSource;
+use crate::progress::Reporter;
+use crate::run::spec::{parameters, RunSpec};
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// The output path of each input: the output itself for one input (or a file in it if it is a
+/// directory), `<output dir>/<input file name>` for several.
+pub fn output_paths(cfg: &Config) -> Result<Vec<PathBuf>> {
+    let is_dir = cfg.output.is_dir() || cfg.output.as_os_str().to_string_lossy().ends_with('/');
+    if cfg.inputs.len() == 1 && !is_dir {
+        return Ok(vec![cfg.output.clone()]);
+    }
+    if !is_dir {
+        return Err(Error::Usage(format!(
+            "{}: with {} inputs the output must be a directory (one output per input, same file name); end it with / to create it",
+            cfg.output.display(),
+            cfg.inputs.len()
+        )));
+    }
+    std::fs::create_dir_all(&cfg.output).map_err(|e| Error::write(&cfg.output, e))?;
+    let mut outs: Vec<PathBuf> = Vec::new();
+    for input in &cfg.inputs {
+        let name = input
+            .file_name()
+            .ok_or_else(|| Error::Usage(format!("{}: not a file name", input.display())))?;
+        let out = cfg.output.join(name);
+        if outs.contains(&out) {
+            return Err(Error::Usage(format!(
+                "two inputs are named {}: their outputs would collide in {}",
+                name.to_string_lossy(),
+                cfg.output.display()
+            )));
+        }
+        outs.push(out);
+    }
+    Ok(outs)
+}
+
+/// Checks the outputs: a supported extension, and never one of the inputs.
+fn check_outputs(cfg: &Config, outputs: &[PathBuf]) -> Result<()> {
+    for output in outputs {
+        crate::io::sink::check_output_path(output)?;
+        if cfg.inputs.iter().any(|i| same_file(i, output)) {
+            return Err(Error::Usage(format!(
+                "{}: the output would overwrite an input; choose another output path",
+                output.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The horizontal unit shared by every input (the first one decides; another unit is an
+/// error): its symbol and, with a CRS, its length in metres.
+fn common_unit(
+    cfg: &Config,
+    sources: &[Box<dyn PointSource>],
+    reporter: &dyn Reporter,
+) -> Result<(String, Option<crate::io::crs::LengthUnit>)> {
+    let unit = sources[0].unit();
+    for s in &sources[1..] {
+        let u = s.unit();
+        if u.unit().map(|u| u.metres) != unit.unit().map(|u| u.metres) {
+            return Err(Error::Usage(format!(
+                "{} and {} have different horizontal units ({:?} and {:?}); process them separately",
+                sources[0].path().display(),
+                s.path().display(),
+                unit.unit().map(|u| u.symbol()),
+                u.unit().map(|u| u.symbol())
+            )));
+        }
+    }
+    Ok(match unit {
+        UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => (u.symbol(), Some(u)),
+        UnitSource::Unknown(why) => {
+            if cfg.tile.has_unit() {
+                reporter.warn(&format!(
+                    "{}: {why}; --tile {} is taken in file units",
+                    sources[0].path().display(),
+                    cfg.tile
+                ));
+            }
+            ("unit".to_string(), None)
+        }
+    })
+}
+
+/// Whether an input already has columns named NormalX/Y/Z (a LAS file's normals).
+fn named_normals(s: &dyn PointSource) -> bool {
+    s.properties()
+        .iter()
+        .any(|p| p.name.eq_ignore_ascii_case("NormalX"))
+}
+
+/// Whether the file's normals are used: all inputs have them (and --ignore-file-normals is not
+/// given) or none has; a mix is an error, and so is ignoring normals whose names the estimated
+/// ones would need.
+fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bool> {
+    let with_normals = sources.iter().filter(|s| s.has_normals()).count();
+    if with_normals != 0 && with_normals != sources.len() && !cfg.ignore_file_normals {
+        return Err(Error::Usage(
+            "some inputs have normals and others do not; process them separately (or use --ignore-file-normals)".into(),
+        ));
+    }
+    if cfg.ignore_file_normals {
+        if let Some(s) = sources.iter().find(|s| named_normals(s.as_ref())) {
+            return Err(Error::Usage(format!(
+                "{}: --ignore-file-normals: the input already has NormalX/Y/Z columns, and the estimated normals cannot be written under the same names; drop the option to use the file's normals",
+                s.path().display()
+            )));
+        }
+    }
+    Ok(with_normals > 0 && !cfg.ignore_file_normals)
+}
+
+/// Opens and checks the inputs of `cfg` and resolves the run. Nothing is written except the
+/// output directory of a multi-input run.
+pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
+    cfg.validate()?;
+    let outputs = output_paths(cfg)?;
+    check_outputs(cfg, &outputs)?;
+    let sources = cfg
+        .inputs
+        .iter()
+        .map(|p| match cfg.sample_faces {
+            Some(n) => crate::io::source::open_sampled(p, n, cfg.params.seed),
+            None => crate::io::source::open(p),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let (unit_name, unit) = common_unit(cfg, &sources, reporter)?;
+    let tile_size = cfg.tile.in_file_units(unit.as_ref());
+    let file_normals = use_file_normals(cfg, &sources)?;
+    let estimator = cfg.estimator.build(&cfg.params);
+    let cols = ColumnSet {
+        ty: cfg.column_type,
+        normals: !file_normals && !sources.iter().any(|s| named_normals(s.as_ref())),
+        directions: cfg.directions,
+        features: cfg.features,
+        unit: unit_name.clone(),
+    };
+    for s in &sources {
+        reporter.info(&format!(
+            "{}: {} points, {}, unit {unit_name}; tile {} = {tile_size:.3} {unit_name}; normals {}",
+            s.path().display(),
+            s.len(),
+            s.describe(),
+            cfg.tile,
+            if file_normals {
+                "from the file (NormalX/Y/Z)"
+            } else {
+                "by PCA"
+            },
+        ));
+    }
+    let first_ids: Vec<u64> = sources
+        .iter()
+        .scan(0u64, |acc, s| {
+            let f = *acc;
+            *acc += s.len();
+            Some(f)
+        })
+        .collect();
+    Ok(RunSpec {
+        total_points: sources.iter().map(|s| s.len()).sum(),
+        first_ids,
+        outputs,
+        grid: TileGrid { size: tile_size },
+        params: parameters(cfg, tile_size, &unit_name, file_normals),
+        unit_name,
+        file_normals,
+        cols,
+        k: cfg.k,
+        orientation: cfg.orientation,
+        estimator,
+        sources,
+    })
+}

@@ -1,0 +1,371 @@
+//! The tiles stage: plans the tiles from the scan statistics, then computes every tile whose
+//! result is not yet in the work directory. Tile drivers (as many as the memory plan has tiles
+//! in flight) each take the next tile, load it (part by part when it is too dense for its share
+//! of the budget) and compute it on the shared rayon pool, so that one tile's loading and serial
+//! steps overlap another's parallel ones; a result writer journals each finished tile. Results
+//! and errors travel on one channel: the first error stops the drivers, the tiles finished
+//! before it stay journalled, and a signal is honoured between tile parts.
+
+use std::collections::HashSet;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use crossbeam_channel::bounded;
+
+use crate::config::OrientMode;
+use crate::core::compute::{
+    compute_tile, ComputeParams, PointResult, Shared, TileBuffers, TileOutcome,
+};
+use crate::core::estimate::flags;
+use crate::core::plan::{plan, ScanStats, TilePlan, TileSpec};
+use crate::core::point::BUCKET_POINT_BYTES;
+use crate::core::tile::{split_parts, Part, TilePoints};
+use crate::error::{Error, Result};
+use crate::io::bucket::{load_tile, Buckets};
+use crate::io::columns::ColumnSet;
+use crate::io::results::{is_complete, orientation_path, tile_path, Journal, TileSidecar};
+use crate::io::workdir::WorkDir;
+use crate::run::bucket::Bucketed;
+use crate::run::spec::RunSpec;
+use crate::run::Exec;
+
+/// What the tiles stage did.
+#[derive(Debug, Clone)]
+pub struct TilesDone {
+    /// The tile plan (the assemble stage merges its tiles' results).
+    pub plan: TilePlan,
+    /// Tiles found finished from an earlier run.
+    pub resumed: usize,
+    /// Points computed in this run whose curvature is undefined.
+    pub undefined: u64,
+    /// Points recomputed with a wider halo after verification.
+    pub retried: u64,
+}
+
+/// What to compute per point, once the scan has seen the cloud's centroid.
+pub fn compute_params<'s>(spec: &'s RunSpec, stats: &ScanStats) -> ComputeParams<'s> {
+    ComputeParams {
+        k: spec.k,
+        orientation: spec.orientation.resolve(stats.centroid),
+        use_file_normals: spec.file_normals,
+        estimator: spec.estimator.as_ref(),
+        propagate: (spec.orientation == OrientMode::Propagate).then_some(stats.centroid),
+    }
+}
+
+/// Whether a tile of the plan is finished: its result file is complete (and, with
+/// `--orient propagate`, its orientation sidecar is there: it is renamed first).
+pub fn tile_done(dir: &Path, t: &TileSpec, cols: &ColumnSet, propagate: bool) -> bool {
+    (!propagate || orientation_path(dir, t.key).exists())
+        && is_complete(&tile_path(dir, t.key), t.count, cols)
+}
+
+/// Everything a tile's computation reads, shared by the drivers.
+pub struct TileJob<'a> {
+    /// The buckets.
+    pub buckets: &'a Buckets,
+    /// The tile plan.
+    pub plan: &'a TilePlan,
+    /// What to compute per point.
+    pub params: &'a ComputeParams<'a>,
+    /// Tiles with more core points are computed in quadtree parts.
+    pub max_core_points: usize,
+}
+
+/// One tile's results, orientation sidecar and retried-point count.
+pub type TileResult = (Vec<PointResult>, TileSidecar, u64);
+
+impl TileJob<'_> {
+    /// Computes one tile, all its parts in order, on `exec`'s pool with the driver's buffers.
+    pub fn compute(
+        &self,
+        spec: &TileSpec,
+        exec: &Exec<'_>,
+        bufs: &mut TileBuffers,
+    ) -> Result<TileResult> {
+        let whole = Part::whole(self.plan.grid.rect(spec.key));
+        let parts = if (spec.count as usize) <= self.max_core_points {
+            vec![whole]
+        } else {
+            split_parts(&self.buckets.core(spec.key)?, whole, self.max_core_points)
+        };
+        let mut gathered = Vec::new();
+        let mut sidecar = TileSidecar::default();
+        let mut retried = 0;
+        for part in parts {
+            if exec.cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
+            }
+            let t = load_tile(
+                self.buckets,
+                spec.key,
+                &part,
+                spec.halo,
+                None,
+                &self.plan.per_tile,
+            )?;
+            let (mut results, again) = exec
+                .pool
+                .install(|| self.compute_verified(spec, &part, t, &mut sidecar, bufs))?;
+            retried += again;
+            exec.reporter.advance(results.len() as u64);
+            gathered.append(&mut results);
+        }
+        Ok((gathered, sidecar, retried))
+    }
+
+    /// Computes a part, recomputing with a doubled halo the core points whose neighbourhoods
+    /// were not verified complete, until none is left (the loaded region eventually covers the
+    /// scene, where every neighbourhood is complete). Returns the results and the number of
+    /// retried points.
+    fn compute_verified(
+        &self,
+        spec: &TileSpec,
+        part: &Part,
+        tile: TilePoints,
+        sidecar: &mut TileSidecar,
+        bufs: &mut TileBuffers,
+    ) -> Result<(Vec<PointResult>, u64)> {
+        // With `--orient propagate` each pass numbers its patches after the tile's earlier ones
+        // and reports their anchors and shared normals.
+        let keep = |o: &mut TileOutcome, sidecar: &mut TileSidecar| {
+            if let Some(or) = o.orientation.take() {
+                sidecar.anchors.extend(or.anchors);
+                sidecar.shared.extend(or.shared);
+            }
+        };
+        let scene = &self.plan.scene;
+        let band = Shared::Band {
+            rect: part.rect,
+            width: spec.halo,
+        };
+        let first = sidecar.anchors.len() as u32;
+        let mut outcome = compute_tile(&tile, scene, self.params, first, band, bufs);
+        keep(&mut outcome, sidecar);
+        drop(tile);
+        let mut results = std::mem::take(&mut outcome.done);
+        let mut retry = outcome.retry;
+        let mut halo = spec.halo;
+        let mut retried = 0u64;
+        while !retry.is_empty() {
+            retried += retry.len() as u64;
+            halo *= 2.0;
+            let only: HashSet<u64> = retry.iter().copied().collect();
+            let t = load_tile(
+                self.buckets,
+                spec.key,
+                part,
+                halo,
+                Some(&only),
+                &self.plan.per_tile,
+            )?;
+            let covers = t.region.covers(scene);
+            let first = sidecar.anchors.len() as u32;
+            let mut o = compute_tile(&t, scene, self.params, first, Shared::All, bufs);
+            keep(&mut o, sidecar);
+            results.append(&mut o.done);
+            retry = o.retry;
+            if covers && !retry.is_empty() {
+                return Err(Error::Internal(format!(
+                    "tile {:?}: {} points unverified with the whole scene loaded",
+                    spec.key,
+                    retry.len()
+                )));
+            }
+        }
+        Ok((results, retried))
+    }
+}
+
+/// Runs the tiles stage over `work`: plans the tiles, skips the finished ones, computes the
+/// others and journals them in `results/`.
+pub fn tiles(
+    work: &WorkDir,
+    spec: &RunSpec,
+    scan: &Bucketed,
+    exec: &Exec<'_>,
+) -> Result<TilesDone> {
+    let params = compute_params(spec, &scan.stats);
+    let tplan = plan(&scan.stats, spec.grid.size, spec.k);
+    let results_dir = work.path().join("results");
+    std::fs::create_dir_all(&results_dir).map_err(|e| Error::write(&results_dir, e))?;
+    let propagate = params.propagate.is_some();
+    let todo: Vec<TileSpec> = tplan
+        .tiles
+        .iter()
+        .filter(|t| !tile_done(&results_dir, t, &spec.cols, propagate))
+        .cloned()
+        .collect();
+    let resumed = tplan.tiles.len() - todo.len();
+    report_plan(spec, scan, &tplan, resumed, exec);
+    if scan.buckets.spilled() {
+        scan.buckets
+            .set_cache_budget(exec.memory.bucket_cache_bytes);
+    }
+    if let Some(t) = todo
+        .iter()
+        .find(|t| t.count as usize * BUCKET_POINT_BYTES > exec.memory.per_tile_bytes)
+    {
+        exec.reporter.warn(&format!(
+            "tile {:?} holds {} points, whose raw bucket alone exceeds the {} MiB the budget leaves per tile; memory may exceed --memory: use a smaller --tile or a larger --memory",
+            t.key,
+            t.count,
+            exec.memory.per_tile_bytes >> 20
+        ));
+    }
+    let done_points: u64 = scan.stats.count - todo.iter().map(|t| t.count).sum::<u64>();
+    exec.reporter.phase("curvature", scan.stats.count);
+    exec.reporter.advance(done_points);
+    let job = TileJob {
+        buckets: &scan.buckets,
+        plan: &tplan,
+        params: &params,
+        max_core_points: exec.memory.max_core_points,
+    };
+    let (undefined, retried) = match drive(&job, &todo, &results_dir, &spec.cols, exec) {
+        Ok(v) => v,
+        Err(e) => {
+            if matches!(e, Error::Interrupted) {
+                let done = tplan
+                    .tiles
+                    .iter()
+                    .filter(|t| tile_done(&results_dir, t, &spec.cols, propagate))
+                    .count();
+                exec.reporter.warn(&format!(
+                    "interrupted after {done} of {} tiles; the work is kept in {}",
+                    tplan.tiles.len(),
+                    work.path().display()
+                ));
+            }
+            return Err(e);
+        }
+    };
+    exec.reporter.finish_phase();
+    Ok(TilesDone {
+        plan: tplan,
+        resumed,
+        undefined,
+        retried,
+    })
+}
+
+fn report_plan(spec: &RunSpec, scan: &Bucketed, tplan: &TilePlan, resumed: usize, exec: &Exec<'_>) {
+    exec.reporter.info(&format!(
+        "plan: {} tiles of {:.3} {}{}; buckets {}",
+        tplan.tiles.len(),
+        spec.grid.size,
+        spec.unit_name,
+        if resumed > 0 {
+            format!(", {resumed} already done")
+        } else {
+            String::new()
+        },
+        if scan.buckets.spilled() {
+            "spilled to the work directory"
+        } else {
+            "in memory"
+        }
+    ));
+}
+
+/// A finished tile on its way to the journal.
+struct Finished {
+    spec: TileSpec,
+    results: Vec<PointResult>,
+    sidecar: Option<TileSidecar>,
+    retried: u64,
+}
+
+/// Runs `todo` with the memory plan's number of drivers and one result writer. Tiles finish in
+/// any order: each has its own result file, and the parts of a tile stay with one driver, in
+/// order (patch numbering). Returns (undefined points, retried points).
+fn drive(
+    job: &TileJob<'_>,
+    todo: &[TileSpec],
+    results_dir: &Path,
+    cols: &ColumnSet,
+    exec: &Exec<'_>,
+) -> Result<(u64, u64)> {
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let propagate = job.params.propagate.is_some();
+    std::thread::scope(|s| -> Result<(u64, u64)> {
+        let (tx, rx) = bounded::<Result<Finished>>(1);
+        for _ in 0..exec.memory.tiles_in_flight.max(1) {
+            let tx = tx.clone();
+            let (next, stop) = (&next, &stop);
+            s.spawn(move || {
+                let mut bufs = TileBuffers::default();
+                while !stop.load(Ordering::Relaxed) {
+                    let Some(spec) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
+                        return;
+                    };
+                    let msg = if exec.cancel.load(Ordering::Relaxed) {
+                        Err(Error::Interrupted)
+                    } else {
+                        job.compute(spec, exec, &mut bufs)
+                            .map(|(results, sidecar, retried)| Finished {
+                                spec: spec.clone(),
+                                results,
+                                sidecar: propagate.then_some(sidecar),
+                                retried,
+                            })
+                    };
+                    let failed = msg.is_err();
+                    // A failed send means the writer stopped, and it reports why.
+                    if tx.send(msg).is_err() || failed {
+                        return;
+                    }
+                }
+            });
+        }
+        drop(tx);
+        let written = write_results(rx, results_dir, cols, &stop);
+        let (undefined, retried) = written?;
+        if exec.cancel.load(Ordering::Relaxed) {
+            return Err(Error::Interrupted);
+        }
+        Ok((undefined, retried))
+    })
+}
+
+/// The result writer: journals each finished tile. The first error (a driver's, or the
+/// journal's) sets `stop`, so no driver starts another tile; tiles that were already being
+/// computed are still journalled, and everything journalled is committed, so the same command
+/// resumes after them. Returns (undefined points, retried points).
+fn write_results(
+    rx: crossbeam_channel::Receiver<Result<Finished>>,
+    results_dir: &Path,
+    cols: &ColumnSet,
+    stop: &AtomicBool,
+) -> Result<(u64, u64)> {
+    let mut journal = Journal::new(results_dir);
+    let (mut undefined, mut retried) = (0u64, 0u64);
+    let mut first_error = None;
+    for msg in rx.iter() {
+        let added = msg.and_then(|mut f| {
+            undefined += f
+                .results
+                .iter()
+                .filter(|r| r.curvature.flags & flags::UNDEFINED != 0)
+                .count() as u64;
+            retried += f.retried;
+            journal.add(
+                f.spec.key,
+                f.spec.index,
+                &mut f.results,
+                f.sidecar.as_ref(),
+                cols,
+            )
+        });
+        if let Err(e) = added {
+            stop.store(true, Ordering::Relaxed);
+            first_error.get_or_insert(e);
+        }
+    }
+    let committed = journal.commit();
+    match first_error {
+        Some(e) => Err(e),
+        None => committed.map(|_| (undefined, retried)),
+    }
+}
