@@ -287,3 +287,54 @@ fn generated_terrain_tiles_threads_chunks_and_formats_do_not_change_results() {
         std::fs::remove_file(&out).expect("cleanup");
     }
 }
+
+#[test]
+fn generated_terrain_memory_budget_does_not_change_results() {
+    // 500k points: their bucket entries (72 bytes a point, 36 MB) exceed the share of a 64M
+    // budget kept for buckets in memory, so buckets spill to the work directory. With one tile
+    // holding everything, the tile's raw bucket alone exceeds its share of the budget, so it is
+    // computed in quadtree parts.
+    let points = 500_000;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("t.las");
+    generate(&input, points, 12);
+    let reference = dir.path().join("ref.las");
+    let err = run(&input, &reference, &REFERENCE);
+    assert!(
+        err.contains("buckets in memory"),
+        "the reference keeps its buckets in memory: {err}"
+    );
+
+    let small_tiles = dir.path().join("small_tiles.las");
+    let err = run(
+        &input,
+        &small_tiles,
+        &["--tile", "10m", "--memory", "64M", "--threads", "2"],
+    );
+    assert!(
+        err.contains("buckets spilled to the work directory"),
+        "500k points must spill with a 64M budget: {err}"
+    );
+    assert!(planned_tiles(&err) >= min_tiles(points, 10.0), "{err}");
+    assert_same_output(&reference, &small_tiles);
+    std::fs::remove_file(&small_tiles).expect("cleanup");
+
+    let parts = dir.path().join("parts.las");
+    let err = run(
+        &input,
+        &parts,
+        &["--tile", "100000m", "--memory", "64M", "--threads", "2"],
+    );
+    assert!(
+        err.contains("buckets spilled to the work directory"),
+        "500k points must spill with a 64M budget: {err}"
+    );
+    assert_eq!(planned_tiles(&err), 1, "{err}");
+    assert!(
+        err.contains(&format!(
+            "holds {points} points, whose raw bucket alone exceeds"
+        )),
+        "the one tile is too large for its share of a 64M budget, so it is computed in parts: {err}"
+    );
+    assert_same_output(&reference, &parts);
+}
