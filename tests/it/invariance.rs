@@ -2,13 +2,15 @@
 //! count, the read chunk size or the memory budget (spilled buckets, quadtree parts), on real
 //! files (LAS and LAZ input) when the shared data is present, and always on terrain the tests
 //! generate themselves (`tilecurv generate terrain`, LAS and LAZ twins), where LAS versus LAZ
-//! input and output are checked too.
+//! input and output and a run killed and resumed are checked too.
 //!
 //! These tests use only the `tilecurv` binary and the files it writes, so that they do not
 //! depend on the library's internals.
 
 use std::fs::File;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
 
 use crate::common::{column, column_bytes, median, process, records, shared, tilecurv, COLUMNS};
 
@@ -128,6 +130,17 @@ fn planned_tiles(stderr: &str) -> usize {
         .and_then(|t| t.split(' ').next())
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("no plan line in: {stderr}"))
+}
+
+/// N of the "(N resumed)" of the final summary line.
+fn resumed_tiles(stderr: &str) -> usize {
+    stderr
+        .split(" resumed)")
+        .next()
+        .filter(|head| head.len() < stderr.len())
+        .and_then(|head| head.rsplit('(').next())
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no \"(N resumed)\" in: {stderr}"))
 }
 
 /// Fewest tiles of `tile_m` metres over the square of `points` generated points: the square's
@@ -337,4 +350,96 @@ fn generated_terrain_memory_budget_does_not_change_results() {
         "the one tile is too large for its share of a 64M budget, so it is computed in parts: {err}"
     );
     assert_same_output(&reference, &parts);
+}
+
+/// Finished tiles (result files under their final names) in a work directory.
+fn finished_tiles(work: &Path) -> usize {
+    std::fs::read_dir(work.join("results"))
+        .map(|d| {
+            d.flatten()
+                .filter(|e| {
+                    let name = e.file_name().to_string_lossy().into_owned();
+                    name.starts_with("tile_") && name.ends_with(".res")
+                })
+                .count()
+        })
+        .unwrap_or(0)
+}
+
+#[test]
+fn generated_terrain_killed_run_resumes_to_the_reference() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("t.las");
+    generate(&input, POINTS, 13);
+    let reference = dir.path().join("ref.las");
+    process(&input, &reference, &REFERENCE);
+
+    // 484 tiles of 5 m on one thread: finished tiles are committed in batches (of 256, or
+    // every 2 s), so the first one appears well before the end.
+    let out = dir.path().join("resumed.las");
+    let work: PathBuf = dir.path().join("work");
+    let extra = ["--tile", "5m", "--threads", "1", "--work-dir", s(&work)];
+    let log = dir.path().join("killed_stderr.txt");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tilecurv"))
+        .args(process_args(&input, &out, &extra))
+        .stdout(Stdio::null())
+        .stderr(Stdio::from(File::create(&log).expect("stderr file")))
+        .spawn()
+        .expect("tilecurv starts");
+    let started = Instant::now();
+    while finished_tiles(&work) == 0 {
+        if let Some(status) = child.try_wait().expect("wait") {
+            panic!(
+                "the run ended ({status}) before a tile was finished: {}",
+                std::fs::read_to_string(&log).unwrap_or_default()
+            );
+        }
+        if started.elapsed() > Duration::from_secs(120) {
+            let _ = child.kill();
+            panic!("no tile finished within 2 minutes");
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    // SAFETY: kill(2) on our own child's pid, which has not been reaped yet.
+    let r = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGKILL) };
+    assert_eq!(r, 0, "kill(SIGKILL) failed");
+    let status = child.wait().expect("wait");
+    let killed_err = std::fs::read_to_string(&log).expect("stderr of the killed run");
+    {
+        use std::os::unix::process::ExitStatusExt;
+        assert_eq!(
+            status.signal(),
+            Some(libc::SIGKILL),
+            "the run was killed, it did not finish first: {killed_err}"
+        );
+    }
+    assert!(!out.exists(), "the killed run left an output");
+    let tiles = planned_tiles(&killed_err);
+    let done = finished_tiles(&work);
+    assert!(
+        tiles >= min_tiles(POINTS, 5.0),
+        "{tiles} tiles: {killed_err}"
+    );
+    assert!(
+        done >= 1 && done < tiles,
+        "{done} of {tiles} tiles finished at the kill"
+    );
+
+    let err = run(&input, &out, &extra);
+    assert!(
+        err.contains("resuming the interrupted run"),
+        "the rerun resumes: {err}"
+    );
+    assert_eq!(
+        resumed_tiles(&err),
+        done,
+        "the rerun reuses exactly the {done} finished tiles: {err}"
+    );
+    eprintln!("killed after {done} of {tiles} tiles; the rerun resumed them");
+    assert_same_output(&reference, &out);
+    assert_keeps_input_records(&input, &out);
+    assert!(
+        !work.exists(),
+        "the work directory is removed after success"
+    );
 }
