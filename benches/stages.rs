@@ -161,6 +161,7 @@ fn main() {
                 &normals,
                 i,
                 &lists[i * k..(i + 1) * k],
+                &mut [],
             );
             if c.h.is_finite() {
                 h_sum += c.h;

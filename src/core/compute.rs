@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-use crate::core::estimate::{flags, Curvature, Estimator, Neighbourhood, Scratch};
+use crate::core::estimate::{flags, Curvature, Estimator, Neighbourhood, Scratch, MAX_EXTRA};
 use crate::core::geometry::{sub, V3};
 use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::{orient, pca_normal, Orientation};
@@ -24,6 +24,9 @@ pub struct ComputeParams<'e> {
     pub use_file_normals: bool,
     /// The estimator.
     pub estimator: &'e dyn Estimator,
+    /// How many of the estimator's extra values to compute (`--features`: all of its
+    /// [`Estimator::extra_columns`]; otherwise 0).
+    pub extra: usize,
     /// `--orient propagate`: the cloud's centroid, from which each tile's propagation is seeded
     /// (orient.rs); None for the per-point rules.
     pub propagate: Option<V3>,
@@ -63,9 +66,32 @@ pub struct PointResult {
     pub normal: V3,
     /// Curvature and flags.
     pub curvature: Curvature,
+    /// The estimator's extra values (`--features`), NaN where not computed.
+    pub extra: [f64; MAX_EXTRA],
     /// With `--orient propagate`: the point's patch, numbered within its tile (see orient.rs);
     /// [`NO_PATCH`] otherwise.
     pub patch: u32,
+}
+
+impl PointResult {
+    /// The result as it reads with the opposite normal: the normal negated, the curvature
+    /// [`Curvature::flipped`], and the extra values marked `flips` in `extra` (the estimator's
+    /// [`Estimator::extra_columns`]) negated; NaN stays NaN bit for bit. The one flip of
+    /// `--orient propagate` (core::orient).
+    pub fn flipped(&self, extra: &[crate::core::estimate::ExtraColumn]) -> PointResult {
+        let neg = crate::core::estimate::neg;
+        let mut r = PointResult {
+            normal: self.normal.map(neg),
+            curvature: self.curvature.flipped(),
+            ..*self
+        };
+        for (v, c) in r.extra.iter_mut().zip(extra) {
+            if c.flips {
+                *v = neg(*v);
+            }
+        }
+        r
+    }
 }
 
 /// The patch of a point outside any propagation patch.
@@ -105,7 +131,9 @@ impl NeighbourhoodBuf {
 
     /// Runs `estimator` on point `i` with its neighbour list `list` (local indices, `i` first):
     /// positions relative to point `i`, and only the neighbours that have a normal (the others
-    /// cannot contribute to a measure); fewer than 3 such points give FEW_NEIGHBOURS.
+    /// cannot contribute to a measure); fewer than 3 such points give FEW_NEIGHBOURS. The
+    /// estimator's first `extra.len()` extra values go to `extra`.
+    #[allow(clippy::too_many_arguments)]
     pub fn estimate(
         &mut self,
         estimator: &dyn Estimator,
@@ -114,6 +142,7 @@ impl NeighbourhoodBuf {
         normals: &[Option<V3>],
         i: usize,
         list: &[u32],
+        extra: &mut [f64],
     ) -> Curvature {
         self.pos.clear();
         self.nrm.clear();
@@ -128,13 +157,14 @@ impl NeighbourhoodBuf {
         if self.pos.len() < 3 {
             return Curvature::undefined(flags::FEW_NEIGHBOURS);
         }
-        estimator.estimate(
+        estimator.estimate_extra(
             &Neighbourhood {
                 positions: &self.pos,
                 normals: &self.nrm,
                 ids: &self.ids,
             },
             &mut self.scratch,
+            extra,
         )
     }
 }
@@ -292,16 +322,20 @@ fn estimate_points(
                         id: t.ids[i],
                         normal: [f64::NAN; 3],
                         curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag),
+                        extra: [f64::NAN; MAX_EXTRA],
                         patch: NO_PATCH,
                     };
                 };
                 let list = bufs.list(i, p.k);
-                let mut curvature = s.estimate(p.estimator, &t.xyz, &t.ids, normals, i, list);
+                let mut extra = [f64::NAN; MAX_EXTRA];
+                let out = &mut extra[..p.extra.min(MAX_EXTRA)];
+                let mut curvature = s.estimate(p.estimator, &t.xyz, &t.ids, normals, i, list, out);
                 curvature.flags |= file_flag;
                 PointResult {
                     id: t.ids[i],
                     normal: n0,
                     curvature,
+                    extra,
                     patch: patch_of(i),
                 }
             },

@@ -4,7 +4,7 @@
 
 use crate::config::ColumnType;
 use crate::core::compute::PointResult;
-use crate::core::estimate::Extra;
+use crate::core::estimate::{Curvature, ExtraColumn, MAX_EXTRA};
 use crate::io::las::extra_bytes::{NewColumn, ScalarType};
 
 /// Name of the quality-flag column.
@@ -20,9 +20,10 @@ pub struct ColumnSet {
     pub normals: bool,
     /// Whether the principal directions are written.
     pub directions: bool,
-    /// Whether the estimator's extra values ([`Extra`]: `SharpFeature`, `VcmNormalX/Y/Z`) are
-    /// written (`--features`); NaN for points without them.
-    pub features: bool,
+    /// The estimator's extra values written (`--features`: its declared
+    /// [`Estimator::extra_columns`](crate::core::estimate::Estimator::extra_columns), e.g. the
+    /// VCM's `SharpFeature`, `VcmNormalX/Y/Z`); empty otherwise.
+    pub extra: Vec<ExtraColumn>,
     /// Unit symbol of the coordinates, for the descriptions ("m", "ft", or "unit").
     pub unit: String,
 }
@@ -39,9 +40,7 @@ impl ColumnSet {
         if self.directions {
             v.extend(["d1x", "d1y", "d1z", "d2x", "d2y", "d2z"]);
         }
-        if self.features {
-            v.extend(["SharpFeature", "VcmNormalX", "VcmNormalY", "VcmNormalZ"]);
-        }
+        v.extend(self.extra.iter().map(|c| c.name));
         v
     }
 
@@ -60,11 +59,13 @@ impl ColumnSet {
             "K" => format!("Gaussian curvature (1/{u}^2)"),
             "k1" => format!("min principal curvature (1/{u})"),
             "k2" => format!("max principal curvature (1/{u})"),
-            "SharpFeature" => "VCM edge score l2/(l1+l2+l3)".into(),
-            "VcmNormalX" | "VcmNormalY" | "VcmNormalZ" => {
-                format!("VCM unit normal {}", &name[9..].to_lowercase())
-            }
-            d => format!("direction of k{} ({})", &d[1..2], &d[2..3]),
+            d if d.starts_with('d') => format!("direction of k{} ({})", &d[1..2], &d[2..3]),
+            other => self
+                .extra
+                .iter()
+                .find(|c| c.name == other)
+                .map(|c| c.description.to_string())
+                .unwrap_or_default(),
         };
         let mut cols: Vec<NewColumn> = self
             .float_names()
@@ -92,56 +93,62 @@ impl ColumnSet {
         self.float_names().len() * w + 1
     }
 
-    /// Rewrites encoded columns as they read with the opposite normal (a propagation patch
-    /// whose sign the cross-tile step reversed): normal and H negated, `k1' = -k2`,
-    /// `k2' = -k1`, directions swapped, K and the flags unchanged (orient::flip_curvature).
-    /// Negation and swaps are exact in f32 and f64, so this equals encoding the flipped values.
-    pub fn flip_encoded(&self, rec: &mut [u8]) {
+    /// Decodes one point's columns (as [`ColumnSet::encode`] wrote them) back into a result
+    /// with id 0 and no patch; columns this set does not hold are NaN. f32 values widen
+    /// exactly, so `encode(decode(rec))` gives `rec` back.
+    pub fn decode(&self, rec: &[u8]) -> PointResult {
         let w = match self.ty {
             ColumnType::F32 => 4,
             ColumnType::F64 => 8,
         };
-        let get = |rec: &[u8], i: usize| match self.ty {
-            ColumnType::F32 => {
-                f32::from_le_bytes(rec[i * w..i * w + 4].try_into().unwrap_or([0; 4])) as f64
-            }
-            ColumnType::F64 => {
-                f64::from_le_bytes(rec[i * w..i * w + 8].try_into().unwrap_or([0; 8]))
+        let mut at = 0;
+        let mut next = || {
+            let v = match self.ty {
+                ColumnType::F32 => rec
+                    .get(at..at + 4)
+                    .and_then(|b| b.try_into().ok())
+                    .map(|b| f32::from_le_bytes(b) as f64),
+                ColumnType::F64 => rec
+                    .get(at..at + 8)
+                    .and_then(|b| b.try_into().ok())
+                    .map(f64::from_le_bytes),
+            };
+            at += w;
+            v.unwrap_or(f64::NAN)
+        };
+        let mut three = |on: bool| {
+            if on {
+                [next(), next(), next()]
+            } else {
+                [f64::NAN; 3]
             }
         };
-        let names = self.float_names();
-        let mut v: Vec<f64> = (0..names.len()).map(|i| get(rec, i)).collect();
-        let at = |n: &str| names.iter().position(|x| *x == n);
-        for n in [
-            "NormalX",
-            "NormalY",
-            "NormalZ",
-            "H",
-            "VcmNormalX",
-            "VcmNormalY",
-            "VcmNormalZ",
-        ] {
-            if let Some(i) = at(n).filter(|&i| !v[i].is_nan()) {
-                v[i] = -v[i];
-            }
+        let normal = three(self.normals);
+        let (h, k, k1, k2) = (next(), next(), next(), next());
+        let (d1, d2) = if self.directions {
+            ([next(), next(), next()], [next(), next(), next()])
+        } else {
+            ([0.0; 3], [0.0; 3])
+        };
+        let mut extra = [f64::NAN; MAX_EXTRA];
+        for v in extra.iter_mut().take(self.extra.len()) {
+            *v = next();
         }
-        if let (Some(a), Some(b)) = (at("k1"), at("k2")) {
-            // NaN (undefined) stays the NaN it was.
-            let neg = |x: f64| if x.is_nan() { x } else { -x };
-            let (k1, k2) = (v[a], v[b]);
-            v[a] = neg(k2);
-            v[b] = neg(k1);
-        }
-        for c in ["x", "y", "z"] {
-            if let (Some(a), Some(b)) = (at(&format!("d1{c}")), at(&format!("d2{c}"))) {
-                v.swap(a, b);
-            }
-        }
-        for (i, x) in v.into_iter().enumerate() {
-            match self.ty {
-                ColumnType::F32 => rec[i * w..i * w + 4].copy_from_slice(&(x as f32).to_le_bytes()),
-                ColumnType::F64 => rec[i * w..i * w + 8].copy_from_slice(&x.to_le_bytes()),
-            }
+        let flags = rec.get(self.record_size() - 1).copied().unwrap_or(0);
+        PointResult {
+            id: 0,
+            normal,
+            curvature: Curvature {
+                h,
+                k,
+                k1,
+                k2,
+                d1,
+                d2,
+                flags,
+            },
+            extra,
+            patch: crate::core::compute::NO_PATCH,
         }
     }
 
@@ -165,15 +172,8 @@ impl ColumnSet {
                 put(v);
             }
         }
-        if self.features {
-            let e = c.extra.unwrap_or(Extra {
-                feature: f64::NAN,
-                normal: [f64::NAN; 3],
-            });
-            put(e.feature);
-            for v in e.normal {
-                put(v);
-            }
+        for &v in r.extra.iter().take(self.extra.len()) {
+            put(v);
         }
         out.push(c.flags);
     }
@@ -182,18 +182,27 @@ impl ColumnSet {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::estimate::Curvature;
+    use crate::core::estimate::{EstimatorKind, EstimatorParams};
 
-    /// `--features` appends SharpFeature and VcmNormalX/Y/Z after the curvature columns, with
-    /// the estimator's extra values, or NaN for a result without them.
+    fn vcm_columns(ty: ColumnType) -> ColumnSet {
+        let vcm = EstimatorKind::Vcm.build(&EstimatorParams::default());
+        ColumnSet {
+            ty,
+            normals: true,
+            directions: true,
+            extra: vcm.extra_columns().to_vec(),
+            unit: "m".into(),
+        }
+    }
+
+    /// `--features` appends the estimator's declared columns (the VCM's SharpFeature and
+    /// VcmNormalX/Y/Z) after the curvature columns, with its values or NaN.
     #[test]
     fn feature_columns_follow_the_curvature() {
         let cols = ColumnSet {
-            ty: ColumnType::F64,
-            normals: false,
             directions: false,
-            features: true,
-            unit: "m".into(),
+            normals: false,
+            ..vcm_columns(ColumnType::F64)
         };
         let names: Vec<String> = cols.columns().into_iter().map(|c| c.name).collect();
         assert_eq!(
@@ -214,6 +223,7 @@ mod tests {
         );
         // LAS extra-bytes descriptions hold 32 bytes.
         assert!(cols.columns().iter().all(|c| c.description.len() <= 32));
+        assert_eq!(cols.columns()[5].description, "VCM unit normal x");
         let read = |bytes: &[u8]| -> Vec<f64> {
             bytes[..64]
                 .chunks(8)
@@ -223,22 +233,70 @@ mod tests {
         let mut r = PointResult {
             id: 0,
             normal: [0.0, 0.0, 1.0],
-            curvature: Curvature {
-                extra: Some(Extra {
-                    feature: 0.25,
-                    normal: [0.0, 0.6, 0.8],
-                }),
-                ..Curvature::undefined(0)
-            },
+            curvature: Curvature::undefined(0),
+            extra: [0.25, 0.0, 0.6, 0.8],
             patch: crate::core::compute::NO_PATCH,
         };
         let mut out = Vec::new();
         cols.encode(&r, &mut out);
         assert_eq!(out.len(), cols.record_size());
         assert_eq!(read(&out)[4..], [0.25, 0.0, 0.6, 0.8]);
-        r.curvature.extra = None;
+        r.extra = [f64::NAN; MAX_EXTRA];
         out.clear();
         cols.encode(&r, &mut out);
         assert!(read(&out)[4..].iter().all(|v| v.is_nan()));
+    }
+
+    /// The one flip, on decoded columns: normal, H and the VCM normal negated, k1' = -k2,
+    /// k2' = -k1, directions swapped, K, the feature score and the flags kept; NaN stays the
+    /// same NaN; twice is the identity, byte for byte, in f32 and f64.
+    #[test]
+    fn flipping_decoded_columns_is_exact() {
+        for ty in [ColumnType::F32, ColumnType::F64] {
+            let cols = vcm_columns(ty);
+            let r = PointResult {
+                id: 0,
+                normal: [0.0, 0.6, 0.8],
+                curvature: Curvature {
+                    h: 0.5,
+                    k: 0.06,
+                    k1: 0.2,
+                    k2: 0.3,
+                    d1: [1.0, 0.0, 0.0],
+                    d2: [0.0, 0.8, -0.6],
+                    flags: 16,
+                },
+                extra: [0.125, f64::NAN, -0.6, 0.8],
+                patch: crate::core::compute::NO_PATCH,
+            };
+            let mut rec = Vec::new();
+            cols.encode(&r, &mut rec);
+            let f = cols.decode(&rec).flipped(&cols.extra);
+            let widen = |v: f64| {
+                if ty == ColumnType::F32 {
+                    v as f32 as f64
+                } else {
+                    v
+                }
+            };
+            assert_eq!(f.normal, [-0.0, -0.6, -0.8].map(widen));
+            let c = f.curvature;
+            assert_eq!(
+                (c.h, c.k, c.k1, c.k2),
+                (widen(-0.5), widen(0.06), widen(-0.3), widen(-0.2))
+            );
+            assert_eq!(
+                (c.d1, c.d2, c.flags),
+                (r.curvature.d2.map(widen), r.curvature.d1.map(widen), 16)
+            );
+            assert_eq!(f.extra[0], widen(0.125));
+            assert!(f.extra[1].is_nan());
+            assert_eq!(f.extra[2..], [widen(0.6), widen(-0.8)]);
+            let mut flipped = Vec::new();
+            cols.encode(&f, &mut flipped);
+            let mut back = Vec::new();
+            cols.encode(&cols.decode(&flipped).flipped(&cols.extra), &mut back);
+            assert_eq!(back, rec);
+        }
     }
 }

@@ -11,6 +11,7 @@ use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 use crate::core::compute::PointResult;
+use crate::core::orient::GlobalPatch;
 use crate::core::plan::TileKey;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
@@ -23,16 +24,6 @@ const ORIENT_MAGIC: &[u8; 8] = b"TCORI001";
 /// the encoded columns.
 pub fn record_size(cols: &ColumnSet) -> usize {
     8 + cols.record_size()
-}
-
-/// The global patch of a point: its tile's index in the plan and its patch within the tile;
-/// u64::MAX for none.
-pub fn global_patch(tile_index: u32, local: u32) -> u64 {
-    if local == crate::core::compute::NO_PATCH {
-        u64::MAX
-    } else {
-        ((tile_index as u64) << 32) | local as u64
-    }
 }
 
 /// The orientation sidecar of a tile (`--orient propagate`): its patch anchors and the normals
@@ -198,7 +189,7 @@ fn write_tile_tmp(
         for r in results.iter() {
             buf.clear();
             buf.extend_from_slice(&r.id.to_le_bytes());
-            buf.extend_from_slice(&global_patch(tile_index, r.patch).to_le_bytes());
+            buf.extend_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
             cols.encode(r, &mut buf);
             w.write_all(&buf).map_err(|e| Error::write(&path, e))?;
         }
@@ -453,7 +444,7 @@ mod tests {
             ty: ColumnType::F32,
             normals: true,
             directions: false,
-            features: false,
+            extra: Vec::new(),
             unit: "m".into(),
         };
         // 150 tiles, ids interleaved across tiles, merged 8 at a time (so runs are made, and
@@ -469,6 +460,7 @@ mod tests {
                         h: (j * 150 + t) as f64,
                         ..Curvature::undefined(0)
                     },
+                    extra: [f64::NAN; crate::core::estimate::MAX_EXTRA],
                     patch: crate::core::compute::NO_PATCH,
                 })
                 .collect();

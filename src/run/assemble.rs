@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::config::OrientMode;
+use crate::core::orient::GlobalPatch;
 use crate::core::plan::TilePlan;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
@@ -129,20 +130,18 @@ fn merge_into(
                 None => return Err(Error::Internal(format!("no result for point {id}"))),
             }
             // The record is the point's global patch (u64) then its columns.
-            let (patch, columns) = rec.split_at_mut(8);
-            let patch = u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8]));
-            if let Some(f) = flips.filter(|_| patch != u64::MAX) {
-                let (tile, local) = ((patch >> 32) as usize, (patch & 0xffff_ffff) as usize);
-                if f.get(tile)
-                    .and_then(|t| t.get(local))
-                    .copied()
-                    .unwrap_or(false)
-                {
-                    cols.flip_encoded(columns);
-                }
-            }
+            let (patch, columns) = rec.split_at(8);
+            let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
             out.extend_from_slice(r);
-            out.extend_from_slice(columns);
+            let flip = flips
+                .zip(patch.parts())
+                .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
+                .unwrap_or(false);
+            if flip {
+                cols.encode(&cols.decode(columns).flipped(&cols.extra), &mut out);
+            } else {
+                out.extend_from_slice(columns);
+            }
         }
         writer.write_points(&out)?;
         reporter.advance((records.len() / rl) as u64);

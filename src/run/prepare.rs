@@ -152,7 +152,11 @@ pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         ty: cfg.column_type,
         normals: !file_normals && !sources.iter().any(|s| named_normals(s.as_ref())),
         directions: cfg.directions,
-        features: cfg.features,
+        extra: if cfg.features {
+            estimator.extra_columns().to_vec()
+        } else {
+            Vec::new()
+        },
         unit: unit_name.clone(),
     };
     for s in &sources {

@@ -49,6 +49,7 @@ pub fn compute_params<'s>(spec: &'s RunSpec, stats: &ScanStats) -> ComputeParams
         orientation: spec.orientation.resolve(stats.centroid),
         use_file_normals: spec.file_normals,
         estimator: spec.estimator.as_ref(),
+        extra: spec.cols.extra.len(),
         propagate: (spec.orientation == OrientMode::Propagate).then_some(stats.centroid),
     }
 }

@@ -156,7 +156,6 @@ impl Estimator for Apss {
             d1: [0.0; 3],
             d2: [0.0; 3],
             flags: flags::UMBILIC,
-            extra: None,
         }
     }
 }

@@ -85,7 +85,6 @@ impl CncMeasures {
             d1,
             d2,
             flags: umb | extra_flags,
-            extra: None,
         }
     }
 }

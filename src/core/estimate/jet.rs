@@ -127,7 +127,6 @@ impl Estimator for Jet {
             d1,
             d2,
             flags: umbilic,
-            extra: None,
         }
     }
 }

@@ -62,22 +62,31 @@ pub struct Curvature {
     pub d2: V3,
     /// Quality flags ([`flags`]).
     pub flags: u8,
-    /// Values beyond the curvature that only some estimators compute (None for the others).
-    pub extra: Option<Extra>,
 }
 
-/// Per-point values an estimator may compute besides the curvature: today the VCM's own
-/// normal and its sharp-feature score (algorithms.md sections 2.4 and 2.5), written by
-/// `--features`. Plain numbers, no I/O; NaN components mean "computed but undefined".
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Extra {
-    /// Sharp-feature score lambda2 / (lambda1 + lambda2 + lambda3) of the convolved VCM
-    /// (eigenvalues in decreasing order): 0 on a plane, about alpha^2 / 12 on an edge of
-    /// external angle alpha; in [0, 1/2].
-    pub feature: f64,
-    /// Unit normal estimated by the estimator itself (the VCM's leading eigenvector), oriented
-    /// to agree with the query point's input normal.
-    pub normal: V3,
+/// A value an estimator computes besides the curvature, written as a column by `--features`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ExtraColumn {
+    /// The column name.
+    pub name: &'static str,
+    /// Its description (at most 32 bytes: a LAS extra-bytes description).
+    pub description: &'static str,
+    /// Whether the value is a component of a vector oriented by the input normal, so that it
+    /// changes sign when the normal is flipped (`--orient propagate`).
+    pub flips: bool,
+}
+
+/// Most extra values an estimator may declare ([`Estimator::extra_columns`]).
+pub const MAX_EXTRA: usize = 4;
+
+/// -x, but NaN (an undefined value) stays the very NaN it was, bit for bit (so that a flipped
+/// result encodes to the same bytes as flipping the encoded one).
+pub fn neg(x: f64) -> f64 {
+    if x.is_nan() {
+        x
+    } else {
+        -x
+    }
 }
 
 impl Curvature {
@@ -92,7 +101,21 @@ impl Curvature {
             d1,
             d2,
             flags,
-            extra: None,
+        }
+    }
+
+    /// The result as it reads with the opposite normal: `H' = -H`, `K' = K`, `k1' = -k2`,
+    /// `k2' = -k1` (k1 stays the smaller), `d1' = d2`, `d2' = d1` (so that `d1 x d2 = n` still
+    /// holds). Flags are unchanged; NaN stays NaN. The one flip of `--orient propagate`.
+    pub fn flipped(&self) -> Curvature {
+        Curvature {
+            h: neg(self.h),
+            k: self.k,
+            k1: neg(self.k2),
+            k2: neg(self.k1),
+            d1: self.d2,
+            d2: self.d1,
+            flags: self.flags,
         }
     }
 
@@ -106,7 +129,6 @@ impl Curvature {
             d1: [0.0; 3],
             d2: [0.0; 3],
             flags,
-            extra: None,
         }
     }
 }
@@ -123,13 +145,26 @@ pub struct Scratch {
 pub trait Estimator: Sync + Send {
     /// The estimator's command-line name, e.g. `cnc-avg-hexagram`.
     fn name(&self) -> &'static str;
-    /// Names of the values this estimator computes besides the curvature (written by
-    /// `--features` as columns of these names); none for most estimators.
-    fn extra_columns(&self) -> &'static [&'static str] {
+    /// The values this estimator computes besides the curvature (written by `--features`), at
+    /// most [`MAX_EXTRA`]; none for most estimators.
+    fn extra_columns(&self) -> &'static [ExtraColumn] {
         &[]
     }
     /// Estimates the curvature at `nb.positions[0]`, with `scratch` for its buffers.
     fn estimate(&self, nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Curvature;
+    /// [`Estimator::estimate`], also writing the extra values (one per [`extra_columns`], in
+    /// that order) to `extra`; values it cannot compute are left as they are (NaN).
+    ///
+    /// [`extra_columns`]: Estimator::extra_columns
+    fn estimate_extra(
+        &self,
+        nb: &Neighbourhood<'_>,
+        scratch: &mut Scratch,
+        extra: &mut [f64],
+    ) -> Curvature {
+        let _ = extra;
+        self.estimate(nb, scratch)
+    }
 }
 
 /// The principal curvatures and directions of a 2x2 symmetric tangent-plane operator `s` in the
@@ -270,5 +305,33 @@ impl EstimatorKind {
 impl std::fmt::Display for EstimatorKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::geometry::{cross, normalize, scale};
+
+    #[test]
+    fn flipping_curvature_twice_is_the_identity() {
+        let n = [0.0, 0.0, 1.0];
+        let c = Curvature {
+            h: 1.5,
+            k: 2.0,
+            k1: 1.0,
+            k2: 2.0,
+            d1: [1.0, 0.0, 0.0],
+            d2: [0.0, 1.0, 0.0],
+            flags: 16,
+        };
+        let f = c.flipped();
+        assert_eq!((f.h, f.k, f.k1, f.k2), (-1.5, 2.0, -2.0, -1.0));
+        assert!(f.k1 <= f.k2);
+        assert_eq!(normalize(cross(f.d1, f.d2)), Some(scale(n, -1.0)));
+        assert_eq!(f.flipped(), c);
+        // An undefined result keeps its very NaNs.
+        let u = Curvature::undefined(4);
+        assert_eq!(u.flipped().h.to_bits(), u.h.to_bits());
     }
 }

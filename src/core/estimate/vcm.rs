@@ -26,7 +26,7 @@
 //! VCM tangent plane (a local version of "calibrate on a plane at the same density"). What
 //! remains is biased at second order in R kappa.
 
-use super::{flags, local, Curvature, Estimator, Extra, Neighbourhood, Scratch};
+use super::{flags, local, Curvature, Estimator, ExtraColumn, Neighbourhood, Scratch};
 use crate::core::geometry::{add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, M3, V3};
 use std::sync::OnceLock;
 
@@ -164,11 +164,47 @@ fn ratio_of(l: [f64; 3]) -> f64 {
     l[1] / (l[0] + l[1] + l[2])
 }
 
+/// The VCM's values besides the curvature (`--features`, algorithms.md 2.4 and 2.5).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Features {
+    /// Sharp-feature score lambda2 / (lambda1 + lambda2 + lambda3) of the convolved VCM
+    /// (eigenvalues in decreasing order): 0 on a plane, about alpha^2 / 12 on an edge of
+    /// external angle alpha; in [0, 1/2].
+    pub feature: f64,
+    /// The VCM's unit normal (its leading eigenvector), oriented to agree with the query
+    /// point's input normal.
+    pub normal: V3,
+}
+
+/// The columns of [`Features`], in the order the estimator writes them.
+const EXTRA_COLUMNS: [ExtraColumn; 4] = [
+    ExtraColumn {
+        name: "SharpFeature",
+        description: "VCM edge score l2/(l1+l2+l3)",
+        flips: false,
+    },
+    ExtraColumn {
+        name: "VcmNormalX",
+        description: "VCM unit normal x",
+        flips: true,
+    },
+    ExtraColumn {
+        name: "VcmNormalY",
+        description: "VCM unit normal y",
+        flips: true,
+    },
+    ExtraColumn {
+        name: "VcmNormalZ",
+        description: "VCM unit normal z",
+        flips: true,
+    },
+];
+
 /// The VCM's own normal and sharp-feature score (sections 2.4 and 2.5) from the convolved VCM
 /// `v` given in the query frame `frame` (whose third axis is the query's input normal): the
 /// leading eigenvector, signed to agree with the input normal and mapped to world axes, and
 /// [`sharp_feature_ratio`]. NaN components for a zero or non-finite matrix.
-fn extra_of(frame: &M3, v: &M3) -> Extra {
+fn extra_of(frame: &M3, v: &M3) -> Features {
     let (l, vecs) = sym3_eigen(v);
     let e = vecs[2];
     let normal = if l[2].is_finite() && l[2] > 0.0 {
@@ -177,7 +213,7 @@ fn extra_of(frame: &M3, v: &M3) -> Extra {
     } else {
         [f64::NAN; 3]
     };
-    Extra {
+    Features {
         feature: ratio_of(l),
         normal,
     }
@@ -249,11 +285,20 @@ impl Estimator for Vcm {
         "vcm"
     }
 
-    fn extra_columns(&self) -> &'static [&'static str] {
-        &["SharpFeature", "VcmNormalX", "VcmNormalY", "VcmNormalZ"]
+    fn extra_columns(&self) -> &'static [ExtraColumn] {
+        &EXTRA_COLUMNS
     }
 
     fn estimate(&self, nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Curvature {
+        self.estimate_extra(nb, scratch, &mut [])
+    }
+
+    fn estimate_extra(
+        &self,
+        nb: &Neighbourhood<'_>,
+        scratch: &mut Scratch,
+        extra: &mut [f64],
+    ) -> Curvature {
         if let Err(f) = local::check(nb, 3) {
             return Curvature::undefined(f);
         }
@@ -266,11 +311,12 @@ impl Estimator for Vcm {
             return Curvature::undefined(flags::DEGENERATE);
         }
         let (frame, v, ax) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
-        let extra = Some(extra_of(&frame, &v));
-        Curvature {
-            extra,
-            ..magnitudes(&frame, &ax)
+        let f = extra_of(&frame, &v);
+        let values = [f.feature, f.normal[0], f.normal[1], f.normal[2]];
+        for (slot, v) in extra.iter_mut().zip(values) {
+            *slot = v;
         }
+        magnitudes(&frame, &ax)
     }
 }
 
@@ -376,9 +422,22 @@ mod tests {
     }
 
     /// The VCM estimator's extra values at `nbrs[0]` with the neighbourhood `nbrs`.
-    fn vcm_extra(cloud: &Cloud, nbrs: &[usize]) -> Extra {
-        let e = estimate_point(&Vcm, cloud, nbrs);
-        e.extra.expect("the VCM always returns its extra values")
+    fn vcm_extra(cloud: &Cloud, nbrs: &[usize]) -> Features {
+        let q = cloud.positions[nbrs[0]];
+        let pos: Vec<V3> = nbrs.iter().map(|&j| sub(cloud.positions[j], q)).collect();
+        let nrm: Vec<V3> = nbrs.iter().map(|&j| cloud.normals[j]).collect();
+        let ids: Vec<u64> = nbrs.iter().map(|&j| j as u64).collect();
+        let nb = Neighbourhood {
+            positions: &pos,
+            normals: &nrm,
+            ids: &ids,
+        };
+        let mut e = [f64::NAN; 4];
+        Vcm.estimate_extra(&nb, &mut Scratch::default(), &mut e);
+        Features {
+            feature: e[0],
+            normal: [e[1], e[2], e[3]],
+        }
     }
 
     /// Worst |<n, n_true>| and mean angle (degrees) of the VCM normal at the points `which`,

@@ -68,7 +68,6 @@ impl Estimator for Wme {
             d1,
             d2,
             flags: umbilic,
-            extra: None,
         }
     }
 }

@@ -40,8 +40,8 @@
 //!    [`patch_signs`] solves one sign per patch: in each connected component of the patch graph,
 //!    the patch holding the anchor farthest from the centroid keeps (or takes) the outward sign,
 //!    and the others follow a maximum spanning tree of the vote margins.
-//! 3. **At assemble time** every result of a flipped patch is negated with [`flip_curvature`]:
-//!    the normal flips, `H' = -H`, `K' = K`, and the principal curvatures swap roles,
+//! 3. **At assemble time** every result of a flipped patch is negated with
+//!    `PointResult::flipped` (core::compute, through `Curvature::flipped`): the normal flips, `H' = -H`, `K' = K`, and the principal curvatures swap roles,
 //!    `k1' = -k2`, `k2' = -k1` (k1 stays the smaller), with their directions `d1' = d2`,
 //!    `d2' = d1` (which keeps `d1 x d2 = n`).
 //!
@@ -67,10 +67,9 @@
 //! # Files
 //!
 //! `propagation` holds step 1 (the propagation and [`orient_tile`]), `signs` step 2 (the
-//! votes and the sign solve); this file keeps the outward rule, the centroid and
-//! [`flip_curvature`] (step 3), and re-exports the rest so every path stays `orient::*`.
+//! votes and the sign solve); this file keeps the outward rule, the centroid and the
+//! [`GlobalPatch`] numbering, and re-exports the rest so every path stays `orient::*`.
 
-use crate::core::estimate::{Curvature, Extra};
 use crate::core::geometry::{add, scale, sub, V3};
 use crate::core::normals::{orient, Orientation};
 
@@ -122,24 +121,29 @@ impl Centroid {
     }
 }
 
-/// A curvature result as it reads with the opposite normal: `H' = -H`, `K' = K`,
-/// `k1' = -k2`, `k2' = -k1` (k1 stays the smaller), `d1' = d2`, `d2' = d1` (so that
-/// `d1 x d2 = n` still holds). An estimator's own normal ([`Extra::normal`]) is negated with
-/// the input normal it was oriented by; the feature score is unsigned. Flags are unchanged; NaN
-/// stays NaN.
-pub fn flip_curvature(c: &Curvature) -> Curvature {
-    Curvature {
-        h: -c.h,
-        k: c.k,
-        k1: -c.k2,
-        k2: -c.k1,
-        d1: c.d2,
-        d2: c.d1,
-        flags: c.flags,
-        extra: c.extra.map(|e| Extra {
-            normal: scale(e.normal, -1.0),
-            ..e
-        }),
+/// A propagation patch numbered across the whole run: its tile's index in the plan and its
+/// number within the tile, packed in 64 bits as the result files store it (`NONE` for a point
+/// outside any patch). The one place that packs and unpacks it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GlobalPatch(pub u64);
+
+impl GlobalPatch {
+    /// No patch.
+    pub const NONE: GlobalPatch = GlobalPatch(u64::MAX);
+
+    /// Patch `local` of the tile at `tile_index` in the plan; `NONE` when `local` is
+    /// `core::compute::NO_PATCH` (`u32::MAX`).
+    pub fn new(tile_index: u32, local: u32) -> Self {
+        if local == u32::MAX {
+            Self::NONE
+        } else {
+            GlobalPatch(((tile_index as u64) << 32) | local as u64)
+        }
+    }
+
+    /// The tile index and the patch within the tile, or None for no patch.
+    pub fn parts(self) -> Option<(usize, usize)> {
+        (self != Self::NONE).then_some(((self.0 >> 32) as usize, (self.0 & 0xffff_ffff) as usize))
     }
 }
 

@@ -1,5 +1,5 @@
 use super::*;
-use crate::core::geometry::{cross, dot, norm, normalize};
+use crate::core::geometry::{dot, norm};
 use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::pca_normal;
 use crate::core::rng::Rng;
@@ -293,28 +293,10 @@ fn patch_signs_follow_the_strongest_votes_and_the_farthest_anchor() {
 }
 
 #[test]
-fn flipping_curvature_twice_is_the_identity() {
-    let n = [0.0, 0.0, 1.0];
-    let c = Curvature {
-        h: 1.5,
-        k: 2.0,
-        k1: 1.0,
-        k2: 2.0,
-        d1: [1.0, 0.0, 0.0],
-        d2: [0.0, 1.0, 0.0],
-        flags: 16,
-        extra: Some(Extra {
-            feature: 0.25,
-            normal: n,
-        }),
-    };
-    let f = flip_curvature(&c);
-    assert_eq!((f.h, f.k, f.k1, f.k2), (-1.5, 2.0, -2.0, -1.0));
-    assert!(f.k1 <= f.k2);
-    assert_eq!(normalize(cross(f.d1, f.d2)), Some(scale(n, -1.0)));
-    assert_eq!(
-        f.extra.map(|e| (e.feature, e.normal)),
-        Some((0.25, scale(n, -1.0)))
-    );
-    assert_eq!(flip_curvature(&f), c);
+fn global_patches_pack_and_unpack() {
+    let p = GlobalPatch::new(7, 3);
+    assert_eq!(p.0, (7 << 32) | 3);
+    assert_eq!(p.parts(), Some((7, 3)));
+    assert_eq!(GlobalPatch::new(7, u32::MAX), GlobalPatch::NONE);
+    assert_eq!(GlobalPatch::NONE.parts(), None);
 }
