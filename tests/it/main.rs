@@ -9,6 +9,7 @@ mod invariance;
 #[path = "../kit/mod.rs"]
 mod kit;
 mod kit_checks;
+mod layout;
 mod orientation;
 mod outofcore;
 mod real_files;
