@@ -35,7 +35,7 @@ use crate::io::las::extra_bytes::{self, encode, NewColumn, ScalarType};
 use crate::io::las::header::{NewHeader, POINT_FORMAT_SIZES};
 use crate::io::las::vlr::Vlr;
 use crate::io::las::writer::output_is_laz;
-use crate::io::sink::{commit, temp_path};
+use crate::io::output::{commit, temp_path};
 
 /// Coordinate scale of the output (1 mm).
 pub const SCALE_M: f64 = 0.001;

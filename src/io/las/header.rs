@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use super::fields::padded;
 use crate::error::{Error, Result};
 
 /// Size in bytes of the fixed part of each point data record format 0 to 10.
@@ -288,8 +289,8 @@ impl NewHeader<'_> {
         h[0..4].copy_from_slice(b"LASF");
         h[24] = 1;
         h[25] = self.minor;
-        h[26..58].copy_from_slice(&super::vlr::padded::<32>(self.system));
-        h[58..90].copy_from_slice(&super::vlr::padded::<32>(self.software));
+        h[26..58].copy_from_slice(&padded::<32>(self.system));
+        h[58..90].copy_from_slice(&padded::<32>(self.software));
         h[94..96].copy_from_slice(&size.to_le_bytes());
         h[96..100].copy_from_slice(&(size as u32).to_le_bytes());
         h[104] = self.point_format;

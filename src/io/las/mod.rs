@@ -2,6 +2,7 @@
 //! files. Reading points is `io::source`'s job.
 
 pub mod extra_bytes;
+pub mod fields;
 pub mod header;
 pub mod vlr;
 pub mod writer;

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use super::fields::{padded, trimmed};
 use super::header::LasHeader;
 use crate::error::{Error, Result};
 
@@ -19,20 +20,6 @@ pub struct Vlr {
     pub reserved: u16,
     /// The payload.
     pub data: Vec<u8>,
-}
-
-fn trimmed(b: &[u8]) -> String {
-    let end = b.iter().position(|&c| c == 0).unwrap_or(b.len());
-    String::from_utf8_lossy(&b[..end]).into_owned()
-}
-
-/// A fixed-size NUL-padded field from a string (truncated if longer).
-pub fn padded<const N: usize>(s: &str) -> [u8; N] {
-    let mut out = [0u8; N];
-    let b = s.as_bytes();
-    let n = b.len().min(N);
-    out[..n].copy_from_slice(&b[..n]);
-    out
 }
 
 /// Points per LAZ chunk in the files we write (LASzip's default).

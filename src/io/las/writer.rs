@@ -16,7 +16,7 @@ use crate::io::las::extra_bytes::{
 };
 use crate::io::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
 use crate::io::las::vlr::Vlr;
-use crate::io::sink::{commit, temp_path, PointSink};
+use crate::io::output::{commit, temp_path, PointSink};
 use crate::io::source::{xyz_and_normals, LasSource, PointSource, Property};
 
 /// User id and record id of the provenance VLR.

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
 use crate::io::las::extra_bytes::ScalarType;
 
-use super::sampled::{integer, Faces, Place};
+use super::faces::{integer, Faces, Place};
 use super::text::{tokens, Body, Column, Lines, PointLines, TextSource};
 use super::{
     map_file, no_crs, usable_normal, xyz_and_normals, Bounds, LasSource, PointSource, Property,
