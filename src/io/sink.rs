@@ -8,9 +8,9 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
-use crate::io::las::writer::LasWriter;
+use crate::io::las::{carry, convert::ConvertedSink};
 use crate::io::ply::PlyWriter;
-use crate::io::source::PointSource;
+use crate::io::source::{PointSource, SourceLayout};
 
 pub use crate::io::output::PointSink;
 
@@ -62,11 +62,11 @@ pub fn create_sink(
     provenance: &str,
 ) -> Result<Box<dyn PointSink>> {
     Ok(match output_format(output)? {
-        OutputFormat::Las | OutputFormat::Laz => match source.as_las() {
-            Some(las) => Box::new(LasWriter::create(las, output, cols, provenance)?),
-            None => Box::new(LasWriter::create_converted(
-                source, output, cols, provenance,
-            )?),
+        OutputFormat::Las | OutputFormat::Laz => match source.layout() {
+            SourceLayout::Las(parts) => Box::new(carry::create(parts, output, cols, provenance)?),
+            SourceLayout::Converted => {
+                Box::new(ConvertedSink::create(source, output, cols, provenance)?)
+            }
         },
         OutputFormat::Ply { ascii } => {
             Box::new(PlyWriter::create(source, output, cols, provenance, ascii)?)

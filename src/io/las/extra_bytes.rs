@@ -198,6 +198,11 @@ pub fn encode_undocumented(n: u8) -> [u8; DESCRIPTOR_SIZE] {
     d
 }
 
+/// An extra-bytes VLR holding the encoded descriptors `data`.
+pub fn vlr(data: Vec<u8>) -> Vlr {
+    Vlr::new(USER_ID, RECORD_ID, "Extra Bytes Record", data)
+}
+
 /// Whether `v` is the extra-bytes VLR.
 pub fn is_extra_bytes(v: &Vlr) -> bool {
     v.is(USER_ID, RECORD_ID)

@@ -209,6 +209,13 @@ impl LasHeader {
         end
     }
 
+    /// Replaces the bounds (for a file whose bounds are known only once its points are written).
+    pub fn set_bounds(&mut self, min: [f64; 3], max: [f64; 3]) {
+        self.min = min;
+        self.max = max;
+        put_bounds(&mut self.raw, min, max);
+    }
+
     /// The header bytes for an output file: the original bytes with the layout fields replaced.
     pub fn patched(&self, out: &OutputLayout) -> Vec<u8> {
         let mut b = self.raw.clone();
@@ -231,6 +238,14 @@ impl LasHeader {
             b[243..247].copy_from_slice(&out.evlr_count.to_le_bytes());
         }
         b
+    }
+}
+
+/// Writes max and min x, y, z at their places in a header (bytes 179 to 227, interleaved).
+fn put_bounds(h: &mut [u8], min: [f64; 3], max: [f64; 3]) {
+    for a in 0..3 {
+        h[179 + 16 * a..187 + 16 * a].copy_from_slice(&max[a].to_le_bytes());
+        h[187 + 16 * a..195 + 16 * a].copy_from_slice(&min[a].to_le_bytes());
     }
 }
 
@@ -302,9 +317,8 @@ impl NewHeader<'_> {
         for a in 0..3 {
             h[131 + 8 * a..139 + 8 * a].copy_from_slice(&self.scale[a].to_le_bytes());
             h[155 + 8 * a..163 + 8 * a].copy_from_slice(&self.offset[a].to_le_bytes());
-            h[179 + 16 * a..187 + 16 * a].copy_from_slice(&self.max[a].to_le_bytes());
-            h[187 + 16 * a..195 + 16 * a].copy_from_slice(&self.min[a].to_le_bytes());
         }
+        put_bounds(&mut h, self.min, self.max);
         if self.minor >= 4 {
             h[247..255].copy_from_slice(&self.points.to_le_bytes());
             h[255..263].copy_from_slice(&self.points.to_le_bytes());

@@ -15,7 +15,7 @@ use crate::io::las::extra_bytes::ScalarType;
 use super::faces::{integer, Faces, Place};
 use super::text::{tokens, Body, Column, Lines, PointLines, TextSource};
 use super::{
-    map_file, no_crs, usable_normal, xyz_and_normals, Bounds, LasSource, PointSource, Property,
+    map_file, no_crs, usable_normal, xyz_and_normals, Bounds, PointSource, Property, SourceLayout,
     SourcePoint, Stored,
 };
 
@@ -611,8 +611,8 @@ impl PointSource for BinarySource {
         self.describe.clone()
     }
 
-    fn as_las(&self) -> Option<&LasSource> {
-        None
+    fn layout(&self) -> SourceLayout<'_> {
+        SourceLayout::Converted
     }
 
     fn properties(&self) -> Vec<Property> {

@@ -25,7 +25,7 @@ use crate::io::las::extra_bytes::ScalarType;
 
 use super::faces::Faces;
 use super::{
-    map_file, mesh, no_crs, ply, Format, LasSource, PointSource, Property, SourcePoint, Stored,
+    map_file, mesh, no_crs, ply, Format, PointSource, Property, SourceLayout, SourcePoint, Stored,
 };
 
 /// Mixed into the run's seed so that the sample's random streams are independent of the
@@ -224,8 +224,8 @@ impl PointSource for SampledSource {
         self.describe.clone()
     }
 
-    fn as_las(&self) -> Option<&LasSource> {
-        None
+    fn layout(&self) -> SourceLayout<'_> {
+        SourceLayout::Converted
     }
 
     fn properties(&self) -> Vec<Property> {
