@@ -16,12 +16,10 @@
 //! generated in parallel batches of about a million points and written in order: memory stays
 //! bounded (one batch, about 60 MB) whatever the number of points.
 //!
-//! This module must not hold the cloud: it writes as it generates. The LAS encodings are the
-//! library's own ([`Vlr::write_vlr`], [`extra_bytes::encode`]); the output is written to a
-//! temporary file and renamed on success ([`temp_path`], [`commit`]).
+//! This module must not hold the cloud: it writes as it generates. It produces the records and
+//! its own VLRs (GeoTIFF keys, the truth columns' descriptors); the file is written by the
+//! library's one LAS/LAZ writer ([`LasFileWriter`]: header, LAZ, temporary file and rename).
 
-use std::fs::File;
-use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -31,17 +29,18 @@ use rayon::prelude::*;
 use crate::core::rng::Rng;
 use crate::core::surface::{HeightField, HeightJet};
 use crate::error::{Error, Result};
-use crate::io::las::extra_bytes::{self, encode, NewColumn, ScalarType};
+use crate::io::las::extra_bytes::{encode, NewColumn, ScalarType};
 use crate::io::las::header::{NewHeader, POINT_FORMAT_SIZES};
 use crate::io::las::vlr::Vlr;
-use crate::io::las::writer::output_is_laz;
-use crate::io::output::{commit, temp_path};
+use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
 
 /// Coordinate scale of the output (1 mm).
 pub const SCALE_M: f64 = 0.001;
 /// Easting and northing of the south-west corner of the generated square (UTM zone 10N, inside
 /// the zone's valid range), and the header offsets of x and y.
 pub const ORIGIN_M: [f64; 2] = [500_000.0, 4_100_000.0];
+/// The header offsets of x, y and z.
+const OFFSETS_M: [f64; 3] = [ORIGIN_M[0], ORIGIN_M[1], 0.0];
 /// Base elevation of the terrain in metres.
 pub const BASE_ELEVATION_M: f64 = 100.0;
 /// EPSG code of the CRS declared in the GeoTIFF keys (WGS 84 / UTM zone 10N, metres).
@@ -501,37 +500,34 @@ fn truth_descriptors() -> Vec<u8> {
         .collect()
 }
 
-/// The 227-byte LAS 1.2 header for `points` records after `vlr_bytes` bytes of VLRs.
-fn header(points: u64, num_vlrs: u32, vlr_bytes: usize, bounds: &IntBounds) -> Result<Vec<u8>> {
-    u32::try_from(points)
-        .map_err(|_| Error::Internal(format!("{points} points do not fit LAS 1.2")))?;
-    let offset = u32::try_from(227 + vlr_bytes)
-        .map_err(|_| Error::Internal("VLRs larger than 4 GiB".into()))?;
-    let offsets = [ORIGIN_M[0], ORIGIN_M[1], 0.0];
-    let at = |a: usize, v: i32| offsets[a] + f64::from(v) * SCALE_M;
-    let software = format!("tilecurv {} generate", env!("CARGO_PKG_VERSION"));
-    // Every point is return 1 of 1.
-    let mut h = NewHeader {
+/// The LAS 1.2 header of the output (227 bytes; the layout fields are the writer's). The
+/// bounds are known only once every point is written: until [`LasFileWriter::set_bounds`] they
+/// are those of the origin.
+fn new_header(points: u64, software: &str) -> NewHeader<'_> {
+    NewHeader {
         minor: 2,
         system: "SYNTHETIC TERRAIN",
-        software: &software,
+        software,
         point_format: POINT_FORMAT,
         record_length: RECORD_LENGTH as u16,
         points,
         scale: [SCALE_M; 3],
-        offset: offsets,
-        min: [0, 1, 2].map(|a| at(a, bounds.lo[a])),
-        max: [0, 1, 2].map(|a| at(a, bounds.hi[a])),
+        offset: OFFSETS_M,
+        min: OFFSETS_M,
+        max: OFFSETS_M,
     }
-    .bytes();
-    h[96..100].copy_from_slice(&offset.to_le_bytes());
-    h[100..104].copy_from_slice(&num_vlrs.to_le_bytes());
-    Ok(h)
 }
 
-enum Sink {
-    Plain(BufWriter<File>),
-    Laz(Box<laz::ParLasZipCompressor<BufWriter<File>>>),
+/// The text of the provenance VLR: the options and the units of the truth columns.
+fn provenance(opts: &TerrainOptions) -> String {
+    format!(
+        "tilecurv {} generate terrain\npoints={}\ndensity={}\nseed={}\nnoise={}\nunits=metres; TrueH, Truek1, Truek2 in 1/m, TrueK in 1/m^2; upward normal, positive on hilltops\n",
+        env!("CARGO_PKG_VERSION"),
+        opts.points,
+        opts.density_per_m2,
+        opts.seed,
+        opts.noise_m
+    )
 }
 
 /// Writes the terrain of `opts` to `output` (.las or .laz; the extension decides), checking
@@ -544,136 +540,40 @@ pub fn generate_terrain(
 ) -> Result<TerrainSummary> {
     let started = Instant::now();
     opts.validate()?;
-    let compressed = output_is_laz(output)?;
+    let software = format!("tilecurv {} generate", env!("CARGO_PKG_VERSION"));
+    let geotiff = [Vlr::new(
+        "LASF_Projection",
+        34735,
+        "GeoKeyDirectoryTag",
+        geotiff_keys(),
+    )];
+    let provenance = provenance(opts);
+    let spec = LasFileSpec {
+        origin: None,
+        header: HeaderStart::New(new_header(opts.points, &software)),
+        record_length: RECORD_LENGTH as u16,
+        vlrs: &geotiff,
+        evlrs: &[],
+        extra_bytes: truth_descriptors(),
+        provenance: &provenance,
+    };
+    let mut writer = LasFileWriter::create(output, spec)?;
     let side_m = opts.side_m();
     let terrain = Terrain::new(side_m, opts.seed);
     let plan = FlightPlan::new(side_m, opts.points);
-
-    let mut vlrs = vec![
-        Vlr::new(
-            "LASF_Projection",
-            34735,
-            "GeoKeyDirectoryTag",
-            geotiff_keys(),
-        ),
-        Vlr::new(
-            extra_bytes::USER_ID,
-            extra_bytes::RECORD_ID,
-            "Extra Bytes Record",
-            truth_descriptors(),
-        ),
-        Vlr::new(
-            crate::io::las::writer::PROVENANCE.0,
-            crate::io::las::writer::PROVENANCE.1,
-            "tilecurv provenance",
-            format!(
-                "tilecurv {} generate terrain\npoints={}\ndensity={}\nseed={}\nnoise={}\nunits=metres; TrueH, Truek1, Truek2 in 1/m, TrueK in 1/m^2; upward normal, positive on hilltops\n",
-                env!("CARGO_PKG_VERSION"),
-                opts.points,
-                opts.density_per_m2,
-                opts.seed,
-                opts.noise_m
-            )
-            .into_bytes(),
-        ),
-    ];
-    let laz_vlr = if compressed {
-        let extra = (RECORD_LENGTH - POINT_FORMAT_SIZES[POINT_FORMAT as usize] as usize) as u16;
-        let (lv, vlr) = crate::io::las::vlr::laszip(POINT_FORMAT, extra)?;
-        vlrs.push(vlr);
-        Some(lv)
-    } else {
-        None
-    };
-    let mut head = Vec::new();
-    for v in &vlrs {
-        v.write_vlr(&mut head).map_err(Error::Internal)?;
-    }
-    let num_vlrs = vlrs.len() as u32;
-
-    let tmp = temp_path(output);
-    let werr = |e: std::io::Error| Error::write(&tmp, e);
-    let file = File::create(&tmp).map_err(werr)?;
-    let mut w = BufWriter::with_capacity(4 << 20, file);
-    // The bounds are known only at the end: write a placeholder header now, the real one last.
-    let mut header_bytes = header(opts.points, num_vlrs, head.len(), &IntBounds::empty())?;
-    if compressed {
-        header_bytes[104] |= 0x80;
-    }
-    w.write_all(&header_bytes)
-        .and_then(|_| w.write_all(&head))
-        .map_err(werr)?;
-    let mut sink = match laz_vlr {
-        None => Sink::Plain(w),
-        Some(lv) => Sink::Laz(Box::new(
-            laz::ParLasZipCompressor::new(w, lv)
-                .map_err(|e| Error::Internal(format!("LAZ compressor: {e}")))?,
-        )),
-    };
-
-    let result = (|| -> Result<IntBounds> {
-        let mut bounds = IntBounds::empty();
-        let cells = plan.cells();
-        let mut c = 0u64;
-        while c < cells {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(Error::Interrupted);
-            }
-            let end = (c + plan.rows_per_batch()).min(cells);
-            let rows: Vec<(Vec<u8>, IntBounds)> = (c..end)
-                .into_par_iter()
-                .map(|row| {
-                    let n = (plan.first_point(row + 1) - plan.first_point(row)) as usize;
-                    let mut buf = Vec::with_capacity(n * RECORD_LENGTH);
-                    let b = generate_row(&terrain, &plan, opts, row, &mut buf);
-                    (buf, b)
-                })
-                .collect();
-            for (buf, b) in &rows {
-                bounds.merge(b);
-                let r = match &mut sink {
-                    Sink::Plain(w) => w.write_all(buf),
-                    Sink::Laz(z) => z.compress_many(buf),
-                };
-                r.map_err(werr)?;
-            }
-            c = end;
-        }
-        Ok(bounds)
-    })();
-    let bounds = match result {
+    let bounds = match write_rows(&terrain, &plan, opts, &mut writer, cancel) {
         Ok(b) => b,
         Err(e) => {
-            drop(sink);
-            let _ = std::fs::remove_file(&tmp);
+            writer.abandon();
             return Err(e);
         }
     };
-
-    let finish = (|| -> Result<File> {
-        let mut w = match sink {
-            Sink::Plain(w) => w,
-            Sink::Laz(mut z) => {
-                z.done()
-                    .map_err(|e| Error::Internal(format!("LAZ compressor: {e}")))?;
-                z.into_inner()
-            }
-        };
-        let mut header_bytes = header(opts.points, num_vlrs, head.len(), &bounds)?;
-        if compressed {
-            header_bytes[104] |= 0x80;
-        }
-        w.seek(SeekFrom::Start(0)).map_err(werr)?;
-        w.write_all(&header_bytes).map_err(werr)?;
-        w.into_inner().map_err(|e| werr(e.into_error()))
-    })();
-    match finish {
-        Ok(file) => commit(file, &tmp, output)?,
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(e);
-        }
-    }
+    let at = |a: usize, v: i32| OFFSETS_M[a] + f64::from(v) * SCALE_M;
+    writer.set_bounds(
+        [0, 1, 2].map(|a| at(a, bounds.lo[a])),
+        [0, 1, 2].map(|a| at(a, bounds.hi[a])),
+    );
+    writer.finish()?;
     Ok(TerrainSummary {
         points: opts.points,
         side_m,
@@ -685,6 +585,41 @@ pub fn generate_terrain(
         ],
         seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// Generates the rows of `plan` in batches (in parallel within a batch) and writes them in
+/// flight order, checking `cancel` between batches; returns the bounds of every record.
+fn write_rows(
+    terrain: &Terrain,
+    plan: &FlightPlan,
+    opts: &TerrainOptions,
+    writer: &mut LasFileWriter,
+    cancel: &AtomicBool,
+) -> Result<IntBounds> {
+    let mut bounds = IntBounds::empty();
+    let cells = plan.cells();
+    let mut c = 0u64;
+    while c < cells {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(Error::Interrupted);
+        }
+        let end = (c + plan.rows_per_batch()).min(cells);
+        let rows: Vec<(Vec<u8>, IntBounds)> = (c..end)
+            .into_par_iter()
+            .map(|row| {
+                let n = (plan.first_point(row + 1) - plan.first_point(row)) as usize;
+                let mut buf = Vec::with_capacity(n * RECORD_LENGTH);
+                let b = generate_row(terrain, plan, opts, row, &mut buf);
+                (buf, b)
+            })
+            .collect();
+        for (buf, b) in &rows {
+            bounds.merge(b);
+            writer.write_records(buf)?;
+        }
+        c = end;
+    }
+    Ok(bounds)
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ use crate::io::output::{commit, temp_path, PointSink};
 pub const PROVENANCE: (&str, u16) = ("tilecurv", 1);
 
 /// Whether a path names a LAZ file (by extension; anything else that is .las is LAS).
-pub fn output_is_laz(path: &Path) -> Result<bool> {
+fn output_is_laz(path: &Path) -> Result<bool> {
     match path
         .extension()
         .and_then(|e| e.to_str())
