@@ -2,6 +2,7 @@
 //! records (the bytes `assemble` carries to the output) and decodes coordinates and file normals
 //! from them. One module per format; [`open`] picks by content and extension.
 
+pub mod binary;
 pub mod faces;
 pub mod las;
 pub mod mesh;

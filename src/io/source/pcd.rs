@@ -8,7 +8,7 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::las::extra_bytes::ScalarType;
 
-use super::ply::BinarySource;
+use super::binary::BinarySource;
 use super::text::{Body, Column, Lines, TextSource};
 use super::{map_file, PointSource, Property, Stored};
 
