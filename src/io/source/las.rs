@@ -65,68 +65,12 @@ impl LasSource {
         let header = LasHeader::parse(path, &map, len)?;
         let vlrs = read_vlrs(path, &map, &header)?;
         let evlrs = read_evlrs(path, &map, &header)?;
-        let mut extra = Vec::new();
-        if let Some(v) = vlrs
-            .iter()
-            .chain(evlrs.iter().map(|(_, v)| v))
-            .find(|v| extra_bytes::is_extra_bytes(v))
-        {
-            extra = extra_bytes::parse(&v.data).map_err(|why| {
-                Error::bad_input(
-                    path,
-                    None,
-                    format!("{why}; fix or remove the extra-bytes VLR"),
-                )
-            })?;
-            let total: usize = extra.iter().map(|d| d.size).sum();
-            if total > header.extra_bytes_len() as usize {
-                return Err(Error::bad_input(path, Some(105), format!(
-                    "the extra-bytes VLR describes {total} bytes per point but the records have only {} extra bytes",
-                    header.extra_bytes_len())));
-            }
-        }
-        let normal_dims = {
-            let find = |n: &str| {
-                extra
-                    .iter()
-                    .find(|d| d.name.eq_ignore_ascii_case(n) && d.scalar().is_some())
-                    .cloned()
-            };
-            match (find("NormalX"), find("NormalY"), find("NormalZ")) {
-                (Some(x), Some(y), Some(z)) => Some([x, y, z]),
-                _ => None,
-            }
-        };
+        let extra = extra_descriptors(path, &header, &vlrs, &evlrs)?;
+        let normal_dims = normal_dims(&extra);
         let laz = if header.compressed {
-            let v = vlrs.iter().find(|v| v.is("laszip encoded", 22204)).ok_or_else(|| Error::bad_input(path, Some(104),
-                "the point format says LAZ-compressed but there is no LASzip VLR (\"laszip encoded\", 22204)"))?;
-            let lv = laz::LazVlr::from_buffer(&v.data).map_err(|e| {
-                Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}"))
-            })?;
-            if lv.items_size() != header.record_length as u64 {
-                return Err(Error::bad_input(
-                    path,
-                    Some(105),
-                    format!(
-                        "the LASzip VLR describes {}-byte points but the header says {}",
-                        lv.items_size(),
-                        header.record_length
-                    ),
-                ));
-            }
-            Some(lv)
+            Some(laz_layout(path, &header, &vlrs)?)
         } else {
-            let need = (header.point_count)
-                .checked_mul(header.record_length as u64)
-                .and_then(|b| b.checked_add(header.offset_to_point_data as u64));
-            let end = header.point_data_end(len);
-            if need.is_none_or(|n| n > end) {
-                let whole = (end.saturating_sub(header.offset_to_point_data as u64))
-                    / header.record_length as u64;
-                return Err(Error::bad_input(path, Some(header.offset_to_point_data as u64), format!(
-                    "the header says {} points of {} bytes, but the point data ends at byte {end}: only {whole} whole points are present. The file is truncated (re-copy it) or its point count is wrong",
-                    header.point_count, header.record_length)));
-            }
+            check_size(path, &header, len)?;
             None
         };
         if header.point_count == 0 {
@@ -178,6 +122,87 @@ impl LasSource {
             from
         }
     }
+}
+
+/// The extra-bytes descriptors of a file (from its VLR or EVLR), checked against the records'
+/// extra bytes.
+fn extra_descriptors(
+    path: &Path,
+    header: &LasHeader,
+    vlrs: &[Vlr],
+    evlrs: &[(u64, Vlr)],
+) -> Result<Vec<Descriptor>> {
+    let Some(v) = vlrs
+        .iter()
+        .chain(evlrs.iter().map(|(_, v)| v))
+        .find(|v| extra_bytes::is_extra_bytes(v))
+    else {
+        return Ok(Vec::new());
+    };
+    let extra = extra_bytes::parse(&v.data).map_err(|why| {
+        Error::bad_input(
+            path,
+            None,
+            format!("{why}; fix or remove the extra-bytes VLR"),
+        )
+    })?;
+    let total: usize = extra.iter().map(|d| d.size).sum();
+    if total > header.extra_bytes_len() as usize {
+        return Err(Error::bad_input(path, Some(105), format!(
+            "the extra-bytes VLR describes {total} bytes per point but the records have only {} extra bytes",
+            header.extra_bytes_len())));
+    }
+    Ok(extra)
+}
+
+/// The scalar extra dimensions NormalX, NormalY, NormalZ (any case), when all three exist.
+fn normal_dims(extra: &[Descriptor]) -> Option<[Descriptor; 3]> {
+    let find = |n: &str| {
+        extra
+            .iter()
+            .find(|d| d.name.eq_ignore_ascii_case(n) && d.scalar().is_some())
+            .cloned()
+    };
+    match (find("NormalX"), find("NormalY"), find("NormalZ")) {
+        (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+        _ => None,
+    }
+}
+
+/// The LASzip layout of a LAZ file, checked against the header's record length.
+fn laz_layout(path: &Path, header: &LasHeader, vlrs: &[Vlr]) -> Result<laz::LazVlr> {
+    let v = vlrs.iter().find(|v| v.is("laszip encoded", 22204)).ok_or_else(|| Error::bad_input(path, Some(104),
+        "the point format says LAZ-compressed but there is no LASzip VLR (\"laszip encoded\", 22204)"))?;
+    let lv = laz::LazVlr::from_buffer(&v.data)
+        .map_err(|e| Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}")))?;
+    if lv.items_size() != header.record_length as u64 {
+        return Err(Error::bad_input(
+            path,
+            Some(105),
+            format!(
+                "the LASzip VLR describes {}-byte points but the header says {}",
+                lv.items_size(),
+                header.record_length
+            ),
+        ));
+    }
+    Ok(lv)
+}
+
+/// Checks that an uncompressed file holds the header's points.
+fn check_size(path: &Path, header: &LasHeader, len: u64) -> Result<()> {
+    let need = (header.point_count)
+        .checked_mul(header.record_length as u64)
+        .and_then(|b| b.checked_add(header.offset_to_point_data as u64));
+    let end = header.point_data_end(len);
+    if need.is_none_or(|n| n > end) {
+        let whole =
+            (end.saturating_sub(header.offset_to_point_data as u64)) / header.record_length as u64;
+        return Err(Error::bad_input(path, Some(header.offset_to_point_data as u64), format!(
+            "the header says {} points of {} bytes, but the point data ends at byte {end}: only {whole} whole points are present. The file is truncated (re-copy it) or its point count is wrong",
+            header.point_count, header.record_length)));
+    }
+    Ok(())
 }
 
 impl PointSource for LasSource {
