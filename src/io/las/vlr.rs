@@ -62,16 +62,6 @@ impl Vlr {
         self.user_id == user_id && self.record_id == record_id
     }
 
-    /// Size of this record written as a VLR (54-byte header + payload).
-    pub fn vlr_size(&self) -> usize {
-        54 + self.data.len()
-    }
-
-    /// Size of this record written as an EVLR (60-byte header + payload).
-    pub fn evlr_size(&self) -> usize {
-        60 + self.data.len()
-    }
-
     /// Appends this record as a VLR to `out`. Fails if the payload does not fit a u16 length.
     pub fn write_vlr(&self, out: &mut Vec<u8>) -> std::result::Result<(), String> {
         let len = u16::try_from(self.data.len()).map_err(|_| {
