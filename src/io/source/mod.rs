@@ -1,6 +1,9 @@
 //! Reading points. A [`PointSource`] streams a file's points in file order as chunks of raw
 //! records (the bytes `assemble` carries to the output) and decodes coordinates and file normals
-//! from them. One module per format; [`open`] picks by content and extension.
+//! from them. One module per format, plus [`binary`] (fixed-size binary records, for PLY and
+//! PCD) and [`faces`] (a mesh's faces, for `--sample-faces`); [`open`] picks by content and
+//! extension. [`PointSource::layout`] tells a writer whether the records are LAS records it can
+//! carry over or records to convert.
 
 pub mod binary;
 pub mod faces;
