@@ -3,8 +3,9 @@
 //! records (LAS or LAZ, chosen by the output's extension; LAZ through the laz crate's parallel
 //! compressor in fixed chunks) and EVLRs to a temporary file beside the output, patches the
 //! header's layout fields (and, if asked, its bounds) at the end, syncs the file and renames it
-//! over the output on `finish`; `abandon` removes it. It knows the LAS format, not where the
-//! records come from: `carry` and `convert` build its [`LasFileSpec`] for `process`.
+//! over the output on `finish` (after checking that as many records were written as the header
+//! counts); `abandon` removes it. It knows the LAS format, not where the records come from:
+//! `carry` and `convert` build its [`LasFileSpec`] for `process`.
 
 use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
@@ -191,6 +192,8 @@ pub struct LasFileWriter {
     /// Index of the waveform record in `evlrs`.
     waveform_evlr: Option<usize>,
     points: Points,
+    /// Point records written so far, checked against the header's count on `finish`.
+    written: u64,
 }
 
 impl LasFileWriter {
@@ -244,6 +247,7 @@ impl LasFileWriter {
             evlrs,
             waveform_evlr,
             points,
+            written: 0,
         })
     }
 
@@ -253,7 +257,9 @@ impl LasFileWriter {
             Points::Plain(w) => w.write_all(records),
             Points::Laz(c) => c.compress_many(records),
         };
-        r.map_err(|e| Error::write(&self.tmp, e))
+        r.map_err(|e| Error::write(&self.tmp, e))?;
+        self.written += (records.len() / self.layout.record_length as usize) as u64;
+        Ok(())
     }
 
     /// Sets the header's bounds, for a writer that learns them from the records it wrote (the
@@ -274,6 +280,16 @@ impl LasFileWriter {
     }
 
     fn complete(mut self) -> Result<()> {
+        // The header's counts are the caller's (an input's are carried over untouched): a file
+        // with another number of records would be corrupt.
+        if self.written != self.header.point_count {
+            return Err(Error::Internal(format!(
+                "{}: {} point records written but the header counts {}",
+                self.output.display(),
+                self.written,
+                self.header.point_count
+            )));
+        }
         let tmp = self.tmp.clone();
         let werr = |e: std::io::Error| Error::write(&tmp, e);
         let mut w = match self.points {
@@ -322,5 +338,88 @@ impl PointSink for LasFileWriter {
 
     fn abandon(self: Box<Self>) {
         LasFileWriter::abandon(*self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::source::{LasSource, PointSource};
+
+    /// A new LAS 1.2 file of `points` point format 0 records, centimetre coordinates.
+    fn spec(points: u64) -> LasFileSpec<'static> {
+        LasFileSpec {
+            origin: None,
+            header: HeaderStart::New(NewHeader {
+                minor: 2,
+                system: "TEST",
+                software: "tilecurv test",
+                point_format: 0,
+                record_length: 20,
+                points,
+                scale: [0.01; 3],
+                offset: [0.0; 3],
+                min: [0.0; 3],
+                max: [0.0; 3],
+            }),
+            record_length: 20,
+            vlrs: &[],
+            evlrs: &[],
+            extra_bytes: Vec::new(),
+            provenance: "test run",
+        }
+    }
+
+    fn record(q: [i32; 3]) -> Vec<u8> {
+        let mut r: Vec<u8> = q.iter().flat_map(|v| v.to_le_bytes()).collect();
+        r.resize(20, 0);
+        r
+    }
+
+    #[test]
+    fn writes_las_and_laz_with_late_bounds() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        for name in ["a.las", "a.laz"] {
+            let out = dir.path().join(name);
+            let mut w = LasFileWriter::create(&out, spec(2)).expect("creates");
+            w.write_records(&[record([1, 2, 3]), record([4, 5, 6])].concat())
+                .expect("writes");
+            w.set_bounds([0.01, 0.02, 0.03], [0.04, 0.05, 0.06]);
+            w.finish().expect("finishes");
+            let src = LasSource::open(&out).expect("reads back");
+            assert_eq!(src.len(), 2);
+            assert_eq!(src.header.compressed, name.ends_with(".laz"));
+            assert_eq!(
+                (src.header.min, src.header.max),
+                ([0.01, 0.02, 0.03], [0.04, 0.05, 0.06])
+            );
+            let ids: Vec<(&str, u16)> = src
+                .vlrs
+                .iter()
+                .map(|v| (v.user_id.as_str(), v.record_id))
+                .collect();
+            assert_eq!(ids[..2], [("LASF_Spec", 4), PROVENANCE], "{name}");
+            let mut first = None;
+            src.for_each_chunk(10, &mut |i, recs| {
+                first = first.or(Some(src.decode(i, &recs[..20]).xyz));
+                Ok(())
+            })
+            .expect("decodes");
+            assert_eq!(first, Some([0.01, 0.02, 0.03]));
+        }
+    }
+
+    #[test]
+    fn a_wrong_record_count_or_an_abandon_leaves_nothing() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let out = dir.path().join("short.las");
+        let mut w = LasFileWriter::create(&out, spec(3)).expect("creates");
+        w.write_records(&record([1, 2, 3])).expect("writes");
+        assert!(matches!(w.finish(), Err(Error::Internal(_))));
+        let mut w = LasFileWriter::create(&out, spec(1)).expect("creates");
+        w.write_records(&record([1, 2, 3])).expect("writes");
+        w.abandon();
+        let left: Vec<_> = std::fs::read_dir(dir.path()).expect("lists").collect();
+        assert!(left.is_empty(), "{left:?}");
     }
 }
