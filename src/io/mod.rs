@@ -5,6 +5,7 @@ pub mod bucket;
 pub mod columns;
 pub mod crs;
 pub mod las;
+pub mod output;
 pub mod ply;
 pub mod results;
 pub mod sink;

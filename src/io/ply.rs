@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::las::extra_bytes::ScalarType;
-use crate::io::sink::{commit, temp_path, PointSink};
+use crate::io::output::{commit, temp_path, PointSink};
 use crate::io::source::ply::ply_type_name;
 use crate::io::source::{encode_le, PointSource, Property};
 

@@ -1,26 +1,18 @@
-//! Writing points. A [`PointSink`] receives each input record followed by its new column bytes,
-//! in file order, and makes the output appear atomically on `finish`. [`create_sink`] picks the
-//! writer from the output's extension; [`temp_path`] and [`commit`] are the atomic-output steps
-//! every writer shares.
+//! Choosing the writer of an output. A [`PointSink`] receives each input record followed by its
+//! new column bytes, in file order, and makes the output appear atomically on `finish`;
+//! [`create_sink`] picks the writer from the output's extension. The trait and the atomic-output
+//! steps live in `io::output`, which imports no writer, so that the writers can use them while
+//! this module imports the writers.
 
-use std::fs::File;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
-use crate::io::las::writer::LasWriter;
+use crate::io::las::{carry, convert::ConvertedSink};
 use crate::io::ply::PlyWriter;
-use crate::io::source::PointSource;
+use crate::io::source::{PointSource, SourceLayout};
 
-/// An output being written: records in, a complete file (or nothing) out.
-pub trait PointSink {
-    /// Appends whole output records (input record + new columns), in file order.
-    fn write_points(&mut self, records: &[u8]) -> Result<()>;
-    /// Completes the file and renames it over the output.
-    fn finish(self: Box<Self>) -> Result<()>;
-    /// Removes the temporary file (after a failure or an interruption).
-    fn abandon(self: Box<Self>);
-}
+pub use crate::io::output::PointSink;
 
 /// The output formats, chosen by the output's extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -70,32 +62,14 @@ pub fn create_sink(
     provenance: &str,
 ) -> Result<Box<dyn PointSink>> {
     Ok(match output_format(output)? {
-        OutputFormat::Las | OutputFormat::Laz => match source.as_las() {
-            Some(las) => Box::new(LasWriter::create(las, output, cols, provenance)?),
-            None => Box::new(LasWriter::create_converted(
-                source, output, cols, provenance,
-            )?),
+        OutputFormat::Las | OutputFormat::Laz => match source.layout() {
+            SourceLayout::Las(parts) => Box::new(carry::create(parts, output, cols, provenance)?),
+            SourceLayout::Converted => {
+                Box::new(ConvertedSink::create(source, output, cols, provenance)?)
+            }
         },
         OutputFormat::Ply { ascii } => {
             Box::new(PlyWriter::create(source, output, cols, provenance, ascii)?)
         }
     })
-}
-
-/// The temporary file an output is written to: hidden, beside the output (the same file
-/// system, so that the final rename is atomic), named after the output and this process.
-pub fn temp_path(output: &Path) -> PathBuf {
-    let file_name = output
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "output".into());
-    output.with_file_name(format!(".{file_name}.tilecurv-{}.tmp", std::process::id()))
-}
-
-/// Makes a completely written temporary file the output: syncs it, renames it over the output
-/// and syncs the directory so that the rename is durable.
-pub fn commit(file: File, tmp: &Path, output: &Path) -> Result<()> {
-    file.sync_all().map_err(|e| Error::write(tmp, e))?;
-    drop(file);
-    crate::io::workdir::commit_file(tmp, output)
 }

@@ -2,7 +2,8 @@
 //! a scalar extra dimension from a record, and encoding the descriptors of tilecurv's columns
 //! (one scalar per descriptor, types 1 to 10 only: the tuple types 11 to 30 are deprecated).
 
-use super::vlr::{padded, Vlr};
+use super::fields::{padded, trimmed};
+use super::vlr::Vlr;
 
 /// User id of the extra-bytes VLR.
 pub const USER_ID: &str = "LASF_Spec";
@@ -131,8 +132,7 @@ pub fn parse(data: &[u8]) -> Result<Vec<Descriptor>, String> {
     for d in data.chunks_exact(DESCRIPTOR_SIZE) {
         let data_type = d[2];
         let options = d[3];
-        let name_end = d[4..36].iter().position(|&c| c == 0).unwrap_or(32);
-        let name = String::from_utf8_lossy(&d[4..4 + name_end]).into_owned();
+        let name = trimmed(&d[4..36]);
         let size = match data_type {
             0 => options as usize,
             1..=10 => ScalarType::from_code(data_type)
@@ -196,6 +196,11 @@ pub fn encode_undocumented(n: u8) -> [u8; DESCRIPTOR_SIZE] {
     d[3] = n;
     d[4..36].copy_from_slice(&padded::<32>("undocumented extra bytes"));
     d
+}
+
+/// An extra-bytes VLR holding the encoded descriptors `data`.
+pub fn vlr(data: Vec<u8>) -> Vlr {
+    Vlr::new(USER_ID, RECORD_ID, "Extra Bytes Record", data)
 }
 
 /// Whether `v` is the extra-bytes VLR.

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use super::fields::padded;
 use crate::error::{Error, Result};
 
 /// Size in bytes of the fixed part of each point data record format 0 to 10.
@@ -63,6 +64,62 @@ fn f64_at(b: &[u8], o: usize) -> f64 {
     f64::from_bits(u64_at(b, o))
 }
 
+/// The version (major, minor) after the signature, checked to be a LAS 1.0 to 1.4 header of at
+/// least 227 bytes; `bad` makes the error at a byte offset.
+fn signature_and_version(bytes: &[u8], bad: &dyn Fn(usize, String) -> Error) -> Result<(u8, u8)> {
+    if bytes.len() < 227 || &bytes[0..4] != b"LASF" {
+        let got = if bytes.len() >= 4 {
+            format!("{:?}", String::from_utf8_lossy(&bytes[0..4]))
+        } else {
+            format!("{} bytes", bytes.len())
+        };
+        return Err(bad(0, format!("not a LAS/LAZ file: expected the signature \"LASF\" and a header of at least 227 bytes, found {got}")));
+    }
+    let version = (bytes[24], bytes[25]);
+    if version.0 != 1 || version.1 > 4 {
+        return Err(bad(
+            24,
+            format!(
+                "unsupported LAS version {}.{}; tilecurv reads LAS 1.0 to 1.4",
+                version.0, version.1
+            ),
+        ));
+    }
+    Ok(version)
+}
+
+/// The coordinate scale factors and offsets, checked to be finite (and the scales non-zero);
+/// `bad` makes the error at a byte offset.
+fn scale_and_offset(
+    bytes: &[u8],
+    bad: &dyn Fn(usize, String) -> Error,
+) -> Result<([f64; 3], [f64; 3])> {
+    let scale = [f64_at(bytes, 131), f64_at(bytes, 139), f64_at(bytes, 147)];
+    let offset = [f64_at(bytes, 155), f64_at(bytes, 163), f64_at(bytes, 171)];
+    for (i, s) in scale.iter().enumerate() {
+        if !(s.is_finite() && *s != 0.0) {
+            return Err(bad(
+                131 + 8 * i,
+                format!(
+                    "{} scale factor is {s}; it must be finite and non-zero",
+                    ["x", "y", "z"][i]
+                ),
+            ));
+        }
+        if !offset[i].is_finite() {
+            return Err(bad(
+                155 + 8 * i,
+                format!(
+                    "{} offset is {}; it must be finite",
+                    ["x", "y", "z"][i],
+                    offset[i]
+                ),
+            ));
+        }
+    }
+    Ok((scale, offset))
+}
+
 impl LasHeader {
     /// Parses and validates the header at the start of `bytes` (the whole file or at least its
     /// first 375 bytes), checking it against `file_len`.
@@ -75,24 +132,7 @@ impl LasHeader {
                 "the file is empty (0 bytes); expected a LAS or LAZ file",
             ));
         }
-        if bytes.len() < 227 || &bytes[0..4] != b"LASF" {
-            let got = if bytes.len() >= 4 {
-                format!("{:?}", String::from_utf8_lossy(&bytes[0..4]))
-            } else {
-                format!("{} bytes", bytes.len())
-            };
-            return Err(bad(0, format!("not a LAS/LAZ file: expected the signature \"LASF\" and a header of at least 227 bytes, found {got}")));
-        }
-        let version = (bytes[24], bytes[25]);
-        if version.0 != 1 || version.1 > 4 {
-            return Err(bad(
-                24,
-                format!(
-                    "unsupported LAS version {}.{}; tilecurv reads LAS 1.0 to 1.4",
-                    version.0, version.1
-                ),
-            ));
-        }
+        let version = signature_and_version(bytes, &bad)?;
         let header_size = u16_at(bytes, 94);
         let min_header = match version.1 {
             0..=2 => 227,
@@ -129,29 +169,7 @@ impl LasHeader {
             return Err(bad(105, format!("point record length {record_length} is shorter than the {base} bytes of point format {point_format}")));
         }
         let legacy_count = u32_at(bytes, 107) as u64;
-        let scale = [f64_at(bytes, 131), f64_at(bytes, 139), f64_at(bytes, 147)];
-        let offset = [f64_at(bytes, 155), f64_at(bytes, 163), f64_at(bytes, 171)];
-        for (i, s) in scale.iter().enumerate() {
-            if !(s.is_finite() && *s != 0.0) {
-                return Err(bad(
-                    131 + 8 * i,
-                    format!(
-                        "{} scale factor is {s}; it must be finite and non-zero",
-                        ["x", "y", "z"][i]
-                    ),
-                ));
-            }
-            if !offset[i].is_finite() {
-                return Err(bad(
-                    155 + 8 * i,
-                    format!(
-                        "{} offset is {}; it must be finite",
-                        ["x", "y", "z"][i],
-                        offset[i]
-                    ),
-                ));
-            }
-        }
+        let (scale, offset) = scale_and_offset(bytes, &bad)?;
         let max = [f64_at(bytes, 179), f64_at(bytes, 195), f64_at(bytes, 211)];
         let min = [f64_at(bytes, 187), f64_at(bytes, 203), f64_at(bytes, 219)];
         let waveform_start = if version.1 >= 3 {
@@ -208,6 +226,13 @@ impl LasHeader {
         end
     }
 
+    /// Replaces the bounds (for a file whose bounds are known only once its points are written).
+    pub fn set_bounds(&mut self, min: [f64; 3], max: [f64; 3]) {
+        self.min = min;
+        self.max = max;
+        put_bounds(&mut self.raw, min, max);
+    }
+
     /// The header bytes for an output file: the original bytes with the layout fields replaced.
     pub fn patched(&self, out: &OutputLayout) -> Vec<u8> {
         let mut b = self.raw.clone();
@@ -230,6 +255,14 @@ impl LasHeader {
             b[243..247].copy_from_slice(&out.evlr_count.to_le_bytes());
         }
         b
+    }
+}
+
+/// Writes max and min x, y, z at their places in a header (bytes 179 to 227, interleaved).
+fn put_bounds(h: &mut [u8], min: [f64; 3], max: [f64; 3]) {
+    for a in 0..3 {
+        h[179 + 16 * a..187 + 16 * a].copy_from_slice(&max[a].to_le_bytes());
+        h[187 + 16 * a..195 + 16 * a].copy_from_slice(&min[a].to_le_bytes());
     }
 }
 
@@ -288,8 +321,8 @@ impl NewHeader<'_> {
         h[0..4].copy_from_slice(b"LASF");
         h[24] = 1;
         h[25] = self.minor;
-        h[26..58].copy_from_slice(&super::vlr::padded::<32>(self.system));
-        h[58..90].copy_from_slice(&super::vlr::padded::<32>(self.software));
+        h[26..58].copy_from_slice(&padded::<32>(self.system));
+        h[58..90].copy_from_slice(&padded::<32>(self.software));
         h[94..96].copy_from_slice(&size.to_le_bytes());
         h[96..100].copy_from_slice(&(size as u32).to_le_bytes());
         h[104] = self.point_format;
@@ -301,9 +334,8 @@ impl NewHeader<'_> {
         for a in 0..3 {
             h[131 + 8 * a..139 + 8 * a].copy_from_slice(&self.scale[a].to_le_bytes());
             h[155 + 8 * a..163 + 8 * a].copy_from_slice(&self.offset[a].to_le_bytes());
-            h[179 + 16 * a..187 + 16 * a].copy_from_slice(&self.max[a].to_le_bytes());
-            h[187 + 16 * a..195 + 16 * a].copy_from_slice(&self.min[a].to_le_bytes());
         }
+        put_bounds(&mut h, self.min, self.max);
         if self.minor >= 4 {
             h[247..255].copy_from_slice(&self.points.to_le_bytes());
             h[255..263].copy_from_slice(&self.points.to_le_bytes());

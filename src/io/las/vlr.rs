@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use super::fields::{padded, trimmed};
 use super::header::LasHeader;
 use crate::error::{Error, Result};
 
@@ -19,20 +20,6 @@ pub struct Vlr {
     pub reserved: u16,
     /// The payload.
     pub data: Vec<u8>,
-}
-
-fn trimmed(b: &[u8]) -> String {
-    let end = b.iter().position(|&c| c == 0).unwrap_or(b.len());
-    String::from_utf8_lossy(&b[..end]).into_owned()
-}
-
-/// A fixed-size NUL-padded field from a string (truncated if longer).
-pub fn padded<const N: usize>(s: &str) -> [u8; N] {
-    let mut out = [0u8; N];
-    let b = s.as_bytes();
-    let n = b.len().min(N);
-    out[..n].copy_from_slice(&b[..n]);
-    out
 }
 
 /// Points per LAZ chunk in the files we write (LASzip's default).
@@ -73,16 +60,6 @@ impl Vlr {
     /// Whether this record is `(user_id, record_id)`.
     pub fn is(&self, user_id: &str, record_id: u16) -> bool {
         self.user_id == user_id && self.record_id == record_id
-    }
-
-    /// Size of this record written as a VLR (54-byte header + payload).
-    pub fn vlr_size(&self) -> usize {
-        54 + self.data.len()
-    }
-
-    /// Size of this record written as an EVLR (60-byte header + payload).
-    pub fn evlr_size(&self) -> usize {
-        60 + self.data.len()
     }
 
     /// Appends this record as a VLR to `out`. Fails if the payload does not fit a u16 length.

@@ -1,29 +1,27 @@
-//! Writing the output LAS/LAZ file: the input's header, VLRs and EVLRs carried over (a COPC
-//! index is dropped: it would be stale), the extra-bytes VLR extended with tilecurv's columns,
-//! a provenance VLR, and each input point record followed by its new column bytes. Written to a
-//! temporary file beside the output, fsynced, and renamed over the output only by [`LasWriter::finish`].
-//! A non-LAS input is converted: [`LasWriter::create_converted`] gives it a LAS 1.4 header,
-//! point format 0 records and its other properties as extra bytes, then the same path follows.
+//! The one LAS/LAZ writer, used by `process` (through `io::sink`) and by `generate terrain`:
+//! [`LasFileWriter`] writes a header (an input's, carried over, or a new one), VLRs, point
+//! records (LAS or LAZ, chosen by the output's extension; LAZ through the laz crate's parallel
+//! compressor in fixed chunks) and EVLRs to a temporary file beside the output, patches the
+//! header's layout fields (and, if asked, its bounds) at the end, syncs the file and renames it
+//! over the output on `finish` (after checking that as many records were written as the header
+//! counts); `abandon` removes it. It knows the LAS format, not where the records come from:
+//! `carry` and `convert` build its [`LasFileSpec`] for `process`.
 
 use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::io::columns::ColumnSet;
-use crate::io::las::extra_bytes::{
-    self, encode, encode_undocumented, parse, Descriptor, NewColumn, DESCRIPTOR_SIZE,
-};
+use crate::io::las::extra_bytes;
 use crate::io::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
-use crate::io::las::vlr::Vlr;
-use crate::io::sink::{commit, temp_path, PointSink};
-use crate::io::source::{xyz_and_normals, LasSource, PointSource, Property};
+use crate::io::las::vlr::{laszip, Vlr};
+use crate::io::output::{commit, temp_path, PointSink};
 
 /// User id and record id of the provenance VLR.
 pub const PROVENANCE: (&str, u16) = ("tilecurv", 1);
 
 /// Whether a path names a LAZ file (by extension; anything else that is .las is LAS).
-pub fn output_is_laz(path: &Path) -> Result<bool> {
+fn output_is_laz(path: &Path) -> Result<bool> {
     match path
         .extension()
         .and_then(|e| e.to_str())
@@ -39,261 +37,184 @@ pub fn output_is_laz(path: &Path) -> Result<bool> {
     }
 }
 
-fn is_copc(v: &Vlr) -> bool {
-    v.user_id == "copc"
+/// The header a file starts from.
+#[derive(Debug, Clone)]
+pub enum HeaderStart<'a> {
+    /// An input's header: every field but the layout ones (GUID, system identifier, dates,
+    /// counts, bounds) is written back untouched.
+    Input(&'a LasHeader),
+    /// A header written from scratch (a generated or converted cloud).
+    New(NewHeader<'a>),
 }
 
-/// What the writer takes over from its input: a LAS file's header, VLRs, EVLRs and extra-bytes
-/// descriptors, or the synthetic ones of a converted non-LAS input.
-struct Input<'a> {
-    path: &'a Path,
-    header: &'a LasHeader,
-    vlrs: &'a [Vlr],
-    evlrs: &'a [(u64, Vlr)],
-    extra: &'a [Descriptor],
+/// Everything of a LAS/LAZ file but its point records.
+#[derive(Debug, Clone)]
+pub struct LasFileSpec<'a> {
+    /// The input the header and VLRs come from, named in errors about them; `None` for a
+    /// generated file (such an error is then internal).
+    pub origin: Option<&'a Path>,
+    /// The header to start from.
+    pub header: HeaderStart<'a>,
+    /// Bytes per output record (the header's record length plus any new columns).
+    pub record_length: u16,
+    /// The VLRs to carry over, in order; LASzip records (rebuilt when the output is LAZ) and
+    /// COPC records (whose index would be stale) are dropped.
+    pub vlrs: &'a [Vlr],
+    /// The EVLRs to carry over with their byte offsets in the input (the header's waveform
+    /// start names the waveform record, which is then located in the output); COPC dropped.
+    pub evlrs: &'a [(u64, Vlr)],
+    /// The extra-bytes descriptors of the output records (encoded): the payload of every
+    /// carried extra-bytes VLR or EVLR, or of a new VLR after the carried ones if there is none.
+    pub extra_bytes: Vec<u8>,
+    /// The provenance text, written as the provenance VLR (after the extra bytes).
+    pub provenance: &'a str,
 }
 
-/// The extra-bytes descriptors of the output: the input's (padded with an "undocumented"
-/// descriptor if the input's records have more extra bytes than its VLR describes), then ours.
-fn extra_bytes_payload(
-    source: &Input<'_>,
-    existing: Option<&Vlr>,
-    cols: &ColumnSet,
-) -> Result<Vec<u8>> {
-    let mut data = existing.map(|v| v.data.clone()).unwrap_or_default();
-    let described: usize = parse(&data)
-        .map(|d| d.iter().map(|d| d.size).sum())
-        .unwrap_or(0);
-    let mut gap = source.header.extra_bytes_len() as usize - described;
-    while gap > 0 {
-        let n = gap.min(255);
-        data.extend_from_slice(&encode_undocumented(n as u8));
-        gap -= n;
-    }
-    for c in cols.columns() {
-        if source
-            .extra
-            .iter()
-            .any(|d| d.name.eq_ignore_ascii_case(&c.name))
-        {
-            return Err(Error::bad_input(source.path, None, format!(
-                "the input already has an extra dimension named {:?} (is it a tilecurv output?); process the original file instead", c.name)));
+impl LasFileSpec<'_> {
+    /// A bad-input error about the origin, or an internal one for a generated file.
+    fn error(&self, what: String) -> Error {
+        match self.origin {
+            Some(path) => Error::bad_input(path, None, what),
+            None => Error::Internal(what),
         }
-        data.extend_from_slice(&encode(&c));
-    }
-    debug_assert_eq!(data.len() % DESCRIPTOR_SIZE, 0);
-    Ok(data)
-}
-
-/// An output file being written.
-pub struct LasWriter {
-    tmp: PathBuf,
-    output: PathBuf,
-    header: crate::io::las::header::LasHeader,
-    layout: OutputLayout,
-    evlrs: Vec<Vlr>,
-    waveform_evlr: Option<usize>,
-    sink: Sink,
-    /// For a non-LAS input: how its records become LAS records.
-    convert: Option<Convert>,
-}
-
-enum Sink {
-    Plain(BufWriter<File>),
-    Laz(Box<laz::ParLasZipCompressor<BufWriter<File>>>),
-}
-
-impl LasWriter {
-    /// Creates the temporary output beside `output` and writes the header and VLRs.
-    pub fn create(
-        source: &LasSource,
-        output: &Path,
-        cols: &ColumnSet,
-        provenance: &str,
-    ) -> Result<Self> {
-        let input = Input {
-            path: source.path(),
-            header: &source.header,
-            vlrs: &source.vlrs,
-            evlrs: &source.evlrs,
-            extra: &source.extra,
-        };
-        Self::create_from(&input, output, cols, provenance, None)
     }
 
-    /// Creates a LAS 1.4 output for a non-LAS source: point format 0 records (coordinates
-    /// quantised as [`quantisation`] says, return 1 of 1, every other standard field 0), the
-    /// source's properties other than x, y and z as extra bytes of their own types (renamed
-    /// `input_<name>` when named like a standard LAS dimension, e.g. a PLY `intensity`), then
-    /// the new columns. The source has no CRS, so the output has none either.
-    pub fn create_converted(
-        source: &dyn PointSource,
-        output: &Path,
-        cols: &ColumnSet,
-        provenance: &str,
-    ) -> Result<Self> {
-        let mut props = source.properties();
-        let Some(xyz) = xyz_and_normals(props.iter().map(|p| p.name.as_str())).0 else {
-            return Err(Error::Internal(format!(
-                "{}: the reader lists no x, y, z properties",
-                source.path().display()
-            )));
-        };
-        let xyz = xyz.map(|i| props[i].clone());
-        props.retain(|p| !xyz.contains(p));
-        let mut eb = Vec::new();
-        for p in &props {
-            // Readers (laspy, PDAL) refuse an extra dimension named like a standard one.
-            let name = if STANDARD_NAMES
-                .iter()
-                .any(|n| n.eq_ignore_ascii_case(&p.name))
-            {
-                format!("input_{}", p.name)
-            } else {
-                p.name.clone()
-            };
-            eb.extend_from_slice(&encode(&NewColumn {
-                name,
-                ty: p.ty,
-                description: String::new(),
-            }));
-        }
-        let extra = parse(&eb).map_err(Error::Internal)?;
-        let vlrs: Vec<Vlr> = if eb.is_empty() {
-            Vec::new()
-        } else {
-            vec![Vlr::new(
-                extra_bytes::USER_ID,
-                extra_bytes::RECORD_ID,
-                "Extra Bytes Record",
-                eb,
-            )]
-        };
-        let bounds = source.bounds()?;
-        let (scale, offset) = quantisation(bounds);
-        let extra_len: usize = props.iter().map(|p| p.ty.size()).sum();
-        let raw = converted_header(source.len(), extra_len, scale, offset, bounds)?;
-        let header = LasHeader::parse(source.path(), &raw, raw.len() as u64)?;
-        let input = Input {
-            path: source.path(),
-            header: &header,
-            vlrs: &vlrs,
-            evlrs: &[],
-            extra: &extra,
-        };
-        let convert = Convert {
-            xyz,
-            props,
-            record_length: source.record_length(),
-            columns_len: cols.record_size(),
-            scale,
-            offset,
-            buf: Vec::new(),
-        };
-        Self::create_from(&input, output, cols, provenance, Some(convert))
-    }
-
-    fn create_from(
-        source: &Input<'_>,
-        output: &Path,
-        cols: &ColumnSet,
-        provenance: &str,
-        convert: Option<Convert>,
-    ) -> Result<Self> {
-        let compressed = output_is_laz(output)?;
-        let h = source.header;
-        let record_length =
-            u16::try_from(h.record_length as usize + cols.record_size()).map_err(|_| {
-                Error::bad_input(
-                    source.path,
-                    Some(105),
-                    format!(
-                        "records of {} bytes plus {} new bytes exceed the LAS limit of 65535",
-                        h.record_length,
-                        cols.record_size()
-                    ),
+    /// The header to patch: the input's, or a new one parsed back (so both follow one path).
+    fn start_header(&self, output: &Path) -> Result<LasHeader> {
+        match &self.header {
+            HeaderStart::Input(h) => Ok((*h).clone()),
+            HeaderStart::New(h) => {
+                let raw = h.bytes();
+                LasHeader::parse(self.origin.unwrap_or(output), &raw, raw.len() as u64).map_err(
+                    |e| match self.origin {
+                        Some(_) => e,
+                        None => Error::Internal(format!("a new LAS header: {e}")),
+                    },
                 )
-            })?;
-        // VLRs: the input's, minus the LAZ and COPC records (rebuilt or stale), with the
-        // extra-bytes VLR extended in place (or added), then provenance and LASzip.
-        let eb_in_evlr = source
+            }
+        }
+    }
+
+    /// The output's VLRs: the carried ones with the extra-bytes payload in place (or a new
+    /// extra-bytes VLR after them), the provenance, and the LASzip VLR for a LAZ output, whose
+    /// layout is returned with them.
+    fn vlrs(
+        &self,
+        header: &LasHeader,
+        compressed: bool,
+    ) -> Result<(Vec<Vlr>, Option<laz::LazVlr>)> {
+        let mut vlrs: Vec<Vlr> = Vec::new();
+        // An extra-bytes EVLR takes the payload instead of a new VLR.
+        let mut placed = self
             .evlrs
             .iter()
             .any(|(_, v)| extra_bytes::is_extra_bytes(v));
-        let existing_eb = source
-            .vlrs
-            .iter()
-            .chain(source.evlrs.iter().map(|(_, v)| v))
-            .find(|v| extra_bytes::is_extra_bytes(v));
-        let eb_data = extra_bytes_payload(source, existing_eb, cols)?;
-        let mut vlrs: Vec<Vlr> = Vec::new();
-        let mut placed = eb_in_evlr;
-        for v in source.vlrs {
-            if v.is("laszip encoded", 22204) || is_copc(v) {
+        for v in self.vlrs {
+            if is_laszip(v) || is_copc(v) {
                 continue;
             }
             if extra_bytes::is_extra_bytes(v) {
-                vlrs.push(Vlr {
-                    data: eb_data.clone(),
-                    ..v.clone()
-                });
+                vlrs.push(self.with_extra_bytes(v));
                 placed = true;
             } else {
                 vlrs.push(v.clone());
             }
         }
         if !placed {
-            vlrs.push(Vlr::new(
-                extra_bytes::USER_ID,
-                extra_bytes::RECORD_ID,
-                "Extra Bytes Record",
-                eb_data.clone(),
-            ));
+            vlrs.push(extra_bytes::vlr(self.extra_bytes.clone()));
         }
         vlrs.push(Vlr::new(
             PROVENANCE.0,
             PROVENANCE.1,
             "tilecurv provenance",
-            provenance.as_bytes().to_vec(),
+            self.provenance.as_bytes().to_vec(),
         ));
-        let laz_vlr = if compressed {
-            let extra = record_length - POINT_FORMAT_SIZES[h.point_format as usize];
-            let (lv, vlr) = crate::io::las::vlr::laszip(h.point_format, extra)?;
-            vlrs.push(vlr);
-            Some(lv)
-        } else {
-            None
-        };
+        if !compressed {
+            return Ok((vlrs, None));
+        }
+        let extra = self.record_length - POINT_FORMAT_SIZES[header.point_format as usize];
+        let (lv, vlr) = laszip(header.point_format, extra)?;
+        vlrs.push(vlr);
+        Ok((vlrs, Some(lv)))
+    }
+
+    /// The output's EVLRs (COPC dropped, extra bytes replaced) and the index of the waveform
+    /// record among them.
+    fn evlrs(&self, header: &LasHeader) -> (Vec<Vlr>, Option<usize>) {
         let mut evlrs = Vec::new();
-        let mut waveform_evlr = None;
-        for (off, v) in source.evlrs {
+        let mut waveform = None;
+        for (off, v) in self.evlrs {
             if is_copc(v) {
                 continue;
             }
-            if *off == h.waveform_start {
-                waveform_evlr = Some(evlrs.len());
+            if *off == header.waveform_start {
+                waveform = Some(evlrs.len());
             }
             if extra_bytes::is_extra_bytes(v) {
-                evlrs.push(Vlr {
-                    data: eb_data.clone(),
-                    ..v.clone()
-                });
+                evlrs.push(self.with_extra_bytes(v));
             } else {
                 evlrs.push(v.clone());
             }
         }
+        (evlrs, waveform)
+    }
+
+    fn with_extra_bytes(&self, v: &Vlr) -> Vlr {
+        Vlr {
+            data: self.extra_bytes.clone(),
+            ..v.clone()
+        }
+    }
+}
+
+fn is_laszip(v: &Vlr) -> bool {
+    v.is("laszip encoded", 22204)
+}
+
+fn is_copc(v: &Vlr) -> bool {
+    v.user_id == "copc"
+}
+
+/// Where the point records go.
+enum Points {
+    Plain(BufWriter<File>),
+    Laz(Box<laz::ParLasZipCompressor<BufWriter<File>>>),
+}
+
+/// A LAS/LAZ file being written (see the module doc).
+pub struct LasFileWriter {
+    tmp: PathBuf,
+    output: PathBuf,
+    /// The header, patched with `layout` when written.
+    header: LasHeader,
+    layout: OutputLayout,
+    evlrs: Vec<Vlr>,
+    /// Index of the waveform record in `evlrs`.
+    waveform_evlr: Option<usize>,
+    points: Points,
+    /// Point records written so far, checked against the header's count on `finish`.
+    written: u64,
+}
+
+impl LasFileWriter {
+    /// Creates the temporary file beside `output` and writes the header and VLRs; LAZ when
+    /// `output` ends in `.laz`.
+    pub fn create(output: &Path, spec: LasFileSpec<'_>) -> Result<Self> {
+        let compressed = output_is_laz(output)?;
+        let header = spec.start_header(output)?;
+        let (vlrs, laz_vlr) = spec.vlrs(&header, compressed)?;
+        let (evlrs, waveform_evlr) = spec.evlrs(&header);
         let mut head = Vec::new();
         for v in &vlrs {
-            v.write_vlr(&mut head)
-                .map_err(|why| Error::bad_input(source.path, None, why))?;
+            v.write_vlr(&mut head).map_err(|why| spec.error(why))?;
         }
-        let offset = h.header_size as usize + head.len();
+        let offset = header.header_size as usize + head.len();
         let layout = OutputLayout {
             offset_to_point_data: u32::try_from(offset)
                 .map_err(|_| Error::Internal("VLRs larger than 4 GiB".into()))?,
             num_vlrs: vlrs.len() as u32,
             compressed,
-            record_length,
+            record_length: spec.record_length,
             evlr_start: 0,
             evlr_count: evlrs.len() as u32,
             waveform_start: 0,
@@ -301,50 +222,79 @@ impl LasWriter {
         let tmp = temp_path(output);
         let file = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
         let mut w = BufWriter::with_capacity(4 << 20, file);
-        w.write_all(&h.patched(&layout))
+        let points = w
+            .write_all(&header.patched(&layout))
             .and_then(|_| w.write_all(&head))
-            .map_err(|e| Error::write(&tmp, e))?;
-        let sink = match laz_vlr {
-            None => Sink::Plain(w),
-            Some(lv) => Sink::Laz(Box::new(
-                laz::ParLasZipCompressor::new(w, lv)
-                    .map_err(|e| Error::Internal(format!("LAZ compressor: {e}")))?,
-            )),
+            .map_err(|e| Error::write(&tmp, e))
+            .and_then(|_| match laz_vlr {
+                None => Ok(Points::Plain(w)),
+                Some(lv) => laz::ParLasZipCompressor::new(w, lv)
+                    .map(|c| Points::Laz(Box::new(c)))
+                    .map_err(|e| Error::Internal(format!("LAZ compressor: {e}"))),
+            });
+        let points = match points {
+            Ok(p) => p,
+            Err(e) => {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(e);
+            }
         };
-        Ok(LasWriter {
+        Ok(LasFileWriter {
             tmp,
             output: output.to_path_buf(),
-            header: h.clone(),
+            header,
             layout,
             evlrs,
             waveform_evlr,
-            sink,
-            convert,
+            points,
+            written: 0,
         })
     }
-}
 
-impl PointSink for LasWriter {
-    fn write_points(&mut self, records: &[u8]) -> Result<()> {
-        let records = match &mut self.convert {
-            Some(c) => c.records(records),
-            None => records,
+    /// Appends whole point records of the output's record length, in file order.
+    pub fn write_records(&mut self, records: &[u8]) -> Result<()> {
+        let r = match &mut self.points {
+            Points::Plain(w) => w.write_all(records),
+            Points::Laz(c) => c.compress_many(records),
         };
-        let r = match &mut self.sink {
-            Sink::Plain(w) => w.write_all(records),
-            Sink::Laz(c) => c.compress_many(records),
-        };
-        r.map_err(|e| Error::write(&self.tmp, e))
+        r.map_err(|e| Error::write(&self.tmp, e))?;
+        self.written += (records.len() / self.layout.record_length as usize) as u64;
+        Ok(())
+    }
+
+    /// Sets the header's bounds, for a writer that learns them from the records it wrote (the
+    /// initial header holds whatever its start gave until `finish` rewrites it).
+    pub fn set_bounds(&mut self, min: [f64; 3], max: [f64; 3]) {
+        self.header.set_bounds(min, max);
     }
 
     /// Finishes the points, writes the EVLRs, rewrites the header with the final layout, syncs
-    /// the file and renames it over the output.
-    fn finish(mut self: Box<Self>) -> Result<()> {
+    /// the file and renames it over the output. On failure the temporary file is removed.
+    pub fn finish(self) -> Result<()> {
+        let tmp = self.tmp.clone();
+        let r = self.complete();
+        if r.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        r
+    }
+
+    fn complete(mut self) -> Result<()> {
+        // The header's counts are the caller's (an input's are carried over untouched): a file
+        // with another number of records would be corrupt.
+        if self.written != self.header.point_count {
+            return Err(Error::Internal(format!(
+                "{}: {} point records written but the header counts {}",
+                self.output.display(),
+                self.written,
+                self.header.point_count
+            )));
+        }
         let tmp = self.tmp.clone();
         let werr = |e: std::io::Error| Error::write(&tmp, e);
-        let mut w = match self.sink {
-            Sink::Plain(w) => w,
-            Sink::Laz(mut c) => {
+        let mut w = match self.points {
+            Points::Plain(w) => w,
+            Points::Laz(mut c) => {
                 c.done()
                     .map_err(|e| Error::Internal(format!("LAZ compressor: {e}")))?;
                 c.into_inner()
@@ -352,13 +302,11 @@ impl PointSink for LasWriter {
         };
         let end_of_points = w.stream_position().map_err(werr)?;
         let mut tail = Vec::new();
-        let mut pos = end_of_points;
         for (i, v) in self.evlrs.iter().enumerate() {
             if Some(i) == self.waveform_evlr {
-                self.layout.waveform_start = pos;
+                self.layout.waveform_start = end_of_points + tail.len() as u64;
             }
             v.write_evlr(&mut tail);
-            pos = end_of_points + tail.len() as u64;
         }
         if !self.evlrs.is_empty() && self.header.version.1 >= 4 {
             self.layout.evlr_start = end_of_points;
@@ -371,144 +319,107 @@ impl PointSink for LasWriter {
         commit(file, &self.tmp, &self.output)
     }
 
-    fn abandon(self: Box<Self>) {
+    /// Drops the writer and removes the temporary file.
+    pub fn abandon(self) {
         let tmp = self.tmp.clone();
         drop(self);
         let _ = std::fs::remove_file(tmp);
     }
 }
 
-/// The dimension names LAS readers give the fields of point formats 0 to 10, which an extra
-/// dimension must not reuse.
-const STANDARD_NAMES: [&str; 22] = [
-    "X",
-    "Y",
-    "Z",
-    "intensity",
-    "return_number",
-    "number_of_returns",
-    "scan_direction_flag",
-    "edge_of_flight_line",
-    "classification",
-    "synthetic",
-    "key_point",
-    "withheld",
-    "overlap",
-    "scanner_channel",
-    "scan_angle_rank",
-    "scan_angle",
-    "user_data",
-    "point_source_id",
-    "gps_time",
-    "red",
-    "green",
-    "blue",
-];
-
-/// How a non-LAS source's records become LAS point format 0 records with extra bytes.
-struct Convert {
-    xyz: [Property; 3],
-    /// The properties kept as extra bytes, in order.
-    props: Vec<Property>,
-    /// Bytes per source record.
-    record_length: usize,
-    /// Bytes of new columns after each source record.
-    columns_len: usize,
-    scale: [f64; 3],
-    offset: [f64; 3],
-    buf: Vec<u8>,
-}
-
-impl Convert {
-    /// The LAS records (with the new columns carried over) of whole input records.
-    fn records(&mut self, records: &[u8]) -> &[u8] {
-        self.buf.clear();
-        for rec in records.chunks_exact(self.record_length + self.columns_len) {
-            for a in 0..3 {
-                let q = ((self.xyz[a].value(rec) - self.offset[a]) / self.scale[a]).round();
-                self.buf.extend_from_slice(&(q as i32).to_le_bytes());
-            }
-            // Intensity 0, return 1 of 1, classification 0 (never classified), scan angle 0,
-            // user data 0, point source id 0.
-            self.buf.extend_from_slice(&[0, 0, 0x09, 0, 0, 0, 0, 0]);
-            for p in &self.props {
-                p.put_le(rec, &mut self.buf);
-            }
-            self.buf.extend_from_slice(&rec[self.record_length..]);
-        }
-        &self.buf
+impl PointSink for LasFileWriter {
+    fn write_points(&mut self, records: &[u8]) -> Result<()> {
+        self.write_records(records)
     }
-}
 
-/// The scale and offset of a converted output, from the exact bounds: the offset is the centre
-/// of the bounds; the scale, the same on every axis, is the largest power of ten at most 1e-8
-/// times the largest extent E. The quantisation error is then at most 0.5e-8 E (far better
-/// than 1e-6 relative to the cloud's size), and since the scale exceeds 1e-9 E, coordinates
-/// stay below 5e8 < 2^31 in magnitude. A cloud of one position uses E = max(|coordinate|, 1).
-pub fn quantisation(bounds: [[f64; 3]; 2]) -> ([f64; 3], [f64; 3]) {
-    let [lo, hi] = bounds;
-    let mut extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-    if extent <= 0.0 {
-        extent = lo.iter().chain(&hi).map(|c| c.abs()).fold(1.0, f64::max);
+    fn finish(self: Box<Self>) -> Result<()> {
+        LasFileWriter::finish(*self)
     }
-    let scale = 10f64.powf((extent * 1e-8).log10().floor());
-    let offset = [0, 1, 2].map(|a| (lo[a] + hi[a]) / 2.0);
-    ([scale; 3], offset)
-}
 
-/// A LAS 1.4 header (375 bytes) for point format 0 records with `extra_len` extra bytes; the
-/// layout fields are filled in by [`LasHeader::patched`] like those of any input.
-fn converted_header(
-    points: u64,
-    extra_len: usize,
-    scale: [f64; 3],
-    offset: [f64; 3],
-    bounds: [[f64; 3]; 2],
-) -> Result<Vec<u8>> {
-    let record_length = u16::try_from(20 + extra_len).map_err(|_| {
-        Error::Usage(format!(
-            "the input's properties take {extra_len} bytes per point, more than a LAS record holds"
-        ))
-    })?;
-    let software = format!("tilecurv {}", env!("CARGO_PKG_VERSION"));
-    Ok(NewHeader {
-        minor: 4,
-        system: "OTHER",
-        software: &software,
-        point_format: 0,
-        record_length,
-        points,
-        scale,
-        offset,
-        min: bounds[0],
-        max: bounds[1],
+    fn abandon(self: Box<Self>) {
+        LasFileWriter::abandon(*self)
     }
-    .bytes())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::source::{LasSource, PointSource};
+
+    /// A new LAS 1.2 file of `points` point format 0 records, centimetre coordinates.
+    fn spec(points: u64) -> LasFileSpec<'static> {
+        LasFileSpec {
+            origin: None,
+            header: HeaderStart::New(NewHeader {
+                minor: 2,
+                system: "TEST",
+                software: "tilecurv test",
+                point_format: 0,
+                record_length: 20,
+                points,
+                scale: [0.01; 3],
+                offset: [0.0; 3],
+                min: [0.0; 3],
+                max: [0.0; 3],
+            }),
+            record_length: 20,
+            vlrs: &[],
+            evlrs: &[],
+            extra_bytes: Vec::new(),
+            provenance: "test run",
+        }
+    }
+
+    fn record(q: [i32; 3]) -> Vec<u8> {
+        let mut r: Vec<u8> = q.iter().flat_map(|v| v.to_le_bytes()).collect();
+        r.resize(20, 0);
+        r
+    }
 
     #[test]
-    fn quantisation_keeps_precision_and_fits_i32() {
-        for (lo, hi) in [
-            (-1.2, 1.19),
-            (500_000.0, 500_123.4),
-            (0.0, 1e-3),
-            (7.0, 7.0),
-        ] {
-            let b = [[lo, lo, lo], [hi, hi, lo]];
-            let (s, o) = quantisation(b);
-            let extent = if hi > lo { hi - lo } else { lo.abs().max(1.0) };
-            assert!(
-                s[0] <= 1e-8 * extent && s[0] > 1e-9 * extent,
-                "{lo}..{hi}: scale {}",
-                s[0]
+    fn writes_las_and_laz_with_late_bounds() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        for name in ["a.las", "a.laz"] {
+            let out = dir.path().join(name);
+            let mut w = LasFileWriter::create(&out, spec(2)).expect("creates");
+            w.write_records(&[record([1, 2, 3]), record([4, 5, 6])].concat())
+                .expect("writes");
+            w.set_bounds([0.01, 0.02, 0.03], [0.04, 0.05, 0.06]);
+            w.finish().expect("finishes");
+            let src = LasSource::open(&out).expect("reads back");
+            assert_eq!(src.len(), 2);
+            assert_eq!(src.header.compressed, name.ends_with(".laz"));
+            assert_eq!(
+                (src.header.min, src.header.max),
+                ([0.01, 0.02, 0.03], [0.04, 0.05, 0.06])
             );
-            for v in [lo, hi] {
-                assert!(((v - o[0]) / s[0]).abs() < i32::MAX as f64);
-            }
+            let ids: Vec<(&str, u16)> = src
+                .vlrs
+                .iter()
+                .map(|v| (v.user_id.as_str(), v.record_id))
+                .collect();
+            assert_eq!(ids[..2], [("LASF_Spec", 4), PROVENANCE], "{name}");
+            let mut first = None;
+            src.for_each_chunk(10, &mut |i, recs| {
+                first = first.or(Some(src.decode(i, &recs[..20]).xyz));
+                Ok(())
+            })
+            .expect("decodes");
+            assert_eq!(first, Some([0.01, 0.02, 0.03]));
         }
+    }
+
+    #[test]
+    fn a_wrong_record_count_or_an_abandon_leaves_nothing() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let out = dir.path().join("short.las");
+        let mut w = LasFileWriter::create(&out, spec(3)).expect("creates");
+        w.write_records(&record([1, 2, 3])).expect("writes");
+        assert!(matches!(w.finish(), Err(Error::Internal(_))));
+        let mut w = LasFileWriter::create(&out, spec(1)).expect("creates");
+        w.write_records(&record([1, 2, 3])).expect("writes");
+        w.abandon();
+        let left: Vec<_> = std::fs::read_dir(dir.path()).expect("lists").collect();
+        assert!(left.is_empty(), "{left:?}");
     }
 }

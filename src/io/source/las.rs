@@ -11,11 +11,12 @@ use memmap2::Mmap;
 
 use crate::error::{Error, Result};
 use crate::io::crs::{horizontal_unit, UnitSource};
-use crate::io::las::extra_bytes::{self, Descriptor};
+use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
 use crate::io::las::header::{LasHeader, POINT_FORMAT_SIZES};
+use crate::io::las::parts::LasParts;
 use crate::io::las::vlr::{read_evlrs, read_vlrs, Vlr};
 
-use super::{PointSource, SourcePoint};
+use super::{PointSource, Property, SourceLayout, SourcePoint, Stored};
 
 /// An opened LAS or LAZ file.
 pub struct LasSource {
@@ -64,68 +65,12 @@ impl LasSource {
         let header = LasHeader::parse(path, &map, len)?;
         let vlrs = read_vlrs(path, &map, &header)?;
         let evlrs = read_evlrs(path, &map, &header)?;
-        let mut extra = Vec::new();
-        if let Some(v) = vlrs
-            .iter()
-            .chain(evlrs.iter().map(|(_, v)| v))
-            .find(|v| extra_bytes::is_extra_bytes(v))
-        {
-            extra = extra_bytes::parse(&v.data).map_err(|why| {
-                Error::bad_input(
-                    path,
-                    None,
-                    format!("{why}; fix or remove the extra-bytes VLR"),
-                )
-            })?;
-            let total: usize = extra.iter().map(|d| d.size).sum();
-            if total > header.extra_bytes_len() as usize {
-                return Err(Error::bad_input(path, Some(105), format!(
-                    "the extra-bytes VLR describes {total} bytes per point but the records have only {} extra bytes",
-                    header.extra_bytes_len())));
-            }
-        }
-        let normal_dims = {
-            let find = |n: &str| {
-                extra
-                    .iter()
-                    .find(|d| d.name.eq_ignore_ascii_case(n) && d.scalar().is_some())
-                    .cloned()
-            };
-            match (find("NormalX"), find("NormalY"), find("NormalZ")) {
-                (Some(x), Some(y), Some(z)) => Some([x, y, z]),
-                _ => None,
-            }
-        };
+        let extra = extra_descriptors(path, &header, &vlrs, &evlrs)?;
+        let normal_dims = normal_dims(&extra);
         let laz = if header.compressed {
-            let v = vlrs.iter().find(|v| v.is("laszip encoded", 22204)).ok_or_else(|| Error::bad_input(path, Some(104),
-                "the point format says LAZ-compressed but there is no LASzip VLR (\"laszip encoded\", 22204)"))?;
-            let lv = laz::LazVlr::from_buffer(&v.data).map_err(|e| {
-                Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}"))
-            })?;
-            if lv.items_size() != header.record_length as u64 {
-                return Err(Error::bad_input(
-                    path,
-                    Some(105),
-                    format!(
-                        "the LASzip VLR describes {}-byte points but the header says {}",
-                        lv.items_size(),
-                        header.record_length
-                    ),
-                ));
-            }
-            Some(lv)
+            Some(laz_layout(path, &header, &vlrs)?)
         } else {
-            let need = (header.point_count)
-                .checked_mul(header.record_length as u64)
-                .and_then(|b| b.checked_add(header.offset_to_point_data as u64));
-            let end = header.point_data_end(len);
-            if need.is_none_or(|n| n > end) {
-                let whole = (end.saturating_sub(header.offset_to_point_data as u64))
-                    / header.record_length as u64;
-                return Err(Error::bad_input(path, Some(header.offset_to_point_data as u64), format!(
-                    "the header says {} points of {} bytes, but the point data ends at byte {end}: only {whole} whole points are present. The file is truncated (re-copy it) or its point count is wrong",
-                    header.point_count, header.record_length)));
-            }
+            check_size(path, &header, len)?;
             None
         };
         if header.point_count == 0 {
@@ -149,6 +94,17 @@ impl LasSource {
 }
 
 impl LasSource {
+    /// The header, VLRs, EVLRs and extra-bytes descriptors, for a writer that carries them over.
+    pub fn parts(&self) -> LasParts<'_> {
+        LasParts {
+            path: &self.path,
+            header: &self.header,
+            vlrs: &self.vlrs,
+            evlrs: &self.evlrs,
+            extra: &self.extra,
+        }
+    }
+
     /// Drops the mapped pages between `from` and `to` (rounded down to a page) from memory;
     /// returns the new release mark. Only hints the kernel: the data stays readable.
     fn release(&self, from: usize, to: usize) -> usize {
@@ -166,6 +122,87 @@ impl LasSource {
             from
         }
     }
+}
+
+/// The extra-bytes descriptors of a file (from its VLR or EVLR), checked against the records'
+/// extra bytes.
+fn extra_descriptors(
+    path: &Path,
+    header: &LasHeader,
+    vlrs: &[Vlr],
+    evlrs: &[(u64, Vlr)],
+) -> Result<Vec<Descriptor>> {
+    let Some(v) = vlrs
+        .iter()
+        .chain(evlrs.iter().map(|(_, v)| v))
+        .find(|v| extra_bytes::is_extra_bytes(v))
+    else {
+        return Ok(Vec::new());
+    };
+    let extra = extra_bytes::parse(&v.data).map_err(|why| {
+        Error::bad_input(
+            path,
+            None,
+            format!("{why}; fix or remove the extra-bytes VLR"),
+        )
+    })?;
+    let total: usize = extra.iter().map(|d| d.size).sum();
+    if total > header.extra_bytes_len() as usize {
+        return Err(Error::bad_input(path, Some(105), format!(
+            "the extra-bytes VLR describes {total} bytes per point but the records have only {} extra bytes",
+            header.extra_bytes_len())));
+    }
+    Ok(extra)
+}
+
+/// The scalar extra dimensions NormalX, NormalY, NormalZ (any case), when all three exist.
+fn normal_dims(extra: &[Descriptor]) -> Option<[Descriptor; 3]> {
+    let find = |n: &str| {
+        extra
+            .iter()
+            .find(|d| d.name.eq_ignore_ascii_case(n) && d.scalar().is_some())
+            .cloned()
+    };
+    match (find("NormalX"), find("NormalY"), find("NormalZ")) {
+        (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+        _ => None,
+    }
+}
+
+/// The LASzip layout of a LAZ file, checked against the header's record length.
+fn laz_layout(path: &Path, header: &LasHeader, vlrs: &[Vlr]) -> Result<laz::LazVlr> {
+    let v = vlrs.iter().find(|v| v.is("laszip encoded", 22204)).ok_or_else(|| Error::bad_input(path, Some(104),
+        "the point format says LAZ-compressed but there is no LASzip VLR (\"laszip encoded\", 22204)"))?;
+    let lv = laz::LazVlr::from_buffer(&v.data)
+        .map_err(|e| Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}")))?;
+    if lv.items_size() != header.record_length as u64 {
+        return Err(Error::bad_input(
+            path,
+            Some(105),
+            format!(
+                "the LASzip VLR describes {}-byte points but the header says {}",
+                lv.items_size(),
+                header.record_length
+            ),
+        ));
+    }
+    Ok(lv)
+}
+
+/// Checks that an uncompressed file holds the header's points.
+fn check_size(path: &Path, header: &LasHeader, len: u64) -> Result<()> {
+    let need = (header.point_count)
+        .checked_mul(header.record_length as u64)
+        .and_then(|b| b.checked_add(header.offset_to_point_data as u64));
+    let end = header.point_data_end(len);
+    if need.is_none_or(|n| n > end) {
+        let whole =
+            (end.saturating_sub(header.offset_to_point_data as u64)) / header.record_length as u64;
+        return Err(Error::bad_input(path, Some(header.offset_to_point_data as u64), format!(
+            "the header says {} points of {} bytes, but the point data ends at byte {end}: only {whole} whole points are present. The file is truncated (re-copy it) or its point count is wrong",
+            header.point_count, header.record_length)));
+    }
+    Ok(())
 }
 
 impl PointSource for LasSource {
@@ -281,7 +318,80 @@ impl PointSource for LasSource {
         )
     }
 
-    fn as_las(&self) -> Option<&LasSource> {
-        Some(self)
+    fn layout(&self) -> SourceLayout<'_> {
+        SourceLayout::Las(self.parts())
     }
+
+    fn properties(&self) -> Vec<Property> {
+        las_properties(&self.header, &self.extra)
+    }
+}
+
+/// The properties of a LAS record that a non-LAS writer keeps: x, y, z as f64 (scale and offset
+/// applied), the standard fields that decode without tables (intensity, return numbers,
+/// classification, user data, point source id, GPS time and RGB when the format has them), and
+/// every scalar extra dimension (as f64 when it has a scale or offset).
+fn las_properties(h: &LasHeader, extra: &[Descriptor]) -> Vec<Property> {
+    use ScalarType::*;
+    let mut v: Vec<Property> = (0..3)
+        .map(|a| {
+            let stored = Stored::Scaled {
+                raw: I32,
+                at: 4 * a,
+                scale: h.scale[a],
+                offset: h.offset[a],
+            };
+            Property::new(["x", "y", "z"][a], F64, stored)
+        })
+        .collect();
+    v.push(Property::new("intensity", U16, Stored::Le(12)));
+    let legacy = h.point_format < 6;
+    let bits = |at, shift, width| Stored::Bits { at, shift, width };
+    let (rn, nr, class) = if legacy {
+        (bits(14, 0, 3), bits(14, 3, 3), bits(15, 0, 5))
+    } else {
+        (bits(14, 0, 4), bits(14, 4, 4), Stored::Le(16))
+    };
+    v.push(Property::new("return_number", U8, rn));
+    v.push(Property::new("number_of_returns", U8, nr));
+    v.push(Property::new("classification", U8, class));
+    let (user, source_id) = if legacy { (17, 18) } else { (17, 20) };
+    v.push(Property::new("user_data", U8, Stored::Le(user)));
+    v.push(Property::new("point_source_id", U16, Stored::Le(source_id)));
+    let gps = match h.point_format {
+        1 | 3 | 4 | 5 => Some(20),
+        6..=10 => Some(22),
+        _ => None,
+    };
+    if let Some(at) = gps {
+        v.push(Property::new("gps_time", F64, Stored::Le(at)));
+    }
+    let rgb = match h.point_format {
+        2 => Some(20),
+        3 | 5 => Some(28),
+        7 | 8 | 10 => Some(30),
+        _ => None,
+    };
+    if let Some(at) = rgb {
+        for (i, c) in ["red", "green", "blue"].into_iter().enumerate() {
+            v.push(Property::new(c, U16, Stored::Le(at + 2 * i)));
+        }
+    }
+    let base = POINT_FORMAT_SIZES[h.point_format as usize] as usize;
+    for d in extra {
+        let Some(raw) = d.scalar() else { continue };
+        let at = base + d.offset;
+        if d.scale == 1.0 && d.value_offset == 0.0 {
+            v.push(Property::new(d.name.clone(), raw, Stored::Le(at)));
+        } else {
+            let stored = Stored::Scaled {
+                raw,
+                at,
+                scale: d.scale,
+                offset: d.value_offset,
+            };
+            v.push(Property::new(d.name.clone(), F64, stored));
+        }
+    }
+    v
 }

@@ -7,8 +7,8 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
+use super::faces::{integer, Faces, Place};
 use super::map_file;
-use super::sampled::{integer, Faces, Place};
 use super::text::{first_point_line, tokens, Body, Column, Lines, PointLines, TextSource};
 
 /// Names for `n` vertex values: x y z, then `then` in order, then `column<i>` (1-based).

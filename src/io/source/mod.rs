@@ -1,7 +1,12 @@
 //! Reading points. A [`PointSource`] streams a file's points in file order as chunks of raw
 //! records (the bytes `assemble` carries to the output) and decodes coordinates and file normals
-//! from them. One module per format; [`open`] picks by content and extension.
+//! from them. One module per format, plus [`binary`] (fixed-size binary records, for PLY and
+//! PCD) and [`faces`] (a mesh's faces, for `--sample-faces`); [`open`] picks by content and
+//! extension. [`PointSource::layout`] tells a writer whether the records are LAS records it can
+//! carry over or records to convert.
 
+pub mod binary;
+pub mod faces;
 pub mod las;
 pub mod mesh;
 pub mod pcd;
@@ -16,7 +21,7 @@ use memmap2::Mmap;
 use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
 use crate::io::las::extra_bytes::ScalarType;
-use crate::io::las::header::POINT_FORMAT_SIZES;
+use crate::io::las::parts::LasParts;
 
 pub use las::LasSource;
 
@@ -49,15 +54,15 @@ pub trait PointSource: Send + Sync {
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
     /// A short description of the format for the log, e.g. "LAS 1.4 format 6 (LAZ)".
     fn describe(&self) -> String;
-    /// The LAS/LAZ source, when this is one (its records can be written back as LAS untouched).
-    fn as_las(&self) -> Option<&LasSource>;
+    /// How the raw records are laid out: LAS records with the file's header, VLRs, EVLRs and
+    /// extra-bytes descriptors (a LAS/LAZ output keeps them byte for byte), or the reader's own
+    /// records, which a LAS/LAZ writer converts from [`PointSource::properties`].
+    fn layout(&self) -> SourceLayout<'_>;
     /// The per-point properties of the raw records (name, type and where each value sits), for
     /// writers that re-encode records in another format. Non-LAS sources list every property of
-    /// their file, x, y and z included; the default describes a LAS record (see
-    /// [`las_properties`]) and is empty for anything else.
-    fn properties(&self) -> Vec<Property> {
-        self.as_las().map(las_properties).unwrap_or_default()
-    }
+    /// their file, x, y and z included; a LAS source lists the fields that decode without
+    /// tables and its scalar extra dimensions.
+    fn properties(&self) -> Vec<Property>;
     /// The exact bounds (min, max) of the coordinates. The default decodes every point once;
     /// readers that already validated every point in `open` return what they found there.
     fn bounds(&self) -> Result<[[f64; 3]; 2]> {
@@ -71,6 +76,16 @@ pub trait PointSource: Send + Sync {
         })?;
         Ok(b.get())
     }
+}
+
+/// How a source's raw records are laid out, for the writers ([`PointSource::layout`]).
+#[derive(Debug, Clone, Copy)]
+pub enum SourceLayout<'a> {
+    /// LAS point records, described by these parts of the file.
+    Las(LasParts<'a>),
+    /// The reader's own fixed-width records, described by [`PointSource::properties`]: a LAS
+    /// writer converts them.
+    Converted,
 }
 
 /// Where and how a property's value is stored in a raw record.
@@ -195,76 +210,6 @@ pub fn encode_le(ty: ScalarType, v: f64, out: &mut Vec<u8>) {
         F32 => out.extend_from_slice(&(v as f32).to_le_bytes()),
         F64 => out.extend_from_slice(&v.to_le_bytes()),
     }
-}
-
-/// The properties of a LAS record that a non-LAS writer keeps: x, y, z as f64 (scale and offset
-/// applied), the standard fields that decode without tables (intensity, return numbers,
-/// classification, user data, point source id, GPS time and RGB when the format has them), and
-/// every scalar extra dimension (as f64 when it has a scale or offset).
-pub fn las_properties(las: &LasSource) -> Vec<Property> {
-    use ScalarType::*;
-    let h = &las.header;
-    let mut v: Vec<Property> = (0..3)
-        .map(|a| {
-            let stored = Stored::Scaled {
-                raw: I32,
-                at: 4 * a,
-                scale: h.scale[a],
-                offset: h.offset[a],
-            };
-            Property::new(["x", "y", "z"][a], F64, stored)
-        })
-        .collect();
-    v.push(Property::new("intensity", U16, Stored::Le(12)));
-    let legacy = h.point_format < 6;
-    let bits = |at, shift, width| Stored::Bits { at, shift, width };
-    let (rn, nr, class) = if legacy {
-        (bits(14, 0, 3), bits(14, 3, 3), bits(15, 0, 5))
-    } else {
-        (bits(14, 0, 4), bits(14, 4, 4), Stored::Le(16))
-    };
-    v.push(Property::new("return_number", U8, rn));
-    v.push(Property::new("number_of_returns", U8, nr));
-    v.push(Property::new("classification", U8, class));
-    let (user, source_id) = if legacy { (17, 18) } else { (17, 20) };
-    v.push(Property::new("user_data", U8, Stored::Le(user)));
-    v.push(Property::new("point_source_id", U16, Stored::Le(source_id)));
-    let gps = match h.point_format {
-        1 | 3 | 4 | 5 => Some(20),
-        6..=10 => Some(22),
-        _ => None,
-    };
-    if let Some(at) = gps {
-        v.push(Property::new("gps_time", F64, Stored::Le(at)));
-    }
-    let rgb = match h.point_format {
-        2 => Some(20),
-        3 | 5 => Some(28),
-        7 | 8 | 10 => Some(30),
-        _ => None,
-    };
-    if let Some(at) = rgb {
-        for (i, c) in ["red", "green", "blue"].into_iter().enumerate() {
-            v.push(Property::new(c, U16, Stored::Le(at + 2 * i)));
-        }
-    }
-    let base = POINT_FORMAT_SIZES[h.point_format as usize] as usize;
-    for d in &las.extra {
-        let Some(raw) = d.scalar() else { continue };
-        let at = base + d.offset;
-        if d.scale == 1.0 && d.value_offset == 0.0 {
-            v.push(Property::new(d.name.clone(), raw, Stored::Le(at)));
-        } else {
-            let stored = Stored::Scaled {
-                raw,
-                at,
-                scale: d.scale,
-                offset: d.value_offset,
-            };
-            v.push(Property::new(d.name.clone(), F64, stored));
-        }
-    }
-    v
 }
 
 /// Running coordinate bounds.

@@ -8,7 +8,7 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::las::extra_bytes::ScalarType;
 
-use super::ply::BinarySource;
+use super::binary::BinarySource;
 use super::text::{Body, Column, Lines, TextSource};
 use super::{map_file, PointSource, Property, Stored};
 
@@ -39,126 +39,160 @@ struct Scalar {
     padding: bool,
 }
 
-/// Opens a PCD file.
-pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
-    let map = map_file(path)?;
-    let bad = |line: u64, what: String| {
-        Error::bad_input(path, None, format!("header line {line}: {what}"))
-    };
-    let mut pos = 0usize;
-    let mut line = 0u64;
-    let mut keys: Vec<(String, Vec<String>, u64)> = Vec::new();
-    let data = loop {
-        let rest = &map[pos..];
-        let Some(len) = rest.iter().position(|&b| b == b'\n') else {
-            return Err(Error::bad_input(
-                path,
-                None,
-                "the PCD header has no DATA line: the file is truncated or not PCD",
-            ));
+/// The header of a PCD file: its `KEY values...` lines and its DATA line.
+struct Header {
+    /// Each key with its values and its 1-based line.
+    keys: Vec<(String, Vec<String>, u64)>,
+    /// The DATA keyword (`ascii`, `binary`, `binary_compressed`).
+    data: String,
+    /// Byte offset of the body.
+    end: usize,
+    /// Line of the DATA keyword (the last header line).
+    line: u64,
+}
+
+impl Header {
+    /// Reads the header lines up to and including DATA.
+    fn read(path: &Path, map: &[u8]) -> Result<Self> {
+        let mut pos = 0usize;
+        let mut line = 0u64;
+        let mut keys: Vec<(String, Vec<String>, u64)> = Vec::new();
+        let data = loop {
+            let rest = &map[pos..];
+            let Some(len) = rest.iter().position(|&b| b == b'\n') else {
+                return Err(Error::bad_input(
+                    path,
+                    None,
+                    "the PCD header has no DATA line: the file is truncated or not PCD",
+                ));
+            };
+            line += 1;
+            pos += len + 1;
+            let text = String::from_utf8_lossy(&rest[..len]);
+            let mut words = text.split_ascii_whitespace();
+            let Some(key) = words.next().filter(|k| !k.starts_with('#')) else {
+                continue;
+            };
+            let values: Vec<String> = words.map(str::to_string).collect();
+            if key == "DATA" {
+                break values.first().cloned().unwrap_or_default();
+            }
+            keys.push((key.to_string(), values, line));
         };
-        line += 1;
-        pos += len + 1;
-        let text = String::from_utf8_lossy(&rest[..len]);
-        let mut words = text.split_ascii_whitespace();
-        let Some(key) = words.next().filter(|k| !k.starts_with('#')) else {
-            continue;
-        };
-        let values: Vec<String> = words.map(str::to_string).collect();
-        if key == "DATA" {
-            break values.first().cloned().unwrap_or_default();
-        }
-        keys.push((key.to_string(), values, line));
-    };
-    let get = |key: &str| keys.iter().find(|(k, _, _)| k == key);
-    let need = |key: &str| {
-        get(key).ok_or_else(|| {
-            Error::bad_input(path, None, format!("the PCD header has no {key} line"))
+        Ok(Header {
+            keys,
+            data,
+            end: pos,
+            line,
         })
-    };
-    let (_, fields, fields_line) = need("FIELDS")?;
-    let (_, sizes, _) = need("SIZE")?;
-    let (_, types, _) = need("TYPE")?;
-    let ones = vec!["1".to_string(); fields.len()];
-    let counts = get("COUNT").map_or(&ones, |(_, c, _)| c);
-    if [sizes.len(), types.len(), counts.len()] != [fields.len(); 3] {
-        return Err(bad(
-            *fields_line,
-            format!(
+    }
+
+    fn get(&self, key: &str) -> Option<&(String, Vec<String>, u64)> {
+        self.keys.iter().find(|(k, _, _)| k == key)
+    }
+
+    /// The scalars of a point, from FIELDS, SIZE, TYPE and COUNT.
+    fn scalars(&self, path: &Path) -> Result<Vec<Scalar>> {
+        let need = |key: &str| {
+            self.get(key).ok_or_else(|| {
+                Error::bad_input(path, None, format!("the PCD header has no {key} line"))
+            })
+        };
+        let (_, fields, fields_line) = need("FIELDS")?;
+        let (_, sizes, _) = need("SIZE")?;
+        let (_, types, _) = need("TYPE")?;
+        let ones = vec!["1".to_string(); fields.len()];
+        let counts = self.get("COUNT").map_or(&ones, |(_, c, _)| c);
+        let bad = |what: String| bad_line(path, *fields_line, what);
+        if [sizes.len(), types.len(), counts.len()] != [fields.len(); 3] {
+            return Err(bad(format!(
                 "FIELDS names {} fields but SIZE, TYPE and COUNT give {}, {} and {} values",
                 fields.len(),
                 sizes.len(),
                 types.len(),
                 counts.len()
-            ),
-        ));
-    }
-    let mut scalars = Vec::new();
-    for i in 0..fields.len() {
-        let ty = pcd_type(&types[i], &sizes[i]).ok_or_else(|| {
-            bad(*fields_line, format!(
-                "field {} has TYPE {} and SIZE {}; expected I or U with size 1, 2, 4 or 8, or F with size 4 or 8",
-                fields[i], types[i], sizes[i]
-            ))
-        })?;
-        // PCL's largest descriptors have a few hundred elements; the cap keeps a corrupt
-        // COUNT from allocating without bound.
-        let n: usize = counts[i]
-            .parse()
-            .ok()
-            .filter(|&n| n > 0 && n <= 1 << 16)
-            .ok_or_else(|| {
-                bad(
-                    *fields_line,
-                    format!(
+            )));
+        }
+        let mut scalars = Vec::new();
+        for i in 0..fields.len() {
+            let ty = pcd_type(&types[i], &sizes[i]).ok_or_else(|| {
+                bad(format!(
+                    "field {} has TYPE {} and SIZE {}; expected I or U with size 1, 2, 4 or 8, or F with size 4 or 8",
+                    fields[i], types[i], sizes[i]
+                ))
+            })?;
+            // PCL's largest descriptors have a few hundred elements; the cap keeps a corrupt
+            // COUNT from allocating without bound.
+            let n: usize = counts[i]
+                .parse()
+                .ok()
+                .filter(|&n| n > 0 && n <= 1 << 16)
+                .ok_or_else(|| {
+                    bad(format!(
                         "field {} has COUNT {:?}; expected a whole number from 1 to 65536",
                         fields[i], counts[i]
-                    ),
-                )
-            })?;
-        for k in 0..n {
-            scalars.push(Scalar {
-                name: if n == 1 {
-                    fields[i].clone()
-                } else {
-                    format!("{}_{k}", fields[i])
-                },
-                ty,
-                padding: fields[i] == "_",
-            });
+                    ))
+                })?;
+            for k in 0..n {
+                scalars.push(Scalar {
+                    name: if n == 1 {
+                        fields[i].clone()
+                    } else {
+                        format!("{}_{k}", fields[i])
+                    },
+                    ty,
+                    padding: fields[i] == "_",
+                });
+            }
         }
+        Ok(scalars)
     }
-    let number = |key: &str| -> Result<Option<u64>> {
-        match get(key) {
-            None => Ok(None),
-            Some((_, v, l)) => match v.as_slice() {
-                [n] => n
-                    .parse()
-                    .map(Some)
-                    .map_err(|_| bad(*l, format!("{key} is {n:?}, not a whole number"))),
-                _ => Err(bad(*l, format!("expected \"{key} <number>\""))),
-            },
-        }
-    };
-    let points = match (number("POINTS")?, number("WIDTH")?, number("HEIGHT")?) {
-        (Some(p), Some(w), Some(h)) if w.checked_mul(h) != Some(p) => {
-            return Err(Error::bad_input(
+
+    /// The number of points, from POINTS or WIDTH x HEIGHT (which must agree when all are given).
+    fn points(&self, path: &Path) -> Result<u64> {
+        let number = |key: &str| -> Result<Option<u64>> {
+            match self.get(key) {
+                None => Ok(None),
+                Some((_, v, l)) => match v.as_slice() {
+                    [n] => n.parse().map(Some).map_err(|_| {
+                        bad_line(path, *l, format!("{key} is {n:?}, not a whole number"))
+                    }),
+                    _ => Err(bad_line(path, *l, format!("expected \"{key} <number>\""))),
+                },
+            }
+        };
+        match (number("POINTS")?, number("WIDTH")?, number("HEIGHT")?) {
+            (Some(p), Some(w), Some(h)) if w.checked_mul(h) != Some(p) => Err(Error::bad_input(
                 path,
                 None,
                 format!(
                     "the header says POINTS {p} but WIDTH x HEIGHT = {w} x {h}; fix one of them"
                 ),
-            ))
+            )),
+            (Some(p), _, _) => Ok(p),
+            (None, Some(w), Some(h)) => Ok(w.saturating_mul(h)),
+            _ => Err(Error::bad_input(
+                path,
+                None,
+                "the PCD header has neither POINTS nor WIDTH and HEIGHT: the point count is unknown",
+            )),
         }
-        (Some(p), _, _) => p,
-        (None, Some(w), Some(h)) => w.saturating_mul(h),
-        _ => return Err(Error::bad_input(
-            path,
-            None,
-            "the PCD header has neither POINTS nor WIDTH and HEIGHT: the point count is unknown",
-        )),
-    };
-    match data.as_str() {
+    }
+}
+
+/// A bad-input error at a header line.
+fn bad_line(path: &Path, line: u64, what: String) -> Error {
+    Error::bad_input(path, None, format!("header line {line}: {what}"))
+}
+
+/// Opens a PCD file.
+pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
+    let map = map_file(path)?;
+    let h = Header::read(path, &map)?;
+    let scalars = h.scalars(path)?;
+    let points = h.points(path)?;
+    let (pos, line) = (h.end, h.line);
+    match h.data.as_str() {
         "ascii" => {
             let body = Body {
                 start: pos,
@@ -196,7 +230,7 @@ pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
         "binary_compressed" => Err(Error::bad_input(path, None, format!(
             "header line {line}: DATA binary_compressed is not supported; convert the file to binary or ascii first (e.g. pcl_convert_pcd_ascii_binary in.pcd out.pcd 1)"
         ))),
-        other => Err(bad(line, format!(
+        other => Err(bad_line(path, line, format!(
             "DATA is {other:?}; expected ascii, binary or binary_compressed"
         ))),
     }

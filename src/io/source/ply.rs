@@ -1,23 +1,18 @@
 //! PLY input (ASCII, binary little endian, binary big endian): parses the header, reads the
 //! `vertex` element as the points (x y z, optional nx ny nz, every other property kept) and
-//! skips every other element (faces). Binary vertices are memory-mapped fixed-size records
-//! ([`BinarySource`], which binary PCD shares); ASCII bodies go through the text scanner. Also
-//! the PLY type names, which the PLY writer uses too.
+//! skips every other element (faces, unless [`read_faces`] is asked for them). Binary vertices
+//! are memory-mapped fixed-size records ([`BinarySource`], which binary PCD shares); ASCII
+//! bodies go through the text scanner. Also the PLY type names, which the PLY writer uses too.
 
-use std::path::{Path, PathBuf};
-
-use memmap2::Mmap;
+use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::io::crs::UnitSource;
 use crate::io::las::extra_bytes::ScalarType;
 
-use super::sampled::{integer, Faces, Place};
+use super::binary::BinarySource;
+use super::faces::{integer, Faces, Place};
 use super::text::{tokens, Body, Column, Lines, PointLines, TextSource};
-use super::{
-    map_file, no_crs, usable_normal, xyz_and_normals, Bounds, LasSource, PointSource, Property,
-    SourcePoint, Stored,
-};
+use super::{map_file, PointSource, Property, Stored};
 
 /// The PLY scalar type names with their types: the classic names first (the ones the writer
 /// uses), then the sized aliases.
@@ -293,9 +288,6 @@ pub fn read_faces(path: &Path, map: &[u8], faces: &mut Faces) -> Result<bool> {
     if face.count == 0 {
         return Ok(false);
     }
-    let is_indices = |p: &PlyProperty| {
-        p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
-    };
     if !face.props.iter().any(is_indices) {
         let names: Vec<_> = face.props.iter().map(|p| p.name.as_str()).collect();
         return Err(Error::bad_input(path, None, format!(
@@ -304,70 +296,103 @@ pub fn read_faces(path: &Path, map: &[u8], faces: &mut Faces) -> Result<bool> {
             names.join(" ")
         )));
     }
-    let mut idx = Vec::new();
     if h.encoding == Encoding::Ascii {
-        let body = Body {
-            start: h.end,
-            first_line: h.lines + 1,
-            lines: Lines::Counted {
-                skip: h.elements[..fi]
-                    .iter()
-                    .fold(0u64, |s, e| s.saturating_add(e.count)),
-                count: face.count,
-                noun: "faces",
-            },
-        };
-        let mut lines = PointLines::new(map, body);
-        for (no, content) in lines.by_ref() {
-            let at = Place::Line(no);
-            let mut toks = tokens(content);
-            let mut take = |what: &dyn Fn() -> String| {
-                toks.next()
-                    .ok_or_else(|| faces.bad(at, format!("the face line ends before {}", what())))
-            };
-            let int = |tok: &[u8], what: &dyn Fn() -> String| {
-                integer(tok).ok_or_else(|| {
-                    let tok = String::from_utf8_lossy(tok);
-                    faces.bad(at, format!("{} is {tok:?}, not an integer", what()))
-                })
-            };
-            idx.clear();
-            for p in &face.props {
-                let name = || p.name.clone();
-                let tok = take(&name)?;
-                if p.list.is_none() {
-                    continue;
-                }
-                let len = || format!("the length of {}", p.name);
-                let n = u64::try_from(int(tok, &len)?)
-                    .map_err(|_| faces.bad(at, format!("{} is negative", len())))?;
-                for k in 0..n {
-                    let item = || format!("{} item {}", p.name, k + 1);
-                    let tok = take(&item)?;
-                    if is_indices(p) {
-                        idx.push(int(tok, &item)?);
-                    }
-                }
-            }
-            if let Some(extra) = toks.next() {
-                return Err(faces.bad(at, format!(
-                    "the face line has more values than the face element's properties ({:?} is one too many)",
-                    String::from_utf8_lossy(extra)
-                )));
-            }
-            faces.polygon(&idx, at)?;
-        }
-        if lines.points < face.count {
-            return Err(faces.bad(
-                Place::Line(lines.line - 1),
-                format!(
-                    "the header declares {} faces but the file ends after {}: it is truncated or the count is wrong",
-                    face.count, lines.points
-                ),
-            ));
-        }
-        return Ok(true);
+        ascii_faces(map, &h, fi, faces)?;
+    } else {
+        binary_faces(map, &h, fi, faces)?;
     }
+    Ok(true)
+}
+
+/// Whether a face property is the list of vertex indices.
+fn is_indices(p: &PlyProperty) -> bool {
+    p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
+}
+
+/// Reads the faces (element `fi`) of an ASCII body: one line per face, after one line per
+/// instance of every earlier element.
+fn ascii_faces(map: &[u8], h: &Header, fi: usize, faces: &mut Faces) -> Result<()> {
+    let face = &h.elements[fi];
+    let body = Body {
+        start: h.end,
+        first_line: h.lines + 1,
+        lines: Lines::Counted {
+            skip: h.elements[..fi]
+                .iter()
+                .fold(0u64, |s, e| s.saturating_add(e.count)),
+            count: face.count,
+            noun: "faces",
+        },
+    };
+    let mut idx = Vec::new();
+    let mut lines = PointLines::new(map, body);
+    for (no, content) in lines.by_ref() {
+        let at = Place::Line(no);
+        ascii_face(content, at, face, faces, &mut idx)?;
+        faces.polygon(&idx, at)?;
+    }
+    if lines.points < face.count {
+        return Err(faces.bad(
+            Place::Line(lines.line - 1),
+            format!(
+                "the header declares {} faces but the file ends after {}: it is truncated or the count is wrong",
+                face.count, lines.points
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Parses one ASCII face line into `idx` (its vertex indices); other properties are skipped.
+fn ascii_face(
+    content: &[u8],
+    at: Place,
+    face: &Element,
+    faces: &Faces,
+    idx: &mut Vec<i64>,
+) -> Result<()> {
+    let mut toks = tokens(content);
+    let mut take = |what: &dyn Fn() -> String| {
+        toks.next()
+            .ok_or_else(|| faces.bad(at, format!("the face line ends before {}", what())))
+    };
+    let int = |tok: &[u8], what: &dyn Fn() -> String| {
+        integer(tok).ok_or_else(|| {
+            let tok = String::from_utf8_lossy(tok);
+            faces.bad(at, format!("{} is {tok:?}, not an integer", what()))
+        })
+    };
+    idx.clear();
+    for p in &face.props {
+        let name = || p.name.clone();
+        let tok = take(&name)?;
+        if p.list.is_none() {
+            continue;
+        }
+        let len = || format!("the length of {}", p.name);
+        let n = u64::try_from(int(tok, &len)?)
+            .map_err(|_| faces.bad(at, format!("{} is negative", len())))?;
+        for k in 0..n {
+            let item = || format!("{} item {}", p.name, k + 1);
+            let tok = take(&item)?;
+            if is_indices(p) {
+                idx.push(int(tok, &item)?);
+            }
+        }
+    }
+    if let Some(extra) = toks.next() {
+        return Err(faces.bad(at, format!(
+            "the face line has more values than the face element's properties ({:?} is one too many)",
+            String::from_utf8_lossy(extra)
+        )));
+    }
+    Ok(())
+}
+
+/// Reads the faces (element `fi`) of a binary body, walking the earlier elements (with list
+/// properties, record by record).
+fn binary_faces(map: &[u8], h: &Header, fi: usize, faces: &mut Faces) -> Result<()> {
+    let face = &h.elements[fi];
     let mut cur = Cursor {
         map,
         pos: h.end,
@@ -386,6 +411,7 @@ pub fn read_faces(path: &Path, map: &[u8], faces: &mut Faces) -> Result<bool> {
             }
         }
     }
+    let mut idx = Vec::new();
     for _ in 0..face.count {
         let at = Place::Byte(cur.pos as u64);
         idx.clear();
@@ -395,7 +421,7 @@ pub fn read_faces(path: &Path, map: &[u8], faces: &mut Faces) -> Result<bool> {
         }
         cur.faces.polygon(&idx, at)?;
     }
-    Ok(true)
+    Ok(())
 }
 
 /// A read position in a binary PLY body, for walking elements with list properties.
@@ -466,160 +492,5 @@ impl Cursor<'_, '_, '_> {
             }
             None => self.skip(n.saturating_mul(p.ty.size() as u64), element),
         }
-    }
-}
-
-/// Fixed-size binary point records in a memory-mapped file (binary PLY vertices, binary PCD),
-/// validated against the file size and for finite coordinates when opened.
-pub struct BinarySource {
-    path: PathBuf,
-    map: Mmap,
-    describe: String,
-    start: usize,
-    count: u64,
-    record_length: usize,
-    props: Vec<Property>,
-    xyz: [usize; 3],
-    normals: Option<[usize; 3]>,
-    bounds: [[f64; 3]; 2],
-}
-
-impl BinarySource {
-    /// `count` records of `record_length` bytes starting at byte `start` of `map`, holding
-    /// `props` (which must include x, y and z; bytes no property covers are padding).
-    pub fn new(
-        path: &Path,
-        map: Mmap,
-        describe: String,
-        start: usize,
-        count: u64,
-        record_length: usize,
-        props: Vec<Property>,
-    ) -> Result<Self> {
-        let (xyz, normals) = xyz_and_normals(props.iter().map(|p| p.name.as_str()));
-        let Some(xyz) = xyz else {
-            let names: Vec<_> = props.iter().map(|p| p.name.as_str()).collect();
-            return Err(Error::bad_input(path, None, format!(
-                "the points have no x, y and z (their properties are {}); expected properties named x, y and z",
-                names.join(" ")
-            )));
-        };
-        if count == 0 {
-            return Err(Error::bad_input(
-                path,
-                None,
-                "the header declares 0 points; there is nothing to compute",
-            ));
-        }
-        if props
-            .iter()
-            .any(|p| p.stored.offset() + p.ty.size() > record_length)
-        {
-            return Err(Error::Internal(format!(
-                "{}: a property lies outside the {record_length}-byte record",
-                path.display()
-            )));
-        }
-        let end = count
-            .checked_mul(record_length as u64)
-            .and_then(|b| b.checked_add(start as u64));
-        if end.is_none_or(|e| e > map.len() as u64) {
-            let whole = (map.len().saturating_sub(start) / record_length) as u64;
-            return Err(Error::bad_input(path, Some(start as u64), format!(
-                "the header declares {count} points of {record_length} bytes from byte {start}, but the file ends at byte {}: only {whole} whole points are present. The file is truncated or its point count is wrong",
-                map.len()
-            )));
-        }
-        let mut src = BinarySource {
-            path: path.to_path_buf(),
-            map,
-            describe,
-            start,
-            count,
-            record_length,
-            props,
-            xyz,
-            normals,
-            bounds: [[0.0; 3]; 2],
-        };
-        let mut b = Bounds::default();
-        for i in 0..count as usize {
-            let at = start + i * record_length;
-            let p = src.decode(i as u64, &src.map[at..at + record_length]);
-            if let Some(a) = (0..3).find(|&a| !p.xyz[a].is_finite()) {
-                let o = src.props[xyz[a]].stored.offset();
-                return Err(Error::bad_input(path, Some((at + o) as u64), format!(
-                    "point {i} has {} = {}; every point needs finite x, y and z (remove invalid points first)",
-                    src.props[xyz[a]].name, p.xyz[a]
-                )));
-            }
-            b.add(p.xyz);
-        }
-        src.bounds = b.get();
-        Ok(src)
-    }
-}
-
-impl PointSource for BinarySource {
-    fn path(&self) -> &Path {
-        &self.path
-    }
-
-    fn len(&self) -> u64 {
-        self.count
-    }
-
-    fn has_normals(&self) -> bool {
-        self.normals.is_some()
-    }
-
-    fn unit(&self) -> UnitSource {
-        no_crs(&self.describe)
-    }
-
-    fn record_length(&self) -> usize {
-        self.record_length
-    }
-
-    /// Hands out slices of the map, about `chunk_points` records at a time.
-    fn for_each_chunk(
-        &self,
-        chunk_points: usize,
-        f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
-    ) -> Result<()> {
-        let rl = self.record_length;
-        let mut first = 0u64;
-        while first < self.count {
-            let m = (self.count - first).min(chunk_points.max(1) as u64) as usize;
-            let a = self.start + first as usize * rl;
-            f(first, &self.map[a..a + m * rl])?;
-            first += m as u64;
-        }
-        Ok(())
-    }
-
-    fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
-        let at = |i: usize| self.props[i].value(rec);
-        SourcePoint {
-            id,
-            xyz: self.xyz.map(at),
-            normal: self.normals.and_then(|n| usable_normal(n.map(at))),
-        }
-    }
-
-    fn describe(&self) -> String {
-        self.describe.clone()
-    }
-
-    fn as_las(&self) -> Option<&LasSource> {
-        None
-    }
-
-    fn properties(&self) -> Vec<Property> {
-        self.props.clone()
-    }
-
-    fn bounds(&self) -> Result<[[f64; 3]; 2]> {
-        Ok(self.bounds)
     }
 }

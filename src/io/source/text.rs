@@ -13,7 +13,7 @@ use crate::io::crs::UnitSource;
 use crate::io::las::extra_bytes::ScalarType;
 
 use super::{
-    map_file, no_crs, usable_normal, xyz_and_normals, Bounds, LasSource, PointSource, Property,
+    map_file, no_crs, usable_normal, xyz_and_normals, Bounds, PointSource, Property, SourceLayout,
     SourcePoint, Stored,
 };
 
@@ -427,8 +427,8 @@ impl PointSource for TextSource {
         self.describe.clone()
     }
 
-    fn as_las(&self) -> Option<&LasSource> {
-        None
+    fn layout(&self) -> SourceLayout<'_> {
+        SourceLayout::Converted
     }
 
     fn properties(&self) -> Vec<Property> {

@@ -1,0 +1,78 @@
+//! The LAS/LAZ output of `process` for a LAS input (or a converted one, which `convert` makes
+//! look like one): the input's header, VLRs and EVLRs carried over by the [`LasFileWriter`],
+//! each record followed by the new columns, and the extra-bytes descriptors extended with the
+//! new columns' (after an "undocumented" descriptor for any extra bytes the input left
+//! undescribed).
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::io::columns::ColumnSet;
+use crate::io::las::extra_bytes::{self, encode, encode_undocumented, parse, DESCRIPTOR_SIZE};
+use crate::io::las::parts::LasParts;
+use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
+
+/// Creates the writer of `output` for records of `input` followed by the columns `cols`.
+pub fn create(
+    input: LasParts<'_>,
+    output: &Path,
+    cols: &ColumnSet,
+    provenance: &str,
+) -> Result<LasFileWriter> {
+    let h = input.header;
+    let record_length =
+        u16::try_from(h.record_length as usize + cols.record_size()).map_err(|_| {
+            Error::bad_input(
+                input.path,
+                Some(105),
+                format!(
+                    "records of {} bytes plus {} new bytes exceed the LAS limit of 65535",
+                    h.record_length,
+                    cols.record_size()
+                ),
+            )
+        })?;
+    let spec = LasFileSpec {
+        origin: Some(input.path),
+        header: HeaderStart::Input(h),
+        record_length,
+        vlrs: input.vlrs,
+        evlrs: input.evlrs,
+        extra_bytes: extra_bytes_payload(&input, cols)?,
+        provenance,
+    };
+    LasFileWriter::create(output, spec)
+}
+
+/// The extra-bytes descriptors of the output: the input's (padded with an "undocumented"
+/// descriptor if the input's records have more extra bytes than its VLR describes), then ours.
+fn extra_bytes_payload(input: &LasParts<'_>, cols: &ColumnSet) -> Result<Vec<u8>> {
+    let existing = input
+        .vlrs
+        .iter()
+        .chain(input.evlrs.iter().map(|(_, v)| v))
+        .find(|v| extra_bytes::is_extra_bytes(v));
+    let mut data = existing.map(|v| v.data.clone()).unwrap_or_default();
+    let described: usize = parse(&data)
+        .map(|d| d.iter().map(|d| d.size).sum())
+        .unwrap_or(0);
+    let mut gap = input.header.extra_bytes_len() as usize - described;
+    while gap > 0 {
+        let n = gap.min(255);
+        data.extend_from_slice(&encode_undocumented(n as u8));
+        gap -= n;
+    }
+    for c in cols.columns() {
+        if input
+            .extra
+            .iter()
+            .any(|d| d.name.eq_ignore_ascii_case(&c.name))
+        {
+            return Err(Error::bad_input(input.path, None, format!(
+                "the input already has an extra dimension named {:?} (is it a tilecurv output?); process the original file instead", c.name)));
+        }
+        data.extend_from_slice(&encode(&c));
+    }
+    debug_assert_eq!(data.len() % DESCRIPTOR_SIZE, 0);
+    Ok(data)
+}
