@@ -141,6 +141,37 @@ pub enum OrientMode {
 }
 
 impl OrientMode {
+    /// Parses `up`, `outward`, `propagate` or `viewpoint:X,Y,Z`.
+    pub fn parse(s: &str) -> std::result::Result<OrientMode, String> {
+        if s == "up" {
+            return Ok(OrientMode::Up);
+        }
+        if s == "outward" {
+            return Ok(OrientMode::Outward);
+        }
+        if s == "propagate" {
+            return Ok(OrientMode::Propagate);
+        }
+        if let Some(rest) = s.strip_prefix("viewpoint:") {
+            let v: Vec<f64> = rest
+                .split(',')
+                .map(|c| c.trim().parse::<f64>())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| format!("{s:?}: expected viewpoint:X,Y,Z with three numbers"))?;
+            if let [x, y, z] = v[..] {
+                if [x, y, z].iter().all(|c| c.is_finite()) {
+                    return Ok(OrientMode::Viewpoint([x, y, z]));
+                }
+            }
+            return Err(format!(
+                "{s:?}: expected viewpoint:X,Y,Z with three finite numbers"
+            ));
+        }
+        Err(format!(
+            "{s:?}: expected `up`, `outward`, `propagate` or `viewpoint:X,Y,Z`"
+        ))
+    }
+
     /// The orientation rule once the cloud's centroid is known.
     pub fn resolve(self, centroid: V3) -> Orientation {
         match self {
@@ -215,7 +246,117 @@ pub struct Config {
     pub sample_faces: Option<u64>,
 }
 
+impl Default for Config {
+    /// The command line's defaults, with no input and no output.
+    fn default() -> Self {
+        Config {
+            inputs: Vec::new(),
+            output: PathBuf::new(),
+            memory_bytes: default_memory(),
+            dry_run: false,
+            progress_json: None,
+            tile: Length::Metres(50.0),
+            k: 30,
+            estimator: EstimatorKind::CncAvgHexagram,
+            params: EstimatorParams::default(),
+            orientation: OrientMode::Up,
+            ignore_file_normals: false,
+            directions: false,
+            features: false,
+            column_type: ColumnType::F32,
+            threads: std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1),
+            chunk_points: 1_000_000,
+            work_dir: None,
+            sample_faces: None,
+        }
+    }
+}
+
+/// One option that changes the output, as `key=value`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Param {
+    /// The key, e.g. `k`.
+    pub key: &'static str,
+    /// The value as the command line would give it, e.g. `30`.
+    pub value: String,
+}
+
 impl Config {
+    /// Every option that changes the output, the inputs first: the one list the work
+    /// directory's manifest stores (and its fingerprint hashes), from which every stage of a
+    /// run rebuilds its configuration ([`Config::set_param`]). An option missing here would be
+    /// lost between the stages, so a new output-changing option is added here and nowhere else
+    /// (the provenance lists the same options resolved, see `run::spec::parameters`, checked
+    /// against this list by a test).
+    pub fn params(&self) -> Vec<Param> {
+        let p = |key, value: String| Param { key, value };
+        let mut v: Vec<Param> = self
+            .inputs
+            .iter()
+            .map(|i| p("input", i.to_string_lossy().into_owned()))
+            .collect();
+        v.extend([
+            p("estimator", self.estimator.to_string()),
+            p("k", self.k.to_string()),
+            p("seed", self.params.seed.to_string()),
+            p("triangles", self.params.triangles.to_string()),
+            p("jet_degree", self.params.jet_degree.to_string()),
+            p("orient", self.orientation.to_string()),
+            p("ignore_file_normals", self.ignore_file_normals.to_string()),
+            p("directions", self.directions.to_string()),
+            p("features", self.features.to_string()),
+            p("f64", (self.column_type == ColumnType::F64).to_string()),
+            p("tile", self.tile.to_string()),
+            p(
+                "sample_faces",
+                self.sample_faces.map(|n| n.to_string()).unwrap_or_default(),
+            ),
+        ]);
+        v
+    }
+
+    /// Sets the option `key` from its [`Config::params`] value (`input` adds an input).
+    pub fn set_param(&mut self, key: &str, value: &str) -> std::result::Result<(), String> {
+        let num = |v: &str| {
+            v.parse::<u64>()
+                .map_err(|_| format!("{key}={v}: not a count"))
+        };
+        let flag = |v: &str| {
+            v.parse::<bool>()
+                .map_err(|_| format!("{key}={v}: not true/false"))
+        };
+        match key {
+            "input" => self.inputs.push(PathBuf::from(value)),
+            "estimator" => {
+                self.estimator = EstimatorKind::from_name(value)
+                    .ok_or_else(|| format!("estimator={value}: unknown"))?
+            }
+            "k" => self.k = num(value)? as usize,
+            "seed" => self.params.seed = num(value)?,
+            "triangles" => self.params.triangles = num(value)? as usize,
+            "jet_degree" => self.params.jet_degree = num(value)? as usize,
+            "orient" => self.orientation = OrientMode::parse(value)?,
+            "ignore_file_normals" => self.ignore_file_normals = flag(value)?,
+            "directions" => self.directions = flag(value)?,
+            "features" => self.features = flag(value)?,
+            "f64" => {
+                self.column_type = if flag(value)? {
+                    ColumnType::F64
+                } else {
+                    ColumnType::F32
+                }
+            }
+            "tile" => self.tile = Length::parse(value)?,
+            "sample_faces" => {
+                self.sample_faces = (!value.is_empty()).then(|| num(value)).transpose()?
+            }
+            other => return Err(format!("unknown option {other:?}")),
+        }
+        Ok(())
+    }
+
     /// Checks the values that do not depend on the input file.
     pub fn validate(&self) -> Result<()> {
         if self.k < 6 {

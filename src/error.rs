@@ -15,6 +15,8 @@ pub enum ExitClass {
     Output,
     /// The run was stopped by a signal (exit 130).
     Interrupted,
+    /// A stage found tasks of an earlier stage not done (exit 5).
+    Incomplete,
     /// A bug or an unexpected internal state (exit 1).
     Internal,
 }
@@ -58,6 +60,17 @@ pub enum Error {
         hint: &'static str,
     },
 
+    /// Tasks of an earlier stage are not done yet (a cluster run): nothing was written.
+    #[error("{stage} tasks not done: {tasks}; {hint}")]
+    TasksMissing {
+        /// The stage whose tasks are missing (`bucket`, `run-tile`).
+        stage: &'static str,
+        /// The missing task indices, in Slurm `--array=` syntax.
+        tasks: String,
+        /// What to run.
+        hint: String,
+    },
+
     /// The run was interrupted by a signal before it finished.
     #[error("interrupted: no output was written")]
     Interrupted,
@@ -74,6 +87,7 @@ impl Error {
             Error::Usage(_) => ExitClass::Usage,
             Error::BadInput { .. } | Error::ReadIo { .. } => ExitClass::BadInput,
             Error::WriteIo { .. } => ExitClass::Output,
+            Error::TasksMissing { .. } => ExitClass::Incomplete,
             Error::Interrupted => ExitClass::Interrupted,
             Error::Internal(_) => ExitClass::Internal,
         }

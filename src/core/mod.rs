@@ -12,4 +12,5 @@ pub mod plan;
 pub mod point;
 pub mod rng;
 pub mod surface;
+pub mod tasks;
 pub mod tile;

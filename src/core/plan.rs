@@ -4,6 +4,8 @@
 
 use std::collections::BTreeMap;
 
+use crate::core::geometry::V3;
+
 /// Integer tile coordinates (floor(x / size), floor(y / size)).
 pub type TileKey = (i64, i64);
 
@@ -85,6 +87,53 @@ impl TileGrid {
     }
 }
 
+/// A running centroid of many points: streaming, and mergeable in any grouping with exactly
+/// the same result. Each coordinate is summed as an integer count of 2^-32 units (i128), so the
+/// sum does not depend on the order or on how the points were split between scan tasks
+/// (floating-point sums do). The quantization is below the f64 spacing of coordinates from
+/// 2^21 on (UTM northings, eastings past 2,097 km) and at most 1.2e-10 units elsewhere.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Centroid {
+    /// Per axis: the sum of round(coordinate * 2^32), saturating at the i128 range.
+    pub sum: [i128; 3],
+    /// Points added.
+    pub n: u64,
+}
+
+/// 2^32: the units per coordinate unit of [`Centroid`]'s sums.
+const CENTROID_UNITS: f64 = 4_294_967_296.0;
+
+impl Centroid {
+    /// Adds one point (finite coordinates; others saturate and make the centroid meaningless).
+    pub fn add(&mut self, p: V3) {
+        for (s, c) in self.sum.iter_mut().zip(p) {
+            // `as` saturates: a coordinate beyond 2^95 cannot overflow the sum by itself.
+            *s = s.saturating_add((c * CENTROID_UNITS).round() as i128);
+        }
+        self.n += 1;
+    }
+
+    /// Adds every point of `other` (e.g. the centroid of another chunk or scan task).
+    pub fn merge(&mut self, other: &Centroid) {
+        for (s, o) in self.sum.iter_mut().zip(other.sum) {
+            *s = s.saturating_add(o);
+        }
+        self.n += other.n;
+    }
+
+    /// The centroid, or None when no point was added: the exact integer mean, then its
+    /// remainder, in f64.
+    pub fn get(&self) -> Option<V3> {
+        let n = i128::from(self.n);
+        (n > 0).then(|| {
+            self.sum.map(|s| {
+                let (q, r) = (s / n, s % n);
+                (q as f64 + r as f64 / n as f64) / CENTROID_UNITS
+            })
+        })
+    }
+}
+
 /// What the scan pass learned about the cloud.
 #[derive(Debug, Clone, Default)]
 pub struct ScanStats {
@@ -96,8 +145,49 @@ pub struct ScanStats {
     pub max: [f64; 3],
     /// Points per tile core.
     pub per_tile: BTreeMap<TileKey, u64>,
-    /// Centroid of all points.
-    pub centroid: [f64; 3],
+    /// Centroid of all points, as an exact mergeable sum.
+    pub centroid: Centroid,
+}
+
+impl ScanStats {
+    /// Statistics of no point: bounds that any point widens.
+    pub fn empty() -> Self {
+        ScanStats {
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+            ..Default::default()
+        }
+    }
+
+    /// Adds one point that falls in the core of tile `key`.
+    pub fn add(&mut self, xyz: [f64; 3], key: TileKey) {
+        for (a, &c) in xyz.iter().enumerate() {
+            self.min[a] = self.min[a].min(c);
+            self.max[a] = self.max[a].max(c);
+        }
+        self.centroid.add(xyz);
+        *self.per_tile.entry(key).or_default() += 1;
+        self.count += 1;
+    }
+
+    /// Adds the statistics of other points (another scan task's): the result is the same
+    /// bits in any grouping and order.
+    pub fn merge(&mut self, other: &ScanStats) {
+        for a in 0..3 {
+            self.min[a] = self.min[a].min(other.min[a]);
+            self.max[a] = self.max[a].max(other.max[a]);
+        }
+        self.centroid.merge(&other.centroid);
+        for (k, n) in &other.per_tile {
+            *self.per_tile.entry(*k).or_default() += n;
+        }
+        self.count += other.count;
+    }
+
+    /// The centroid of all points (the origin when there is none).
+    pub fn centroid(&self) -> [f64; 3] {
+        self.centroid.get().unwrap_or_default()
+    }
 }
 
 /// One tile of the plan.
@@ -288,7 +378,7 @@ mod tests {
             min: [0.0; 3],
             max: [600.0, 600.0, 1.0],
             per_tile,
-            centroid: [0.0; 3],
+            centroid: Centroid::default(),
         };
         let p = plan(&stats, 100.0, 30);
         let halo = |key| p.tiles.iter().find(|t| t.key == key).map(|t| t.halo);

@@ -62,13 +62,30 @@ pub fn write_durably(path: &Path, bytes: &[u8]) -> Result<()> {
     commit_file(&tmp, path)
 }
 
-/// The temporary name used for `path` while it is being written.
+/// The temporary name used for `path` while this process writes it: `<name>.tmp.<host>.<pid>`
+/// beside it (the same directory, so the final rename is atomic), unique to the attempt, so that
+/// two processes writing the same file (a task run twice, on two nodes of a cluster) never share
+/// a temporary file.
 pub fn tmp_name(path: &Path) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!("{name}.tmp"))
+    path.with_file_name(format!("{name}.tmp.{}.{}", host_name(), std::process::id()))
+}
+
+/// This machine's host name (`localhost` if it cannot be read), with path separators replaced.
+pub fn host_name() -> String {
+    let mut buf = [0u8; 256];
+    // SAFETY: gethostname writes at most `len` bytes into the buffer we own.
+    let r = unsafe { libc::gethostname(buf.as_mut_ptr() as *mut libc::c_char, buf.len()) };
+    let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+    let name = String::from_utf8_lossy(&buf[..end]).replace(['/', '\\'], "_");
+    if r != 0 || name.is_empty() {
+        "localhost".into()
+    } else {
+        name
+    }
 }
 
 /// Renames a finished, synced temporary file over `path` and syncs the directory.
@@ -127,7 +144,13 @@ pub struct WorkDir {
     path: PathBuf,
     /// What was found there.
     pub resume: Resume,
+    /// Whether this process holds the directory's lock (`process`, `plan`); the cluster stages
+    /// attach without it.
+    locked: bool,
 }
+
+/// File name of the task layout inside the work directory (written by `plan`).
+pub const TASKS: &str = "tasks.txt";
 
 /// The default work directory for an output: `.<name>.tilecurv` beside it.
 pub fn default_path(output: &Path) -> PathBuf {
@@ -211,7 +234,29 @@ impl WorkDir {
         Ok(WorkDir {
             path: path.to_path_buf(),
             resume,
+            locked: true,
         })
+    }
+
+    /// Attaches to the work directory a `plan` made at `path`, without its lock (tasks of one
+    /// stage run at the same time, on any node), and returns it with its manifest.
+    pub fn attach(path: &Path) -> Result<(Self, String)> {
+        let mpath = path.join(MANIFEST);
+        let manifest = std::fs::read_to_string(&mpath).map_err(|e| {
+            Error::Usage(format!(
+                "{}: not a tilecurv work directory ({e}); run `tilecurv plan INPUTS... --work {}` first",
+                path.display(),
+                path.display()
+            ))
+        })?;
+        Ok((
+            WorkDir {
+                path: path.to_path_buf(),
+                resume: Resume::Resumed,
+                locked: false,
+            },
+            manifest,
+        ))
     }
 
     /// The directory.
@@ -228,7 +273,9 @@ impl WorkDir {
 impl Drop for WorkDir {
     /// Releases the lock; the work stays for a resumed run unless `remove` was called.
     fn drop(&mut self) {
-        let _ = std::fs::remove_file(self.path.join(LOCK));
+        if self.locked {
+            let _ = std::fs::remove_file(self.path.join(LOCK));
+        }
     }
 }
 

@@ -1,21 +1,26 @@
-//! The bucket stage: one streaming pass over the inputs that puts every point in the bucket of
-//! its core tile and gathers the scan statistics (bounds, counts per tile, centroid). A run
-//! resumed after the scan finished reuses the buckets it left in the work directory.
+//! The bucket stage: a streaming pass over the inputs that puts every point in the bucket of
+//! its core tile and gathers the scan statistics (bounds, counts per tile, centroid). It runs
+//! as bucket tasks (the task layout's ranges of inputs), each writing its own directory
+//! `buckets/t<task>/`, so that a cluster scans many files at once; `process` runs one task over
+//! every input and keeps its buckets in memory while they fit. A task whose directory is
+//! complete is not run again.
 
+use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 
 use crate::core::plan::ScanStats;
+use crate::core::tasks::TaskLayout;
 use crate::error::{Error, Result};
-use crate::io::bucket::{Buckets, ScanInput};
-use crate::io::workdir::{Resume, WorkDir};
+use crate::io::bucket::{scan, task_stats, Buckets, ScanInput};
+use crate::io::workdir::WorkDir;
 use crate::run::spec::RunSpec;
 use crate::run::Exec;
 
 /// The scan's product: the buckets and what the scan learned.
 pub struct Bucketed {
-    /// Every tile's core points (in memory, or spilled to the work directory).
+    /// Every tile's core points (in memory, or in the task directories).
     pub buckets: Buckets,
-    /// Bounds, counts per tile, centroid.
+    /// Bounds, counts per tile, centroid, merged over the bucket tasks.
     pub stats: ScanStats,
 }
 
@@ -30,38 +35,113 @@ pub fn chunk_points(spec: &RunSpec, exec: &Exec<'_>) -> usize {
     exec.memory.chunk_points(exec.chunk_points, widest)
 }
 
-/// Runs the scan into `work` (its `buckets/` folder when the buckets do not fit the budget),
-/// or reopens the buckets a previous run of the same manifest left complete there.
-pub fn bucket(work: &WorkDir, spec: &RunSpec, exec: &Exec<'_>) -> Result<Bucketed> {
-    let spill_dir = work.path().join("buckets");
-    if work.resume == Resume::Resumed {
-        if let Some((buckets, stats)) = Buckets::reopen(&spill_dir, spec.grid) {
-            exec.reporter
-                .info("reusing the buckets of the interrupted run");
-            return Ok(Bucketed { buckets, stats });
-        }
+/// The directory of bucket task `task`.
+pub fn task_dir(work: &WorkDir, task: usize) -> PathBuf {
+    work.path().join("buckets").join(format!("t{task}"))
+}
+
+/// Runs bucket task `task` of `layout` unless its directory is already complete (then None).
+/// With
+/// `keep_in_memory` (`process`), buckets that fit the budget are returned in memory and not
+/// written.
+pub fn bucket_task(
+    work: &WorkDir,
+    spec: &RunSpec,
+    layout: &TaskLayout,
+    task: usize,
+    keep_in_memory: bool,
+    exec: &Exec<'_>,
+) -> Result<Option<Bucketed>> {
+    let inputs = layout.bucket_tasks.get(task).cloned().ok_or_else(|| {
+        Error::Usage(format!(
+            "--task {task}: there are {} bucket tasks (0 to {})",
+            layout.bucket_tasks.len(),
+            layout.bucket_tasks.len().saturating_sub(1)
+        ))
+    })?;
+    let dir = task_dir(work, task);
+    if task_stats(&dir).is_some() {
+        return Ok(None);
     }
-    exec.reporter.phase("scan", spec.total_points);
-    let inputs: Vec<ScanInput<'_>> = spec
-        .sources
-        .iter()
-        .zip(&spec.first_ids)
-        .map(|(s, &first_id)| ScanInput {
-            source: s.as_ref(),
-            first_id,
+    std::fs::create_dir_all(work.path().join("buckets"))
+        .map_err(|e| Error::write(&work.path().join("buckets"), e))?;
+    let scan_inputs: Vec<ScanInput<'_>> = inputs
+        .clone()
+        .map(|i| ScanInput {
+            source: spec.sources[i].as_ref(),
+            first_id: spec.first_ids[i],
         })
         .collect();
+    let points = scan_inputs.iter().map(|s| s.source.len()).sum();
+    exec.reporter.phase("scan", points);
     let chunk = chunk_points(spec, exec);
     let (buckets, stats) = exec.pool.install(|| {
-        Buckets::scan(&inputs, spec.grid, chunk, &exec.memory, &spill_dir, |n| {
-            exec.reporter.advance(n);
-            if exec.cancel.load(Ordering::Relaxed) {
-                Err(Error::Interrupted)
-            } else {
-                Ok(())
-            }
-        })
+        scan(
+            &scan_inputs,
+            spec.grid,
+            chunk,
+            &exec.memory,
+            &dir,
+            keep_in_memory,
+            |n| {
+                exec.reporter.advance(n);
+                if exec.cancel.load(Ordering::Relaxed) {
+                    Err(Error::Interrupted)
+                } else {
+                    Ok(())
+                }
+            },
+        )
     })?;
     exec.reporter.finish_phase();
-    Ok(Bucketed { buckets, stats })
+    Ok(Some(Bucketed { buckets, stats }))
+}
+
+/// The buckets of every bucket task of `layout`, from their directories; an error naming the
+/// tasks that are not done yet.
+pub fn open_buckets(work: &WorkDir, spec: &RunSpec, layout: &TaskLayout) -> Result<Bucketed> {
+    let dirs: Vec<PathBuf> = (0..layout.bucket_tasks.len())
+        .map(|t| task_dir(work, t))
+        .collect();
+    match Buckets::open(spec.grid, &dirs) {
+        Ok((buckets, stats)) => Ok(Bucketed { buckets, stats }),
+        Err(missing) => Err(Error::TasksMissing {
+            stage: "bucket",
+            tasks: crate::core::tasks::array_syntax(
+                &missing.iter().map(|&t| t as u64).collect::<Vec<_>>(),
+            ),
+            hint: format!(
+                "run `tilecurv bucket --work {} --task I` for each (or once without --task)",
+                work.path().display()
+            ),
+        }),
+    }
+}
+
+/// The bucket stage of `process`: its one bucket task, in memory while the buckets fit, or the
+/// buckets an interrupted run of the same manifest left complete.
+pub fn bucket_all(
+    work: &WorkDir,
+    spec: &RunSpec,
+    layout: &TaskLayout,
+    exec: &Exec<'_>,
+) -> Result<Bucketed> {
+    for task in 0..layout.bucket_tasks.len() {
+        if let Some(b) = bucket_task(
+            work,
+            spec,
+            layout,
+            task,
+            layout.bucket_tasks.len() == 1,
+            exec,
+        )? {
+            if !b.buckets.spilled() {
+                return Ok(b);
+            }
+        } else {
+            exec.reporter
+                .info("reusing the buckets of the interrupted run");
+        }
+    }
+    open_buckets(work, spec, layout)
 }

@@ -9,11 +9,12 @@ use std::time::Instant;
 use crate::core::compute::TileBuffers;
 use crate::core::plan::{plan, TileSpec};
 use crate::core::point::BUCKET_POINT_BYTES;
+use crate::core::tasks::TaskLayout;
 use crate::core::tile::Part;
 use crate::error::Result;
 use crate::io::bucket::load_tile;
 use crate::io::workdir::WorkDir;
-use crate::run::bucket::bucket;
+use crate::run::bucket::bucket_all;
 use crate::run::spec::RunSpec;
 use crate::run::tiles::{compute_params, TileJob};
 use crate::run::Exec;
@@ -34,7 +35,8 @@ fn estimated_loaded_points(t: &TileSpec, size: f64) -> usize {
 
 fn estimate(scratch: &WorkDir, spec: &RunSpec, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
     let t0 = Instant::now();
-    let scan = bucket(scratch, spec, exec)?;
+    let layout = TaskLayout::single(spec.sources.len());
+    let scan = bucket_all(scratch, spec, &layout, exec)?;
     let scan_s = t0.elapsed().as_secs_f64();
     let params = compute_params(spec, &scan.stats);
     let tplan = plan(&scan.stats, spec.grid.size, spec.k);

@@ -17,6 +17,7 @@
 
 pub mod assemble;
 pub mod bucket;
+pub mod cluster;
 pub mod dry_run;
 pub mod orientation;
 pub mod prepare;
@@ -29,8 +30,9 @@ use std::time::Instant;
 
 use crate::config::Config;
 use crate::core::plan::MemoryPlan;
+use crate::core::tasks::TaskLayout;
 use crate::error::{Error, Result};
-use crate::io::workdir::{Resume, WorkDir};
+use crate::io::workdir::{write_durably, Resume, WorkDir, TASKS};
 use crate::progress::Reporter;
 use crate::run::spec::RunSpec;
 
@@ -90,10 +92,25 @@ pub fn work_path(cfg: &Config, spec: &RunSpec) -> PathBuf {
         .unwrap_or_else(|| crate::io::workdir::default_path(&spec.outputs[0]))
 }
 
-/// The plan stage: opens (creating it if needed) and locks the work directory at `path` and
-/// writes the manifest of `spec`; work left there by another manifest is discarded.
-pub fn plan(path: &Path, spec: &RunSpec, reporter: &dyn Reporter) -> Result<WorkDir> {
+/// The plan stage: opens (creating it if needed) and locks the work directory at `path`,
+/// writes the manifest of `spec` and the task layout; work left there by another manifest is
+/// discarded, and buckets made under another task layout are.
+pub fn plan(
+    path: &Path,
+    spec: &RunSpec,
+    layout: &TaskLayout,
+    reporter: &dyn Reporter,
+) -> Result<WorkDir> {
     let work = WorkDir::open(path, &spec.manifest())?;
+    let tasks = work.path().join(TASKS);
+    let text = layout.to_text();
+    if std::fs::read_to_string(&tasks).ok().as_deref() != Some(text.as_str()) {
+        let buckets = work.path().join("buckets");
+        if buckets.exists() {
+            std::fs::remove_dir_all(&buckets).map_err(|e| Error::write(&buckets, e))?;
+        }
+        write_durably(&tasks, text.as_bytes())?;
+    }
     match work.resume {
         Resume::Fresh => {}
         Resume::Resumed => reporter.info(&format!(
@@ -126,10 +143,11 @@ pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Re
         dry_run::dry_run(&spec, &exec, &path)?;
         return Ok(summary(0, 0, 0, 0));
     }
-    let work = plan(&path, &spec, reporter)?;
+    let layout = TaskLayout::single(spec.sources.len());
+    let work = plan(&path, &spec, &layout, reporter)?;
     let r = (|| {
-        let scan = bucket::bucket(&work, &spec, &exec)?;
-        let done = tiles::tiles(&work, &spec, &scan, &exec)?;
+        let scan = bucket::bucket_all(&work, &spec, &layout, &exec)?;
+        let done = tiles::tiles(&work, &spec, &scan, &layout, None, &exec)?;
         drop(scan);
         assemble::assemble_outputs(&work, &spec, &done.plan, &exec)?;
         Ok(done)

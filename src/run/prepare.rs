@@ -54,7 +54,7 @@ pub fn output_paths(cfg: &Config) -> Result<Vec<PathBuf>> {
 }
 
 /// Checks the outputs: a supported extension, and never one of the inputs.
-fn check_outputs(cfg: &Config, outputs: &[PathBuf]) -> Result<()> {
+pub fn check_outputs(cfg: &Config, outputs: &[PathBuf]) -> Result<()> {
     for output in outputs {
         crate::io::sink::check_output_path(output)?;
         if cfg.inputs.iter().any(|i| same_file(i, output)) {
@@ -130,12 +130,21 @@ fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bo
     Ok(with_normals > 0 && !cfg.ignore_file_normals)
 }
 
-/// Opens and checks the inputs of `cfg` and resolves the run. Nothing is written except the
-/// output directory of a multi-input run.
+/// Opens and checks the inputs of `cfg`, checks its outputs, and resolves the run. Nothing is
+/// written except the output directory of a multi-input run.
 pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     cfg.validate()?;
     let outputs = output_paths(cfg)?;
     check_outputs(cfg, &outputs)?;
+    let mut spec = open_inputs(cfg, reporter)?;
+    spec.outputs = outputs;
+    Ok(spec)
+}
+
+/// Opens and checks the inputs of `cfg` and resolves the run, without outputs (the stages of a
+/// cluster run that write none).
+pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
+    cfg.validate()?;
     let sources = cfg
         .inputs
         .iter()
@@ -184,9 +193,10 @@ pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     Ok(RunSpec {
         total_points: sources.iter().map(|s| s.len()).sum(),
         first_ids,
-        outputs,
+        outputs: Vec::new(),
         grid: TileGrid { size: tile_size },
         params: parameters(cfg, tile_size, &unit_name, file_normals),
+        config: cfg.params(),
         unit_name,
         file_normals,
         cols,

@@ -45,8 +45,10 @@ pub struct RunSpec {
     pub orientation: OrientMode,
     /// The estimator, built once.
     pub estimator: Box<dyn Estimator>,
-    /// The parameters that change the output, in provenance order.
+    /// The parameters that change the output, resolved, in provenance order.
     pub params: Vec<Param>,
+    /// Every output-changing option as given ([`Config::params`]): the manifest stores them.
+    pub config: Vec<crate::config::Param>,
 }
 
 /// The parameters of `cfg` that change the output, with the resolved tile size, unit and
@@ -111,8 +113,10 @@ impl RunSpec {
     }
 
     /// The work directory's manifest: a fingerprint of the inputs (path, size, modification
-    /// time, point count) and of every parameter, then the same in words for a person. Work
-    /// left by a run with another manifest is discarded, never mixed in.
+    /// time, point count) and of every output-changing option, then the same in words for a
+    /// person and the options as `param key=value` lines, from which every stage rebuilds the
+    /// run ([`manifest_params`]). Work left by a run with another manifest is discarded, never
+    /// mixed in; how the run is executed (threads, memory, tasks) is not in it.
     pub fn manifest(&self) -> String {
         let mut fp = Fingerprint::default();
         let mut text = String::new();
@@ -140,7 +144,10 @@ impl RunSpec {
         // The tile size in file units exactly: buckets depend on it bit for bit.
         fp.text(&self.grid.size.to_bits().to_string());
         for p in &self.params {
-            let line = format!("{}={}", p.key, p.value);
+            text.push_str(&format!("{}={}\n", p.key, p.value));
+        }
+        for p in &self.config {
+            let line = format!("param {}={}", p.key, p.value);
             fp.text(&line);
             text.push_str(&line);
             text.push('\n');
@@ -149,5 +156,49 @@ impl RunSpec {
             "tilecurv work directory, fingerprint {:016x}\n{text}",
             fp.value()
         )
+    }
+}
+
+/// The `param key=value` lines of a manifest, in order.
+pub fn manifest_params(manifest: &str) -> Vec<(String, String)> {
+    manifest
+        .lines()
+        .filter_map(|l| l.strip_prefix("param "))
+        .filter_map(|l| l.split_once('='))
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every output-changing option reaches the provenance (under its provenance name), except
+    /// the jet degree, which no command-line option sets.
+    #[test]
+    fn every_option_is_in_the_provenance() {
+        let cfg = Config {
+            sample_faces: Some(1000),
+            ..Config::default()
+        };
+        let names: Vec<&str> = parameters(&cfg, 50.0, "m", false)
+            .iter()
+            .map(|p| p.key)
+            .collect();
+        for p in cfg.params() {
+            let in_provenance = match p.key {
+                "input" => "inputs",
+                "orient" => "orientation",
+                "f64" => "columns",
+                "ignore_file_normals" => "normals",
+                "jet_degree" => continue,
+                k => k,
+            };
+            assert!(
+                in_provenance == "inputs" || names.contains(&in_provenance),
+                "option {} is not in the provenance",
+                p.key
+            );
+        }
     }
 }

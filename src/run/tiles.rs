@@ -19,6 +19,7 @@ use crate::core::compute::{
 use crate::core::estimate::flags;
 use crate::core::plan::{plan, ScanStats, TilePlan, TileSpec};
 use crate::core::point::BUCKET_POINT_BYTES;
+use crate::core::tasks::TaskLayout;
 use crate::core::tile::{split_parts, Part, TilePoints};
 use crate::error::{Error, Result};
 use crate::io::bucket::{load_tile, Buckets};
@@ -46,11 +47,11 @@ pub struct TilesDone {
 pub fn compute_params<'s>(spec: &'s RunSpec, stats: &ScanStats) -> ComputeParams<'s> {
     ComputeParams {
         k: spec.k,
-        orientation: spec.orientation.resolve(stats.centroid),
+        orientation: spec.orientation.resolve(stats.centroid()),
         use_file_normals: spec.file_normals,
         estimator: spec.estimator.as_ref(),
         extra: spec.cols.extra.len(),
-        propagate: (spec.orientation == OrientMode::Propagate).then_some(stats.centroid),
+        propagate: (spec.orientation == OrientMode::Propagate).then_some(stats.centroid()),
     }
 }
 
@@ -178,12 +179,31 @@ impl TileJob<'_> {
     }
 }
 
-/// Runs the tiles stage over `work`: plans the tiles, skips the finished ones, computes the
-/// others and journals them in `results/`.
+/// The tiles of `tplan` that are not finished in `results_dir`, with the tile task of each.
+pub fn missing_tiles<'p>(
+    results_dir: &Path,
+    spec: &RunSpec,
+    tplan: &'p TilePlan,
+    layout: &TaskLayout,
+) -> Vec<(u64, &'p TileSpec)> {
+    let propagate = spec.orientation == OrientMode::Propagate;
+    tplan
+        .tiles
+        .iter()
+        .filter(|t| !tile_done(results_dir, t, &spec.cols, propagate))
+        .map(|t| (layout.task_of(t.key), t))
+        .collect()
+}
+
+/// Runs the tiles stage over `work`: plans the tiles from the scan statistics, skips the
+/// finished ones, computes the others (only those of tile task `task` of `layout` when given)
+/// and journals them in `results/`.
 pub fn tiles(
     work: &WorkDir,
     spec: &RunSpec,
     scan: &Bucketed,
+    layout: &TaskLayout,
+    task: Option<u64>,
     exec: &Exec<'_>,
 ) -> Result<TilesDone> {
     let params = compute_params(spec, &scan.stats);
@@ -191,13 +211,14 @@ pub fn tiles(
     let results_dir = work.path().join("results");
     std::fs::create_dir_all(&results_dir).map_err(|e| Error::write(&results_dir, e))?;
     let propagate = params.propagate.is_some();
-    let todo: Vec<TileSpec> = tplan
-        .tiles
-        .iter()
-        .filter(|t| !tile_done(&results_dir, t, &spec.cols, propagate))
+    let mine = |t: &TileSpec| task.is_none_or(|i| layout.task_of(t.key) == i);
+    let todo: Vec<TileSpec> = missing_tiles(&results_dir, spec, &tplan, layout)
+        .into_iter()
+        .map(|(_, t)| t)
+        .filter(|t| mine(t))
         .cloned()
         .collect();
-    let resumed = tplan.tiles.len() - todo.len();
+    let resumed = tplan.tiles.iter().filter(|t| mine(t)).count() - todo.len();
     report_plan(spec, scan, &tplan, resumed, exec);
     if scan.buckets.spilled() {
         scan.buckets
@@ -214,8 +235,14 @@ pub fn tiles(
             exec.memory.per_tile_bytes >> 20
         ));
     }
-    let done_points: u64 = scan.stats.count - todo.iter().map(|t| t.count).sum::<u64>();
-    exec.reporter.phase("curvature", scan.stats.count);
+    let points: u64 = tplan
+        .tiles
+        .iter()
+        .filter(|t| mine(t))
+        .map(|t| t.count)
+        .sum();
+    let done_points: u64 = points - todo.iter().map(|t| t.count).sum::<u64>();
+    exec.reporter.phase("curvature", points);
     exec.reporter.advance(done_points);
     let job = TileJob {
         buckets: &scan.buckets,

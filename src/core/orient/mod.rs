@@ -70,12 +70,13 @@
 //! votes and the sign solve); this file keeps the outward rule, the centroid and the
 //! [`GlobalPatch`] numbering, and re-exports the rest so every path stays `orient::*`.
 
-use crate::core::geometry::{add, scale, sub, V3};
+use crate::core::geometry::V3;
 use crate::core::normals::{orient, Orientation};
 
 mod propagation;
 mod signs;
 
+pub use crate::core::plan::Centroid;
 pub use propagation::{orient_tile, propagate, Component, Propagation, Seed, TileOrientation};
 pub use signs::{patch_signs, votes_from_shared, PatchAnchor, PatchSigns, PatchVote, SharedNormal};
 
@@ -85,40 +86,6 @@ pub use signs::{patch_signs, votes_from_shared, PatchAnchor, PatchSigns, PatchVo
 /// [`crate::core::normals::orient`].
 pub fn orient_outward(n: V3, p: V3, centre: V3) -> V3 {
     orient(n, p, Orientation::Outward(centre))
-}
-
-/// A running centroid of many points (streaming, mergeable), accumulated relative to the first
-/// point so that UTM-sized coordinates keep their precision.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Centroid {
-    origin: Option<V3>,
-    sum: V3,
-    n: u64,
-}
-
-impl Centroid {
-    /// Adds one point.
-    pub fn add(&mut self, p: V3) {
-        let o = *self.origin.get_or_insert(p);
-        self.sum = add(self.sum, sub(p, o));
-        self.n += 1;
-    }
-
-    /// Adds every point of `other` (e.g. the centroid of another chunk).
-    pub fn merge(&mut self, other: &Centroid) {
-        let Some(ob) = other.origin else {
-            return;
-        };
-        let o = *self.origin.get_or_insert(ob);
-        self.sum = add(self.sum, add(other.sum, scale(sub(ob, o), other.n as f64)));
-        self.n += other.n;
-    }
-
-    /// The centroid, or None when no point was added.
-    pub fn get(&self) -> Option<V3> {
-        let o = self.origin?;
-        Some(add(o, scale(self.sum, 1.0 / self.n as f64)))
-    }
 }
 
 /// A propagation patch numbered across the whole run: its tile's index in the plan and its

@@ -1,5 +1,5 @@
 use super::*;
-use crate::core::geometry::{dot, norm};
+use crate::core::geometry::{add, dot, norm, scale, sub};
 use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::pca_normal;
 use crate::core::rng::Rng;
@@ -108,6 +108,11 @@ fn centroid_streams_and_merges() {
     for c in [all.get().expect("points"), a.get().expect("points")] {
         assert!(norm(sub(c, want)) < 1e-9, "{c:?}");
     }
+    // Any split and any order give the same bits.
+    assert_eq!(a, all);
+    let mut rev = Centroid::default();
+    pts.iter().rev().for_each(|p| rev.add(*p));
+    assert_eq!(rev.get(), all.get());
     assert_eq!(Centroid::default().get(), None);
 }
 

@@ -1,0 +1,450 @@
+//! The arguments of each command, in groups shared between commands (the options that change
+//! the output, the ones that only change how a run executes), and their conversion into one
+//! validated [`Config`].
+
+use std::path::PathBuf;
+
+use crate::config::{ColumnType, Config, Length, OrientMode};
+use crate::core::estimate::{EstimatorKind, EstimatorParams};
+use crate::error::{Error, Result};
+
+use super::EXIT_HELP;
+
+impl clap::ValueEnum for EstimatorKind {
+    fn value_variants<'a>() -> &'a [Self] {
+        &EstimatorKind::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.name()).help(self.summary()))
+    }
+}
+
+#[derive(clap::Args, Debug)]
+pub struct GenerateArgs {
+    #[command(subcommand)]
+    pub kind: GenerateKind,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum GenerateKind {
+    /// Aerial-LIDAR-like terrain (hills and hollows on a gentle slope) of any size, with the
+    /// closed-form curvature of every point. Streams: memory does not grow with --points.
+    ///
+    /// Units: coordinates in metres (WGS 84 / UTM zone 10N, EPSG:32610, declared by GeoTIFF
+    /// keys with metre units; scale 0.001 m) around easting 500000, northing 4100000. Points
+    /// are LAS 1.2 point format 1 (GPS time), ordered by flight strip (north-south, 250 m wide)
+    /// and scan row, classified as ground. Extra-bytes columns (f64): TrueH (mean curvature,
+    /// 1/m), TrueK (Gaussian curvature, 1/m^2), Truek1 <= Truek2 (principal curvatures, 1/m),
+    /// with the upward normal: positive on hilltops, the sign of `process`'s H, K, k1, k2.
+    #[command(after_help = EXIT_HELP)]
+    Terrain(TerrainArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct TerrainArgs {
+    /// Output file; the extension chooses the format: .las or .laz. Written to a temporary file
+    /// and renamed when complete.
+    #[arg(short, long)]
+    pub output: PathBuf,
+
+    /// Number of points: 2000000, 2M, 500k, 1e6 (k, M, G = powers of ten). At most 4294967295
+    /// (LAS 1.2).
+    #[arg(long, value_parser = crate::tools::generate::parse_count)]
+    pub points: u64,
+
+    /// Points per square metre; the terrain covers a square of points/density square metres.
+    #[arg(long, default_value_t = 10.0)]
+    pub density: f64,
+
+    /// Seed of the terrain and of the sampling: the same options give the same file.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Standard deviation of Gaussian noise added to z, in metres. The truth columns stay those
+    /// of the noise-free surface at the point's x, y.
+    #[arg(long, default_value_t = 0.0)]
+    pub noise: f64,
+
+    /// Print nothing on success.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// The options that change the output (stored in the work directory's manifest).
+#[derive(clap::Args, Debug, Clone)]
+pub struct ResultArgs {
+    /// Tile edge length, with a unit: 50m, 0.1km, 150ft (international foot), 150usft (US
+    /// survey foot), or a bare number in file units. Converted with the file's CRS unit (e.g.
+    /// 50m is 164.04 in a file in international feet). Results do not depend on it; it trades
+    /// memory for halo overhead.
+    #[arg(long, default_value = "50m", value_parser = Length::parse)]
+    tile: Length,
+
+    /// Neighbours per point, the point itself included (as in the CNC authors' code). 30 suits
+    /// aerial LIDAR (the CNC paper finds 15-50 very accurate on clean data; noisy scans want more).
+    #[arg(
+        short = 'k',
+        long = "neighbours",
+        alias = "neighbors",
+        default_value_t = 30
+    )]
+    k: usize,
+
+    /// Curvature estimator (docs/study.md compares their error and time per point).
+    #[arg(long, default_value = "cnc-avg-hexagram")]
+    estimator: EstimatorKind,
+
+    /// Orientation of PCA normals: `up` (towards +Z, aerial scans), `outward` (away from the
+    /// centroid of all points: closed, star-shaped objects), `propagate` (consistent over the
+    /// neighbour graph, seeded outward: objects like the Stanford bunny; tile by tile, with
+    /// the tiles' signs reconciled through their halos) or `viewpoint:X,Y,Z` (towards a
+    /// terrestrial scanner, in file coordinates). Normals stored in the file (NormalX/Y/Z) are
+    /// used as they are unless --ignore-file-normals.
+    #[arg(long, default_value = "up", value_parser = OrientMode::parse)]
+    orient: OrientMode,
+
+    /// Estimate normals by PCA even when the input has NormalX/Y/Z.
+    #[arg(long)]
+    ignore_file_normals: bool,
+
+    /// Also write the principal directions d1 (of k1) and d2 (of k2) as unit vectors.
+    #[arg(long)]
+    directions: bool,
+
+    /// Also write the VCM's sharp-feature columns (only with --estimator vcm): SharpFeature, the
+    /// score lambda2/(lambda1+lambda2+lambda3) of the convolved Voronoi covariance measure
+    /// (eigenvalues in decreasing order), and VcmNormalX/Y/Z, the VCM's own unit normal (signed
+    /// to agree with the PCA or file normal). The score lies in [0, 1/2]: about 0 on a plane or
+    /// smooth surface, about alpha^2/12 on a sharp edge of external (dihedral turning) angle
+    /// alpha in radians (about 0.2-0.3 on a right-angled edge), and around 0.2 at a corner;
+    /// threshold it to select creases.
+    #[arg(long)]
+    features: bool,
+
+    /// Store the new columns as 64-bit floats (default: 32-bit).
+    #[arg(long = "f64")]
+    f64_columns: bool,
+
+    /// Seed of randomised estimators (each point's stream comes from the seed and its index).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+
+    /// Triangles per point for cnc-uniform.
+    #[arg(long, default_value_t = 100)]
+    triangles: usize,
+
+    /// For a mesh (OBJ, OFF, or PLY with a face element): process N points sampled uniformly by
+    /// area on its faces instead of its vertices, each with the unit normal of its face (polygons
+    /// are fan-triangulated; counter-clockwise vertex order is outward), used as a file normal.
+    /// N as for `generate --points`: 200k, 1M. The sample comes from --seed and does not depend
+    /// on --threads or --chunk-size. The mesh is held in memory, the samples are streamed.
+    #[arg(long, value_name = "N", value_parser = crate::tools::generate::parse_count)]
+    sample_faces: Option<u64>,
+}
+
+/// The options that change how a run executes, never its output.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ExecArgs {
+    /// Memory budget for buckets and tiles in flight: 2G, 512M, ... (K, M, G = powers of 1024).
+    /// Past it, buckets spill to the work directory (zstd). Default: half the machine's memory,
+    /// at most 4G. The program itself adds about 60M.
+    #[arg(long, value_parser = crate::config::parse_bytes)]
+    memory: Option<u64>,
+
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+
+    /// Points read per chunk when streaming the input. Results do not depend on it.
+    #[arg(long = "chunk-size", default_value_t = 1_000_000)]
+    chunk_points: usize,
+
+    /// Append one JSON line per tile and per phase to FILE (phase, done and total points,
+    /// points/s, ETA in seconds), for a scheduler or a dashboard.
+    #[arg(long, value_name = "FILE")]
+    progress_json: Option<PathBuf>,
+
+    /// Print only warnings and errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// `tilecurv process`.
+#[derive(clap::Args, Debug)]
+pub struct ProcessArgs {
+    /// Input point clouds: LAS or LAZ (LAS 1.0-1.4, point formats 0-10, COPC-LAZ), PLY, XYZ
+    /// text (.xyz, .pts, .txt), PCD, or the vertices of OFF and OBJ meshes. Several inputs are
+    /// one scene (adjacent tiles of a survey: neighbourhoods cross file borders) and give one
+    /// output each. Never modified.
+    #[arg(required = true, num_args = 1..)]
+    inputs: Vec<PathBuf>,
+
+    /// Output file, or a directory (end it with /) for several inputs, where each output gets
+    /// its input's file name. The extension chooses the format: .las, .laz, .ply (binary) or
+    /// .ascii.ply. Holds every input
+    /// point in the same order with all original fields, VLRs and EVLRs, plus the columns
+    /// NormalX/Y/Z, H (mean curvature), K (Gaussian), k1 <= k2 (principal), CurvatureFlags and,
+    /// with --directions, d1x..d2z and, with --features, SharpFeature and VcmNormalX/Y/Z. Curvature is positive where the surface bends away from its
+    /// normal (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
+    #[arg(short, long)]
+    output: PathBuf,
+
+    #[command(flatten)]
+    result: ResultArgs,
+
+    #[command(flatten)]
+    exec: ExecArgs,
+
+    /// Print the plan (tiles, expected peak memory, work-directory disk, estimated run time from
+    /// timing the median tile) and stop. Scans the inputs once.
+    #[arg(long)]
+    dry_run: bool,
+
+    /// Work directory for buckets and per-tile results (default: .<output name>.tilecurv beside
+    /// the output). Kept when a run is interrupted or fails, so that the same command resumes
+    /// from the finished tiles; removed after success. Work from other inputs or parameters is
+    /// detected and discarded.
+    #[arg(long)]
+    work_dir: Option<PathBuf>,
+}
+
+/// Worker threads: `--threads`, else SLURM_CPUS_PER_TASK (set by `sbatch -c N`), else every
+/// core.
+fn default_threads(threads: Option<usize>) -> usize {
+    threads
+        .or_else(|| {
+            std::env::var("SLURM_CPUS_PER_TASK")
+                .ok()
+                .and_then(|v| v.trim().parse().ok())
+                .filter(|&n: &usize| n > 0)
+        })
+        .unwrap_or_else(|| {
+            std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1)
+        })
+}
+
+impl ExecArgs {
+    /// Whether only warnings and errors are printed.
+    pub fn quiet(&self) -> bool {
+        self.quiet
+    }
+
+    /// A configuration with these execution settings and the defaults for the rest.
+    pub fn config(&self) -> Config {
+        Config {
+            memory_bytes: self.memory.unwrap_or_else(crate::config::default_memory),
+            threads: default_threads(self.threads),
+            chunk_points: self.chunk_points,
+            progress_json: self.progress_json.clone(),
+            ..Config::default()
+        }
+    }
+}
+
+impl ResultArgs {
+    /// Sets these options in `cfg`.
+    fn apply(&self, cfg: &mut Config) {
+        cfg.tile = self.tile;
+        cfg.k = self.k;
+        cfg.estimator = self.estimator;
+        cfg.params = EstimatorParams {
+            seed: self.seed,
+            triangles: self.triangles,
+            ..EstimatorParams::default()
+        };
+        cfg.orientation = self.orient;
+        cfg.ignore_file_normals = self.ignore_file_normals;
+        cfg.directions = self.directions;
+        cfg.features = self.features;
+        cfg.column_type = if self.f64_columns {
+            ColumnType::F64
+        } else {
+            ColumnType::F32
+        };
+        cfg.sample_faces = self.sample_faces;
+    }
+}
+
+impl ProcessArgs {
+    /// Whether only warnings and errors are printed.
+    pub fn quiet(&self) -> bool {
+        self.exec.quiet
+    }
+
+    /// The run's configuration.
+    pub fn into_config(self) -> Config {
+        let mut cfg = Config {
+            inputs: self.inputs,
+            output: self.output,
+            dry_run: self.dry_run,
+            work_dir: self.work_dir,
+            ..self.exec.config()
+        };
+        self.result.apply(&mut cfg);
+        cfg
+    }
+}
+
+/// `tilecurv plan`.
+#[derive(clap::Args, Debug)]
+pub struct PlanArgs {
+    /// Input point clouds: LAS or LAZ (LAS 1.0-1.4, point formats 0-10, COPC-LAZ), PLY, XYZ
+    /// text (.xyz, .pts, .txt), PCD, or the vertices of OFF and OBJ meshes. Several inputs are
+    /// one scene (adjacent tiles of a survey: neighbourhoods cross file borders) and give one
+    /// output each. Never modified.
+    #[arg(required = true, num_args = 1..)]
+    inputs: Vec<PathBuf>,
+
+    /// The work directory (created if needed): on a file system every node sees at the same
+    /// path. Work left there from other inputs or options is discarded.
+    #[arg(long)]
+    pub work: PathBuf,
+
+    #[command(flatten)]
+    result: ResultArgs,
+
+    /// Tiles of the grid over the inputs' bounds per tile task (1: one task per tile). Default:
+    /// as few as keep the tasks within 1000 (Slurm's default MaxArraySize is 1001).
+    #[arg(long, value_name = "N")]
+    pub tiles_per_task: Option<u64>,
+
+    /// Print only warnings and errors (the task counts are always printed).
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+impl PlanArgs {
+    /// The run's configuration; the inputs as absolute paths, since the tasks run elsewhere
+    /// (another directory, another node).
+    pub fn config(&self) -> Config {
+        let mut cfg = Config {
+            inputs: self
+                .inputs
+                .iter()
+                .map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone()))
+                .collect(),
+            ..Config::default()
+        };
+        self.result.apply(&mut cfg);
+        cfg
+    }
+}
+
+/// A task index, or `env`: read from the scheduler's environment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TaskArg {
+    /// This index.
+    Index(u64),
+    /// TILECURV_TASK, SLURM_ARRAY_TASK_ID, AWS_BATCH_JOB_ARRAY_INDEX or JOB_COMPLETION_INDEX,
+    /// the first that is set.
+    Env,
+}
+
+/// The variables `--task env` reads, in order.
+pub const TASK_VARIABLES: [&str; 4] = [
+    "TILECURV_TASK",
+    "SLURM_ARRAY_TASK_ID",
+    "AWS_BATCH_JOB_ARRAY_INDEX",
+    "JOB_COMPLETION_INDEX",
+];
+
+impl TaskArg {
+    /// Parses a task index or `env`.
+    pub fn parse(s: &str) -> std::result::Result<Self, String> {
+        if s == "env" {
+            return Ok(TaskArg::Env);
+        }
+        s.parse()
+            .map(TaskArg::Index)
+            .map_err(|_| format!("{s:?}: expected a task index (0, 1, ...) or `env`"))
+    }
+
+    /// The index.
+    pub fn resolve(self) -> Result<u64> {
+        match self {
+            TaskArg::Index(i) => Ok(i),
+            TaskArg::Env => {
+                for v in TASK_VARIABLES {
+                    if let Ok(s) = std::env::var(v) {
+                        return s.trim().parse().map_err(|_| {
+                            Error::Usage(format!("--task env: {v}={s:?} is not a task index"))
+                        });
+                    }
+                }
+                Err(Error::Usage(format!(
+                    "--task env: none of {} is set; give the index with --task I",
+                    TASK_VARIABLES.join(", ")
+                )))
+            }
+        }
+    }
+}
+
+/// `tilecurv bucket`.
+#[derive(clap::Args, Debug)]
+pub struct BucketArgs {
+    /// The work directory `tilecurv plan` made.
+    #[arg(long)]
+    pub work: PathBuf,
+
+    /// The bucket task to run (one per input file, 0 to `bucket tasks` - 1 as `plan` printed),
+    /// or `env` for the scheduler's array index. Without it, every bucket task not done yet.
+    #[arg(long, value_parser = TaskArg::parse)]
+    pub task: Option<TaskArg>,
+
+    #[command(flatten)]
+    pub exec: ExecArgs,
+}
+
+/// `tilecurv run-tile`.
+#[derive(clap::Args, Debug)]
+pub struct RunTileArgs {
+    /// The work directory `tilecurv plan` made.
+    #[arg(long)]
+    pub work: PathBuf,
+
+    /// The tile task to run (0 to `tasks` - 1 as `plan` printed), or `env`: TILECURV_TASK,
+    /// SLURM_ARRAY_TASK_ID, AWS_BATCH_JOB_ARRAY_INDEX or JOB_COMPLETION_INDEX.
+    #[arg(long, value_parser = TaskArg::parse)]
+    pub task: TaskArg,
+
+    #[command(flatten)]
+    pub exec: ExecArgs,
+}
+
+/// `tilecurv status`.
+#[derive(clap::Args, Debug)]
+pub struct StatusArgs {
+    /// The work directory `tilecurv plan` made.
+    #[arg(long)]
+    pub work: PathBuf,
+
+    /// Print only the missing tile task indices in Slurm `--array=` syntax (`3,7-9`), nothing
+    /// when every task is done.
+    #[arg(long)]
+    pub missing: bool,
+}
+
+/// `tilecurv assemble`.
+#[derive(clap::Args, Debug)]
+pub struct AssembleArgs {
+    /// The work directory `tilecurv plan` made.
+    #[arg(long)]
+    pub work: PathBuf,
+
+    /// Output file, or a directory (end it with /) for several inputs, where each output gets
+    /// its input's file name. The extension chooses the format: .las, .laz, .ply (binary) or
+    /// .ascii.ply. Holds every input
+    /// point in the same order with all original fields, VLRs and EVLRs, plus the columns
+    /// NormalX/Y/Z, H (mean curvature), K (Gaussian), k1 <= k2 (principal), CurvatureFlags and,
+    /// with --directions, d1x..d2z and, with --features, SharpFeature and VcmNormalX/Y/Z. Curvature is positive where the surface bends away from its
+    /// normal (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
+    #[arg(short, long)]
+    pub output: PathBuf,
+
+    #[command(flatten)]
+    pub exec: ExecArgs,
+}

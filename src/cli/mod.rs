@@ -1,0 +1,204 @@
+//! The command line: clap definitions (in `args`), turned once into a validated [`Config`],
+//! the commands run, and the exit codes. The binary (`main.rs`) only calls [`main_with_args`].
+
+mod args;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::{Parser, Subcommand};
+
+use crate::config::Config;
+use crate::error::{Error, ExitClass};
+use crate::progress::TermReporter;
+use args::{
+    AssembleArgs, BucketArgs, GenerateArgs, GenerateKind, PlanArgs, ProcessArgs, RunTileArgs,
+    StatusArgs, TerrainArgs,
+};
+
+/// Exit codes, as documented in `--help` and the README.
+pub mod exit {
+    /// Success.
+    pub const OK: i32 = 0;
+    /// Internal error (a bug).
+    pub const INTERNAL: i32 = 1;
+    /// Usage error: bad option or value.
+    pub const USAGE: i32 = 2;
+    /// Bad input: unreadable, malformed or unsupported input file.
+    pub const BAD_INPUT: i32 = 3;
+    /// Output failure: the output or work directory could not be written.
+    pub const OUTPUT: i32 = 4;
+    /// A cluster stage found tasks of an earlier stage not done (`assemble` while tile tasks
+    /// are missing); nothing was written.
+    pub const INCOMPLETE: i32 = 5;
+    /// Interrupted by SIGINT or SIGTERM; no output was written.
+    pub const INTERRUPTED: i32 = 130;
+}
+
+const EXIT_HELP: &str = "\
+Exit codes:
+  0    success: the output is complete
+  1    internal error (a bug: please report it with the command line)
+  2    usage error: a bad option or value
+  3    bad input: the input is unreadable, malformed or unsupported (the message names the file and byte offset)
+  4    output failure: the output or the work directory could not be written
+  5    tasks missing: a cluster stage (run-tile, assemble) found tasks of an earlier stage not
+       done; nothing was written (the message names them; `tilecurv status --missing` lists them)
+  130  interrupted (SIGINT/SIGTERM): no output was written; run the same command again to resume
+
+The output is written to a temporary file beside it and renamed only on success: it is complete or absent.";
+
+#[derive(Parser, Debug)]
+#[command(name = "tilecurv", version, about = "Per-point normals and mean, Gaussian and principal curvature for LIDAR point clouds (LAS/LAZ in, LAS/LAZ out)", after_help = EXIT_HELP)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Compute normals and curvature for every point and write them as new extra-bytes columns.
+    #[command(after_help = EXIT_HELP)]
+    Process(ProcessArgs),
+    /// Write a synthetic point cloud with its exact curvature, for testing and benchmarking.
+    Generate(GenerateArgs),
+    /// Cluster stage 1: check the inputs, write the work directory's manifest and task layout,
+    /// and print `bucket tasks: B` and `tasks: N` (the last line). Then run `bucket`, `run-tile`
+    /// for every task index, and `assemble` (scripts/slurm/submit.sh chains them on Slurm).
+    #[command(after_help = EXIT_HELP)]
+    Plan(PlanArgs),
+    /// Cluster stage 2: the scan into per-tile buckets, one task per input file (or all).
+    #[command(after_help = EXIT_HELP)]
+    Bucket(BucketArgs),
+    /// Cluster stage 3: the curvature of one tile task's tiles. Idempotent: finished tiles are
+    /// skipped, half-written ones redone; a task run twice or on two nodes at once is harmless.
+    #[command(after_help = EXIT_HELP)]
+    RunTile(RunTileArgs),
+    /// Which tile tasks are done: `done D of N tasks` (last line), or with --missing the missing
+    /// indices in Slurm --array syntax. Exit 0 either way.
+    #[command(after_help = EXIT_HELP)]
+    Status(StatusArgs),
+    /// Cluster stage 4: write one output per input from the finished tiles; refuses (exit 5,
+    /// writing nothing) while tile tasks are missing.
+    #[command(after_help = EXIT_HELP)]
+    Assemble(AssembleArgs),
+}
+
+static CANCEL: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    CANCEL.store(true, Ordering::SeqCst);
+}
+
+fn install_signal_handlers() {
+    // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+    unsafe {
+        libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
+    }
+}
+
+fn exit_code(e: &Error) -> i32 {
+    match e.exit_class() {
+        ExitClass::Usage => exit::USAGE,
+        ExitClass::BadInput => exit::BAD_INPUT,
+        ExitClass::Output => exit::OUTPUT,
+        ExitClass::Incomplete => exit::INCOMPLETE,
+        ExitClass::Interrupted => exit::INTERRUPTED,
+        ExitClass::Internal => exit::INTERNAL,
+    }
+}
+
+/// A terminal reporter, or the exit code of the error that prevented it.
+fn reporter(quiet: bool, cfg: &Config) -> Result<TermReporter, i32> {
+    TermReporter::new(quiet, cfg.progress_json.as_deref()).map_err(|e| fail(&e))
+}
+
+/// Prints an error (and what to do after an interruption) and returns its exit code.
+fn fail(e: &Error) -> i32 {
+    eprintln!("tilecurv: error: {e}");
+    if e.exit_class() == ExitClass::Interrupted {
+        eprintln!("tilecurv: run the same command again to resume from the finished tiles");
+    }
+    exit_code(e)
+}
+
+/// Parses the process arguments, runs the command, prints the outcome, and returns the exit code.
+pub fn main_with_args() -> i32 {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                exit::USAGE
+            } else {
+                exit::OK
+            };
+        }
+    };
+    install_signal_handlers();
+    let r = match cli.command {
+        Command::Generate(GenerateArgs {
+            kind: GenerateKind::Terrain(args),
+        }) => generate(args),
+        Command::Process(args) => process(args),
+        Command::Plan(a) => stages::plan(a),
+        Command::Bucket(a) => stages::bucket(a),
+        Command::RunTile(a) => stages::run_tile(a),
+        Command::Status(a) => stages::status(a),
+        Command::Assemble(a) => stages::assemble(a),
+    };
+    r.unwrap_or_else(|code| code)
+}
+
+/// `tilecurv generate terrain`.
+fn generate(args: TerrainArgs) -> Result<i32, i32> {
+    let opts = crate::tools::generate::TerrainOptions {
+        points: args.points,
+        density_per_m2: args.density,
+        seed: args.seed,
+        noise_m: args.noise,
+    };
+    let s = crate::tools::generate::generate_terrain(&opts, &args.output, &CANCEL)
+        .map_err(|e| fail(&e))?;
+    if !args.quiet {
+        eprintln!(
+            "done: {} points over {:.0} m x {:.0} m ({} strips, {} bumps, z {:.1}..{:.1} m) in {:.1} s ({:.0} points/s) -> {}",
+            s.points,
+            s.side_m,
+            s.side_m,
+            s.strips,
+            s.bumps,
+            s.z_range_m[0],
+            s.z_range_m[1],
+            s.seconds,
+            s.points as f64 / s.seconds.max(1e-9),
+            args.output.display()
+        );
+    }
+    Ok(exit::OK)
+}
+
+/// `tilecurv process`.
+fn process(args: ProcessArgs) -> Result<i32, i32> {
+    let quiet = args.quiet();
+    let cfg = args.into_config();
+    let reporter = reporter(quiet, &cfg)?;
+    let s = crate::run::process(&cfg, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    if !quiet && !cfg.dry_run {
+        eprintln!(
+            "done: {} points in {:.1} s ({:.0} points/s), {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
+            s.points,
+            s.seconds,
+            s.points as f64 / s.seconds.max(1e-9),
+            s.tiles,
+            s.tiles_resumed,
+            s.undefined,
+            100.0 * s.undefined as f64 / s.points.max(1) as f64,
+            s.retried,
+            cfg.output.display()
+        );
+    }
+    Ok(exit::OK)
+}
+
+mod stages;

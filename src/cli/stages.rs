@@ -1,0 +1,95 @@
+//! The cluster commands: each runs one stage over a work directory (run::cluster) and prints
+//! what a scheduler script reads: `plan` the task counts, `status` the tasks done or missing.
+
+use super::args::{AssembleArgs, BucketArgs, PlanArgs, RunTileArgs, StatusArgs};
+use super::{exit, fail, reporter, CANCEL};
+use crate::config::Config;
+use crate::run::cluster;
+
+/// `tilecurv plan`: prints `bucket tasks: B`, `tiles per task: K`, then `tasks: N` (the last
+/// line of stdout).
+pub fn plan(a: PlanArgs) -> Result<i32, i32> {
+    let cfg = a.config();
+    let reporter = reporter(a.quiet, &cfg)?;
+    let p = cluster::plan(&cfg, &a.work, a.tiles_per_task, &reporter).map_err(|e| fail(&e))?;
+    if !a.quiet {
+        eprintln!(
+            "planned {}: {} bucket tasks, {} tile tasks of {} tiles of the grid each",
+            a.work.display(),
+            p.bucket_tasks,
+            p.tile_tasks,
+            p.tiles_per_task
+        );
+    }
+    println!("bucket tasks: {}", p.bucket_tasks);
+    println!("tiles per task: {}", p.tiles_per_task);
+    println!("tasks: {}", p.tile_tasks);
+    Ok(exit::OK)
+}
+
+/// `tilecurv bucket`.
+pub fn bucket(a: BucketArgs) -> Result<i32, i32> {
+    let cfg = a.exec.config();
+    let reporter = reporter(a.exec.quiet(), &cfg)?;
+    let task = a
+        .task
+        .map(|t| t.resolve().map(|i| i as usize))
+        .transpose()
+        .map_err(|e| fail(&e))?;
+    let ran = cluster::bucket(&a.work, &cfg, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    if !a.exec.quiet() {
+        eprintln!("done: {ran} bucket tasks run (the others were done)");
+    }
+    Ok(exit::OK)
+}
+
+/// `tilecurv run-tile`.
+pub fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
+    let cfg = a.exec.config();
+    let reporter = reporter(a.exec.quiet(), &cfg)?;
+    let task = a.task.resolve().map_err(|e| fail(&e))?;
+    let d = cluster::run_tile(&a.work, &cfg, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    if !a.exec.quiet() {
+        eprintln!(
+            "done: task {task}: {} tiles already done, {} undefined points, {} recomputed with a wider halo",
+            d.resumed, d.undefined, d.retried
+        );
+    }
+    Ok(exit::OK)
+}
+
+/// `tilecurv status`: `done D of N tasks`, or the missing indices with --missing.
+pub fn status(a: StatusArgs) -> Result<i32, i32> {
+    let cfg = Config::default();
+    let reporter = reporter(true, &cfg)?;
+    let s = cluster::status(&a.work, &cfg, &reporter).map_err(|e| fail(&e))?;
+    if a.missing {
+        if !s.missing.is_empty() {
+            println!("{}", crate::core::tasks::array_syntax(&s.missing));
+        }
+    } else {
+        println!("done {} of {} tasks", s.done, s.total);
+    }
+    Ok(exit::OK)
+}
+
+/// `tilecurv assemble`.
+pub fn assemble(a: AssembleArgs) -> Result<i32, i32> {
+    let cfg = Config {
+        output: a.output.clone(),
+        ..a.exec.config()
+    };
+    let reporter = reporter(a.exec.quiet(), &cfg)?;
+    let s = cluster::assemble(&a.work, &cfg, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    if !a.exec.quiet() {
+        eprintln!(
+            "done: {} points of {} tiles in {:.1} s -> {} (the work directory {} is kept; remove it when done)",
+            s.points,
+            s.tiles,
+            s.seconds,
+            a.output.display(),
+            a.work.display()
+        );
+    }
+    Ok(exit::OK)
+}

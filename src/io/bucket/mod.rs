@@ -1,0 +1,225 @@
+//! Buckets: the points of each tile core, gathered by the bucket stage's streaming scan so that
+//! a cloud sorted by GPS time or flight line becomes spatially local work. A scan task's
+//! buckets stay in memory while they fit their share of the budget (`process`), or live in the
+//! task's directory of the work directory as zstd frames (`buckets/t<task>/`). Loading a tile
+//! reads its own bucket and its neighbours' (for the halo) from every task directory that holds
+//! them, in task order, through a small cache, so a wider-halo retry, a halo across file borders
+//! and a scan split into tasks all use the same path and nothing is written twice.
+
+mod frames;
+mod scan;
+mod stats;
+
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use crate::core::plan::{Rect, ScanStats, TileGrid, TileKey};
+use crate::core::point::{SourcePoint, BUCKET_POINT_BYTES as POINT_BYTES};
+use crate::core::tile::{Part, TilePoints};
+use crate::error::{Error, Result};
+use frames::{bucket_file, decode_frames};
+pub use scan::{scan, ScanInput};
+pub use stats::{parse_stats, stats_text};
+
+/// Name of the file that marks a bucket task's directory complete, with its statistics.
+pub const DONE: &str = "buckets.done";
+
+/// A complete bucket task directory and the tiles it holds points of.
+struct TaskDir {
+    path: PathBuf,
+    tiles: BTreeSet<TileKey>,
+}
+
+/// The points of every tile core.
+pub struct Buckets {
+    grid: TileGrid,
+    mem: HashMap<TileKey, Arc<Vec<SourcePoint>>>,
+    dirs: Vec<TaskDir>,
+    cache: Mutex<Cache>,
+}
+
+#[derive(Default)]
+struct Cache {
+    entries: HashMap<TileKey, (Arc<Vec<SourcePoint>>, u64)>,
+    bytes: usize,
+    budget: usize,
+    clock: u64,
+}
+
+/// The statistics of a complete bucket task directory, or None if it is not complete.
+pub fn task_stats(dir: &Path) -> Option<ScanStats> {
+    parse_stats(&std::fs::read_to_string(dir.join(DONE)).ok()?)
+}
+
+impl Buckets {
+    fn in_memory(grid: TileGrid, mem: HashMap<TileKey, Arc<Vec<SourcePoint>>>) -> Self {
+        Buckets {
+            grid,
+            mem,
+            dirs: Vec::new(),
+            cache: Mutex::new(Cache::default()),
+        }
+    }
+
+    fn on_disk(grid: TileGrid, dirs: Vec<TaskDir>) -> Self {
+        Buckets {
+            grid,
+            mem: HashMap::new(),
+            dirs,
+            cache: Mutex::new(Cache::default()),
+        }
+    }
+
+    /// The buckets of the complete task directories `dirs` (in task order) with their merged
+    /// statistics, or the indices of the tasks that are not complete.
+    pub fn open(
+        grid: TileGrid,
+        dirs: &[PathBuf],
+    ) -> std::result::Result<(Self, ScanStats), Vec<usize>> {
+        let mut stats = ScanStats::empty();
+        let mut tasks = Vec::with_capacity(dirs.len());
+        let mut missing = Vec::new();
+        for (i, d) in dirs.iter().enumerate() {
+            match task_stats(d) {
+                Some(s) => {
+                    stats.merge(&s);
+                    tasks.push(TaskDir {
+                        path: d.clone(),
+                        tiles: s.per_tile.keys().copied().collect(),
+                    });
+                }
+                None => missing.push(i),
+            }
+        }
+        if missing.is_empty() {
+            Ok((Self::on_disk(grid, tasks), stats))
+        } else {
+            Err(missing)
+        }
+    }
+
+    /// Whether the buckets live on disk.
+    pub fn spilled(&self) -> bool {
+        !self.dirs.is_empty()
+    }
+
+    /// Sets how many bytes of decoded spilled buckets may be kept for reuse by neighbouring tiles.
+    pub fn set_cache_budget(&self, bytes: usize) {
+        if let Ok(mut c) = self.cache.lock() {
+            c.budget = bytes;
+        }
+    }
+
+    /// The core points of a tile.
+    pub fn core(&self, key: TileKey) -> Result<Arc<Vec<SourcePoint>>> {
+        if let Some(v) = self.mem.get(&key) {
+            return Ok(v.clone());
+        }
+        if self.dirs.is_empty() {
+            return Ok(Arc::new(Vec::new()));
+        }
+        if let Ok(mut c) = self.cache.lock() {
+            c.clock += 1;
+            let now = c.clock;
+            if let Some((v, used)) = c.entries.get_mut(&key) {
+                *used = now;
+                return Ok(v.clone());
+            }
+        }
+        // The task directories in task order: the points in scan order, as one scan gives them.
+        let mut all = Vec::new();
+        for dir in self.dirs.iter().filter(|d| d.tiles.contains(&key)) {
+            let path = bucket_file(&dir.path, key);
+            let bytes = std::fs::read(&path).map_err(|e| Error::ReadIo {
+                path: path.clone(),
+                source: e,
+            })?;
+            all.extend(decode_frames(&path, &bytes)?);
+        }
+        let points = Arc::new(all);
+        if let Ok(mut c) = self.cache.lock() {
+            let size = points.len() * POINT_BYTES;
+            while c.bytes + size > c.budget && !c.entries.is_empty() {
+                let oldest = c
+                    .entries
+                    .iter()
+                    .min_by_key(|(_, (_, used))| *used)
+                    .map(|(k, _)| *k);
+                if let Some(k) = oldest {
+                    if let Some((v, _)) = c.entries.remove(&k) {
+                        c.bytes -= v.len() * POINT_BYTES;
+                    }
+                }
+            }
+            if size <= c.budget {
+                let now = c.clock;
+                c.entries.insert(key, (points.clone(), now));
+                c.bytes += size;
+            }
+        }
+        Ok(points)
+    }
+
+    /// Calls `f` for every point in `region` that is not in the core of `exclude`, tile by tile
+    /// in key order.
+    pub fn gather(
+        &self,
+        region: &Rect,
+        exclude: TileKey,
+        known: &BTreeMap<TileKey, u64>,
+        mut f: impl FnMut(&SourcePoint),
+    ) -> Result<()> {
+        let lo = self.grid.key(region.min[0], region.min[1]);
+        let hi = self.grid.key(region.max[0], region.max[1]);
+        // Only tiles that hold points (the plan knows them): a halo wider than the scene then
+        // costs nothing extra.
+        for (&key, _) in known.range(lo..=(hi.0, i64::MAX)) {
+            if key.1 < lo.1 || key.1 > hi.1 || key == exclude {
+                continue;
+            }
+            for p in self.core(key)?.iter() {
+                if region.contains(p.xyz[0], p.xyz[1]) {
+                    f(p);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Loads `part` of tile `key` with a halo of width `halo`. With `only`, just those core points
+/// (by id) are to be computed and the rest of the part is context (a wider-halo retry). `known`
+/// lists the tiles that hold points (the plan's counts).
+pub fn load_tile(
+    buckets: &Buckets,
+    key: TileKey,
+    part: &Part,
+    halo: f64,
+    only: Option<&HashSet<u64>>,
+    known: &BTreeMap<TileKey, u64>,
+) -> Result<TilePoints> {
+    let region = part.rect.grown(halo);
+    let core = buckets.core(key)?;
+    let mut t = TilePoints {
+        region,
+        ..Default::default()
+    };
+    let selected =
+        |p: &&SourcePoint| part.contains(&p.xyz) && only.is_none_or(|s| s.contains(&p.id));
+    for p in core.iter().filter(selected) {
+        t.push(p);
+    }
+    t.n_core = t.xyz.len();
+    // The rest of this tile's bucket in the region is context (other parts, or on a retry the
+    // points of this part already done).
+    for p in core
+        .iter()
+        .filter(|p| !selected(p) && region.contains(p.xyz[0], p.xyz[1]))
+    {
+        t.push(p);
+    }
+    buckets.gather(&region, key, known, |p| t.push(p))?;
+    t.morton_order();
+    Ok(t)
+}

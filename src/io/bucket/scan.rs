@@ -1,0 +1,147 @@
+//! The scan of one bucket task: streams its inputs once, appending every point to the bucket of
+//! its core tile and gathering the scan statistics. Buckets stay in memory while they fit the
+//! memory plan (when the caller allows it); past it the largest are spilled as zstd frames. A
+//! spilled task is written to a directory of its own under a temporary name and renamed into
+//! place once complete, so a task run twice, or by two nodes at once, is harmless.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use super::frames::{bucket_file, spill};
+use super::stats::stats_text;
+use super::{Buckets, TaskDir, DONE};
+use crate::core::plan::{MemoryPlan, ScanStats, TileGrid, TileKey};
+use crate::core::point::{SourcePoint, BUCKET_POINT_BYTES as POINT_BYTES};
+use crate::error::{Error, Result};
+use crate::io::source::PointSource;
+use crate::io::workdir::{sync_dir, sync_files, tmp_name, write_durably};
+
+/// One source of a scan and the id of its first point in the scene.
+pub struct ScanInput<'a> {
+    /// The source.
+    pub source: &'a dyn PointSource,
+    /// Global id of its point 0 (the sum of the earlier inputs' counts).
+    pub first_id: u64,
+}
+
+/// Buckets held in memory during a scan, and where they spill.
+struct Held {
+    mem: HashMap<TileKey, Vec<SourcePoint>>,
+    bytes: usize,
+    tmp: PathBuf,
+    spilled: bool,
+}
+
+impl Held {
+    /// Spills the largest buckets until the held bytes are down to `down_to`.
+    fn spill_largest(&mut self, down_to: usize) -> Result<()> {
+        std::fs::create_dir_all(&self.tmp).map_err(|e| Error::write(&self.tmp, e))?;
+        self.spilled = true;
+        let mut sizes: Vec<(usize, TileKey)> =
+            self.mem.iter().map(|(k, v)| (v.len(), *k)).collect();
+        sizes.sort_unstable_by(|a, b| b.cmp(a));
+        let mut out = Vec::new();
+        for (len, key) in sizes {
+            if self.bytes <= down_to {
+                break;
+            }
+            if let Some(v) = self.mem.remove(&key) {
+                out.push((key, v));
+                self.bytes -= len * POINT_BYTES;
+            }
+        }
+        spill(&self.tmp, out)
+    }
+}
+
+/// Scans `inputs` into the buckets of bucket task directory `task_dir`. With
+/// `keep_in_memory`, buckets that fit `memory.buckets_bytes` stay in memory and nothing is
+/// written; otherwise (or once they do not fit) every bucket ends on disk with the statistics
+/// in `buckets.done`. `progress(n)` is called after each chunk with the points read; an error
+/// from it (cancellation) stops the scan.
+pub fn scan(
+    inputs: &[ScanInput<'_>],
+    grid: TileGrid,
+    chunk_points: usize,
+    memory: &MemoryPlan,
+    task_dir: &Path,
+    keep_in_memory: bool,
+    mut progress: impl FnMut(u64) -> Result<()>,
+) -> Result<(Buckets, ScanStats)> {
+    let mut held = Held {
+        mem: HashMap::new(),
+        bytes: 0,
+        tmp: tmp_name(task_dir),
+        spilled: false,
+    };
+    let mut stats = ScanStats::empty();
+    for input in inputs {
+        let rl = input.source.record_length();
+        input
+            .source
+            .for_each_chunk(chunk_points, &mut |first, records| {
+                let n = records.len() / rl;
+                for (i, rec) in records.chunks_exact(rl).enumerate() {
+                    let mut p = input.source.decode(first + i as u64, rec);
+                    p.id += input.first_id;
+                    let key = grid.key(p.xyz[0], p.xyz[1]);
+                    stats.add(p.xyz, key);
+                    held.mem.entry(key).or_default().push(p);
+                }
+                held.bytes += n * POINT_BYTES;
+                if held.bytes > memory.buckets_bytes {
+                    held.spill_largest(memory.buckets_after_spill_bytes)?;
+                }
+                progress(n as u64)
+            })
+            .inspect_err(|_| {
+                let _ = std::fs::remove_dir_all(&held.tmp);
+            })?;
+    }
+    if held.spilled || !keep_in_memory {
+        return publish(held, grid, task_dir, stats);
+    }
+    let mem = held
+        .mem
+        .into_iter()
+        .map(|(k, v)| (k, Arc::new(v)))
+        .collect();
+    Ok((Buckets::in_memory(grid, mem), stats))
+}
+
+/// Spills what is still held, makes the task directory durable with its statistics, and
+/// renames it into place (keeping an identical one another attempt finished first).
+fn publish(
+    mut held: Held,
+    grid: TileGrid,
+    task_dir: &Path,
+    stats: ScanStats,
+) -> Result<(Buckets, ScanStats)> {
+    let tmp = held.tmp.clone();
+    std::fs::create_dir_all(&tmp).map_err(|e| Error::write(&tmp, e))?;
+    held.spill_largest(0)?;
+    let files: Vec<PathBuf> = stats
+        .per_tile
+        .keys()
+        .map(|key| bucket_file(&tmp, *key))
+        .collect();
+    sync_files(&tmp, files.iter().map(PathBuf::as_path))?;
+    write_durably(&tmp.join(DONE), stats_text(&stats).as_bytes())?;
+    if let Err(e) = std::fs::rename(&tmp, task_dir) {
+        if task_dir.join(DONE).exists() {
+            // Another attempt of the same task finished first: its buckets are the same.
+            let _ = std::fs::remove_dir_all(&tmp);
+        } else {
+            return Err(Error::write(task_dir, e));
+        }
+    }
+    if let Some(parent) = task_dir.parent() {
+        sync_dir(parent);
+    }
+    let dir = TaskDir {
+        path: task_dir.to_path_buf(),
+        tiles: stats.per_tile.keys().copied().collect(),
+    };
+    Ok((Buckets::on_disk(grid, vec![dir]), stats))
+}

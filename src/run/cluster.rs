@@ -1,0 +1,246 @@
+//! The stages as separate commands, for a scheduler that runs them as array tasks (Slurm job
+//! arrays, AWS Batch array jobs, Kubernetes Indexed Jobs): `plan` writes the manifest and the
+//! task layout; `bucket` runs bucket tasks; `run-tile` runs one tile task; `status` says which
+//! tile tasks are done; `assemble` writes the outputs once every tile is. Each command reads the
+//! run from the work directory's manifest (the options as `plan` was given them) and the task
+//! layout, so the tasks of a stage run at the same time on any node that sees the directory,
+//! without its lock. They call the very stage functions `process` runs, so the outputs are the
+//! same bytes.
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use crate::config::Config;
+use crate::core::plan::{plan as plan_tiles, TileKey};
+use crate::core::tasks::{array_syntax, TaskLayout};
+use crate::error::{Error, Result};
+use crate::io::workdir::{WorkDir, TASKS};
+use crate::progress::Reporter;
+use crate::run::bucket::{bucket_task, open_buckets};
+use crate::run::prepare::{check_outputs, open_inputs, output_paths};
+use crate::run::spec::{manifest_params, RunSpec};
+use crate::run::tiles::{missing_tiles, tiles, TilesDone};
+use crate::run::{Exec, Summary};
+
+/// What `plan` made.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Planned {
+    /// Bucket tasks (one per input file).
+    pub bucket_tasks: usize,
+    /// Tile tasks.
+    pub tile_tasks: u64,
+    /// Tiles of the planned grid per tile task.
+    pub tiles_per_task: u64,
+}
+
+/// The lowest and highest tile keys of the inputs' bounds (a LAS header's when it has them).
+fn grid_bounds(spec: &RunSpec) -> Result<(TileKey, TileKey)> {
+    let (mut lo, mut hi) = ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN));
+    for s in &spec.sources {
+        let [min, max] = s.bounds()?;
+        let (a, b) = (spec.grid.key(min[0], min[1]), spec.grid.key(max[0], max[1]));
+        lo = (lo.0.min(a.0), lo.1.min(a.1));
+        hi = (hi.0.max(b.0), hi.1.max(b.1));
+    }
+    Ok(if lo.0 > hi.0 {
+        ((0, 0), (0, 0))
+    } else {
+        (lo, hi)
+    })
+}
+
+/// `tilecurv plan`: opens and checks the inputs of `cfg`, creates the work directory `work` if
+/// needed and writes its manifest and task layout (one bucket task per input; tile tasks of
+/// `tiles_per_task` tiles of the grid over the inputs' bounds).
+pub fn plan(
+    cfg: &Config,
+    work: &Path,
+    tiles_per_task: Option<u64>,
+    reporter: &dyn Reporter,
+) -> Result<Planned> {
+    if tiles_per_task == Some(0) {
+        return Err(Error::Usage("--tiles-per-task must be at least 1".into()));
+    }
+    let spec = open_inputs(cfg, reporter)?;
+    let (lo, hi) = grid_bounds(&spec)?;
+    let buckets = (0..spec.sources.len()).map(|i| i..i + 1).collect();
+    let layout = TaskLayout::new(buckets, lo, hi, tiles_per_task);
+    drop(super::plan(work, &spec, &layout, reporter)?);
+    Ok(Planned {
+        bucket_tasks: layout.bucket_tasks.len(),
+        tile_tasks: layout.tile_tasks(),
+        tiles_per_task: layout.tiles_per_task,
+    })
+}
+
+/// A planned work directory, attached without its lock, with the run it holds.
+struct Attached {
+    work: WorkDir,
+    spec: RunSpec,
+    layout: TaskLayout,
+    cfg: Config,
+}
+
+/// Attaches to the planned work directory at `path`: the run's options from its manifest,
+/// how to execute from `exec_cfg` (threads, memory, chunk size, output). The inputs must be the
+/// ones `plan` saw.
+fn attach(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result<Attached> {
+    let (work, manifest) = WorkDir::attach(path)?;
+    let mut cfg = Config {
+        inputs: Vec::new(),
+        ..exec_cfg.clone()
+    };
+    for (k, v) in manifest_params(&manifest) {
+        cfg.set_param(&k, &v).map_err(|e| {
+            Error::Internal(format!(
+                "{}: manifest: {e}; run `tilecurv plan` again",
+                path.display()
+            ))
+        })?;
+    }
+    let spec = open_inputs(&cfg, reporter)?;
+    if spec.manifest() != manifest {
+        return Err(Error::Usage(format!(
+            "{}: the inputs changed since `tilecurv plan` (size, time or points differ); run `tilecurv plan` again",
+            path.display()
+        )));
+    }
+    let tasks = path.join(TASKS);
+    let layout = std::fs::read_to_string(&tasks)
+        .ok()
+        .and_then(|t| TaskLayout::parse(&t))
+        .ok_or_else(|| {
+            Error::Usage(format!(
+                "{}: no task layout; run `tilecurv plan` again",
+                tasks.display()
+            ))
+        })?;
+    Ok(Attached {
+        work,
+        spec,
+        layout,
+        cfg,
+    })
+}
+
+/// `tilecurv bucket`: bucket task `task`, or every bucket task not done yet. Returns the number
+/// of tasks run (done ones are skipped).
+pub fn bucket(
+    path: &Path,
+    exec_cfg: &Config,
+    task: Option<usize>,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<usize> {
+    let a = attach(path, exec_cfg, reporter)?;
+    let exec = Exec::new(exec_cfg, reporter, cancel)?;
+    let tasks: Vec<usize> = match task {
+        Some(t) => vec![t],
+        None => (0..a.layout.bucket_tasks.len()).collect(),
+    };
+    let mut ran = 0;
+    for t in tasks {
+        ran += bucket_task(&a.work, &a.spec, &a.layout, t, false, &exec)?.is_some() as usize;
+    }
+    Ok(ran)
+}
+
+/// `tilecurv run-tile`: the tiles of tile task `task` that are not done yet.
+pub fn run_tile(
+    path: &Path,
+    exec_cfg: &Config,
+    task: u64,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<TilesDone> {
+    let a = attach(path, exec_cfg, reporter)?;
+    let n = a.layout.tile_tasks();
+    if task >= n {
+        return Err(Error::Usage(format!(
+            "--task {task}: there are {n} tile tasks (0 to {})",
+            n - 1
+        )));
+    }
+    let exec = Exec::new(exec_cfg, reporter, cancel)?;
+    let scan = open_buckets(&a.work, &a.spec, &a.layout)?;
+    tiles(&a.work, &a.spec, &scan, &a.layout, Some(task), &exec)
+}
+
+/// Which tile tasks are done.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Status {
+    /// Tile tasks whose every tile is finished.
+    pub done: u64,
+    /// Tile tasks in the layout.
+    pub total: u64,
+    /// The others, ascending.
+    pub missing: Vec<u64>,
+}
+
+/// `tilecurv status`: the tile tasks done and missing (all missing until the buckets are).
+pub fn status(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result<Status> {
+    let a = attach(path, exec_cfg, reporter)?;
+    let total = a.layout.tile_tasks();
+    let missing: Vec<u64> = match open_buckets(&a.work, &a.spec, &a.layout) {
+        Ok(scan) => {
+            let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k);
+            let mut m: Vec<u64> =
+                missing_tiles(&a.work.path().join("results"), &a.spec, &tplan, &a.layout)
+                    .into_iter()
+                    .map(|(task, _)| task)
+                    .collect();
+            m.sort_unstable();
+            m.dedup();
+            m
+        }
+        Err(Error::TasksMissing { .. }) => (0..total).collect(),
+        Err(e) => return Err(e),
+    };
+    Ok(Status {
+        done: total - missing.len() as u64,
+        total,
+        missing,
+    })
+}
+
+/// `tilecurv assemble`: one output per input from the finished tiles (`exec_cfg.output` names
+/// them as `process -o` does); refuses, writing nothing, while tile tasks are missing.
+pub fn assemble(
+    path: &Path,
+    exec_cfg: &Config,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<Summary> {
+    let started = Instant::now();
+    let mut a = attach(path, exec_cfg, reporter)?;
+    let exec = Exec::new(exec_cfg, reporter, cancel)?;
+    let scan = open_buckets(&a.work, &a.spec, &a.layout)?;
+    let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k);
+    let results = a.work.path().join("results");
+    let missing = missing_tiles(&results, &a.spec, &tplan, &a.layout);
+    if !missing.is_empty() {
+        let tasks: Vec<u64> = missing.iter().map(|(t, _)| *t).collect();
+        return Err(Error::TasksMissing {
+            stage: "run-tile",
+            tasks: array_syntax(&tasks),
+            hint: format!(
+                "{} tiles have no result; resubmit `tilecurv status --work {} --missing` and assemble again; nothing was written",
+                missing.len(),
+                path.display()
+            ),
+        });
+    }
+    let outputs = output_paths(&a.cfg)?;
+    check_outputs(&a.cfg, &outputs)?;
+    a.spec.outputs = outputs;
+    super::assemble::assemble_outputs(&a.work, &a.spec, &tplan, &exec)?;
+    Ok(Summary {
+        points: a.spec.total_points,
+        undefined: 0,
+        tiles: tplan.tiles.len(),
+        tiles_resumed: tplan.tiles.len(),
+        retried: 0,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
