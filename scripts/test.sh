@@ -19,3 +19,11 @@ export PATH="$PWD/$venv/bin:$PATH"
 cargo fmt --all -- --check
 cargo clippy --release --all-targets --locked -- -D warnings
 cargo test --release --locked
+# The cluster test: a throwaway single-node Slurm (slurmctld, slurmd and munge from Debian's
+# packages, installed when missing; needs root), a two-file job through scripts/slurm/submit.sh,
+# byte-identical to `process`, then a lost task resubmitted. Never skipped under CI=true.
+if [ "$(id -u)" = 0 ] || [ "${CI:-}" = true ]; then
+  bash scripts/slurm/slurm-ci.sh bash scripts/slurm/cluster_test.sh target/release/tilecurv
+else
+  echo "SKIPPED: the Slurm cluster test needs root (it starts slurmctld, slurmd and munged)" >&2
+fi

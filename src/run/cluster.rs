@@ -15,6 +15,7 @@ use crate::config::Config;
 use crate::core::plan::{plan as plan_tiles, TileKey};
 use crate::core::tasks::{array_syntax, TaskLayout};
 use crate::error::{Error, Result};
+use crate::io::source::SourceLayout;
 use crate::io::workdir::{WorkDir, TASKS};
 use crate::progress::Reporter;
 use crate::run::bucket::{bucket_task, open_buckets};
@@ -34,11 +35,25 @@ pub struct Planned {
     pub tiles_per_task: u64,
 }
 
-/// The lowest and highest tile keys of the inputs' bounds (a LAS header's when it has them).
+/// The lowest and highest tile keys of the inputs' bounds: a LAS header's (read in no time;
+/// when it is wrong, points outside it still go to the nearest task), else from a pass over the
+/// points.
 fn grid_bounds(spec: &RunSpec) -> Result<(TileKey, TileKey)> {
     let (mut lo, mut hi) = ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN));
     for s in &spec.sources {
-        let [min, max] = s.bounds()?;
+        let [min, max] = match s.layout() {
+            SourceLayout::Las(parts)
+                if parts
+                    .header
+                    .min
+                    .iter()
+                    .chain(&parts.header.max)
+                    .all(|v| v.is_finite()) =>
+            {
+                [parts.header.min, parts.header.max]
+            }
+            _ => s.bounds()?,
+        };
         let (a, b) = (spec.grid.key(min[0], min[1]), spec.grid.key(max[0], max[1]));
         lo = (lo.0.min(a.0), lo.1.min(a.1));
         hi = (hi.0.max(b.0), hi.1.max(b.1));
