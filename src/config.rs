@@ -443,22 +443,8 @@ mod tests {
         let mut cfg = Config {
             inputs: vec!["in.las".into()],
             output: "out.las".into(),
-            memory_bytes: 1 << 30,
-            dry_run: false,
-            progress_json: None,
-            tile: Length::Metres(50.0),
-            k: 30,
-            estimator: EstimatorKind::CncAvgHexagram,
-            params: EstimatorParams::default(),
-            orientation: OrientMode::Up,
-            ignore_file_normals: false,
-            directions: false,
             features: true,
-            sample_faces: None,
-            column_type: ColumnType::F32,
-            threads: 1,
-            chunk_points: 1000,
-            work_dir: None,
+            ..Config::default()
         };
         let e = cfg
             .validate()

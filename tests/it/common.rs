@@ -40,6 +40,32 @@ pub fn tilecurv(args: &[&str]) -> Output {
         .expect("the tilecurv binary runs")
 }
 
+/// Writes a noise-free generated terrain (`tilecurv generate terrain`) of `points` points
+/// (`200k`, `1M` or a plain count) at `density` points per square metre; .las or .laz by the
+/// extension, the same points in both.
+pub fn generate_terrain(path: &Path, points: &str, seed: u64, density: f64) {
+    let (seed, density) = (seed.to_string(), density.to_string());
+    let out = tilecurv(&[
+        "generate",
+        "terrain",
+        "-q",
+        "-o",
+        path.to_str().expect("utf-8 path"),
+        "--points",
+        points,
+        "--density",
+        &density,
+        "--seed",
+        &seed,
+    ]);
+    assert!(
+        out.status.success(),
+        "generate {} failed: {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 /// Runs `tilecurv process` and asserts success.
 pub fn process(input: &Path, output: &Path, extra: &[&str]) {
     let mut args = vec![

@@ -83,26 +83,7 @@ fn s(p: &Path) -> &str {
 /// Writes a noise-free generated terrain of `points` points at [`DENSITY`] (.las or .laz by the
 /// extension: the same options give the same points in both).
 fn generate(path: &Path, points: u64, seed: u64) {
-    let (n, d, seed) = (points.to_string(), DENSITY.to_string(), seed.to_string());
-    let out = tilecurv(&[
-        "generate",
-        "terrain",
-        "-q",
-        "-o",
-        s(path),
-        "--points",
-        &n,
-        "--density",
-        &d,
-        "--seed",
-        &seed,
-    ]);
-    assert!(
-        out.status.success(),
-        "generate {} failed: {}",
-        path.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::common::generate_terrain(path, &points.to_string(), seed, DENSITY);
 }
 
 /// The arguments of `tilecurv process input -o output extra...` (not quiet: the tests read

@@ -31,22 +31,8 @@ fn under_ci() -> bool {
 
 /// Writes a noise-free generated terrain of `points` points (10 per square metre).
 fn generate(path: &Path, points: &str, seed: &str) {
-    let out = tilecurv(&[
-        "generate",
-        "terrain",
-        "-q",
-        "-o",
-        s(path),
-        "--points",
-        points,
-        "--seed",
-        seed,
-    ]);
-    assert!(
-        out.status.success(),
-        "generate failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let seed = seed.parse().expect("a numeric seed");
+    crate::common::generate_terrain(path, points, seed, 10.0);
 }
 
 /// Runs `tilecurv args` and returns its output with its peak resident memory in KiB, measured
