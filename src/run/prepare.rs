@@ -136,7 +136,7 @@ pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     cfg.validate()?;
     let outputs = output_paths(cfg)?;
     check_outputs(cfg, &outputs)?;
-    let mut spec = open_inputs(cfg, reporter)?;
+    let mut spec = open_checked(cfg, reporter)?;
     spec.outputs = outputs;
     Ok(spec)
 }
@@ -145,6 +145,11 @@ pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
 /// cluster run that write none).
 pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     cfg.validate()?;
+    open_checked(cfg, reporter)
+}
+
+/// [`open_inputs`] for a configuration already validated.
+fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     let sources = cfg
         .inputs
         .iter()
