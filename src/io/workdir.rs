@@ -74,6 +74,25 @@ pub fn tmp_name(path: &Path) -> PathBuf {
     path.with_file_name(format!("{name}.tmp.{}.{}", host_name(), std::process::id()))
 }
 
+/// Whether `name` is a temporary name ([`tmp_name`]) of `base` left by a process of this host
+/// that is no longer running: its file can go. Another host's temporaries are never judged
+/// (their process may be alive there).
+pub fn is_dead_attempt(name: &str, base: &str) -> bool {
+    let Some(rest) = name
+        .strip_prefix(base)
+        .and_then(|r| r.strip_prefix(".tmp."))
+    else {
+        return false;
+    };
+    let Some((host, pid)) = rest.rsplit_once('.') else {
+        return false;
+    };
+    match pid.parse::<i32>() {
+        Ok(pid) => host == host_name() && pid != std::process::id() as i32 && !process_alive(pid),
+        Err(_) => false,
+    }
+}
+
 /// This machine's host name (`localhost` if it cannot be read), with path separators replaced.
 pub fn host_name() -> String {
     let mut buf = [0u8; 256];
@@ -313,6 +332,23 @@ mod tests {
             a.text("ab").text("c").value(),
             b.text("a").text("bc").value()
         );
+    }
+
+    #[test]
+    fn dead_attempts_are_recognised_only_on_this_host() {
+        let host = host_name();
+        // A pid past any pid_max is dead; this process is alive; other hosts are never judged.
+        assert!(is_dead_attempt(&format!("t3.tmp.{host}.2147483646"), "t3"));
+        assert!(!is_dead_attempt(
+            &format!("t3.tmp.{host}.{}", std::process::id()),
+            "t3"
+        ));
+        assert!(!is_dead_attempt("t3.tmp.some-other-node.2147483646", "t3"));
+        assert!(!is_dead_attempt(
+            &format!("t31.tmp.{host}.2147483646"),
+            "t3"
+        ));
+        assert!(!is_dead_attempt("t3", "t3"));
     }
 
     #[test]

@@ -2,6 +2,7 @@
 
 mod bad_input;
 mod closed_form;
+mod cluster;
 mod common;
 mod features;
 mod formats;

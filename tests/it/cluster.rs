@@ -1,0 +1,129 @@
+//! The cluster stages by hand, without a scheduler (scripts/slurm/cluster_test.sh runs them
+//! through Slurm): plan, bucket tasks, every tile task, assemble give the bytes `process`
+//! gives; tasks run twice are harmless; assemble refuses with exit 5 and writes nothing while a
+//! tile is missing; status counts and lists the tasks; a killed attempt's leftovers are swept.
+
+use std::path::Path;
+
+use crate::common::{generate_terrain, tilecurv};
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// Runs `tilecurv args`, asserts the exit code, returns stdout.
+fn run(args: &[&str], code: i32) -> String {
+    let out = tilecurv(args);
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "tilecurv {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn stages_by_hand_give_the_bytes_of_process() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (a, b) = (dir.path().join("a.las"), dir.path().join("b.laz"));
+    generate_terrain(&a, "30k", 21, 10.0);
+    generate_terrain(&b, "20k", 22, 6.0);
+    let reference = dir.path().join("ref");
+    let opts = ["--tile", "12m", "--orient", "propagate"];
+    let mut args = vec!["process", s(&a), s(&b), "-q", "-o"];
+    let refdir = format!("{}/", s(&reference));
+    args.push(&refdir);
+    args.extend(opts);
+    run(&args, 0);
+
+    let work = dir.path().join("w");
+    let mut plan = vec![
+        "plan",
+        s(&a),
+        s(&b),
+        "--work",
+        s(&work),
+        "--tiles-per-task",
+        "5",
+        "-q",
+    ];
+    plan.extend(opts);
+    let printed = run(&plan, 0);
+    let last = printed.lines().last().expect("plan prints");
+    let tasks: u64 = last
+        .strip_prefix("tasks: ")
+        .expect("tasks: N")
+        .parse()
+        .expect("N");
+    assert!(printed.starts_with("bucket tasks: 2\n"), "{printed}");
+    assert!(tasks > 2, "{printed}");
+    // A leftover of a killed attempt of bucket task 1 on this host: swept by the next attempt.
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").expect("hostname");
+    let dead = work.join(format!("buckets/t1.tmp.{}.2147483646", host.trim()));
+    std::fs::create_dir_all(&dead).expect("fake leftover");
+    assert_eq!(
+        run(&["status", "--work", s(&work), "--missing"], 0).trim(),
+        format!("0-{}", tasks - 1)
+    );
+    // Tile tasks before the buckets: exit 5, naming the bucket tasks.
+    run(&["run-tile", "--work", s(&work), "--task", "0", "-q"], 5);
+    for t in ["0", "1", "1"] {
+        run(&["bucket", "--work", s(&work), "--task", t, "-q"], 0);
+    }
+    assert!(!dead.exists(), "the dead attempt's directory was not swept");
+    for t in 0..tasks {
+        run(
+            &[
+                "run-tile",
+                "--work",
+                s(&work),
+                "--task",
+                &t.to_string(),
+                "-q",
+            ],
+            0,
+        );
+    }
+    // A task run again changes nothing.
+    run(&["run-tile", "--work", s(&work), "--task", "1", "-q"], 0);
+    assert_eq!(
+        run(&["status", "--work", s(&work)], 0).trim(),
+        format!("done {tasks} of {tasks} tasks")
+    );
+    let out = dir.path().join("out");
+    let outdir = format!("{}/", s(&out));
+    run(&["assemble", "--work", s(&work), "-o", &outdir, "-q"], 0);
+    for f in ["a.las", "b.laz"] {
+        let (x, y) = (
+            std::fs::read(out.join(f)).expect("output"),
+            std::fs::read(reference.join(f)).expect("reference"),
+        );
+        assert!(x == y, "{f} differs from process's");
+    }
+
+    // One tile result lost: status names its task, assemble refuses and writes nothing.
+    let results = work.join("results");
+    let lost = std::fs::read_dir(&results)
+        .expect("results")
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|x| x == "res"))
+        .expect("a result file");
+    std::fs::remove_file(&lost).expect("remove");
+    let missing = run(&["status", "--work", s(&work), "--missing"], 0);
+    assert!(missing.trim().parse::<u64>().is_ok(), "{missing}");
+    let partial = dir.path().join("partial");
+    let partial_dir = format!("{}/", s(&partial));
+    let refused = tilecurv(&["assemble", "--work", s(&work), "-o", &partial_dir, "-q"]);
+    assert_eq!(refused.status.code(), Some(5));
+    let msg = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        msg.contains(&format!("run-tile tasks not done: {};", missing.trim())),
+        "{msg}"
+    );
+    assert!(
+        !partial.exists(),
+        "assemble created its output while refusing"
+    );
+}
