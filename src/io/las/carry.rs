@@ -1,8 +1,8 @@
 //! The LAS/LAZ output of `process` for a LAS input (or a converted one, which `convert` makes
 //! look like one): the input's header, VLRs and EVLRs carried over by the [`LasFileWriter`],
-//! each record followed by the new columns, and the extra-bytes descriptors extended with the
-//! new columns' (after an "undocumented" descriptor for any extra bytes the input left
-//! undescribed).
+//! each record followed by the new columns, and the extra-bytes descriptors of all the input's
+//! extra-bytes records, merged into one, extended with the new columns' (after an
+//! "undocumented" descriptor for any extra bytes the input left undescribed).
 
 use std::path::Path;
 
@@ -44,15 +44,13 @@ pub fn create(
     LasFileWriter::create(output, spec)
 }
 
-/// The extra-bytes descriptors of the output: the input's (padded with an "undocumented"
-/// descriptor if the input's records have more extra bytes than its VLR describes), then ours.
+/// The extra-bytes descriptors of the output: the input's, from all its extra-bytes records
+/// in file order (padded with an "undocumented" descriptor if the input's records have more
+/// extra bytes than they describe), then ours. The writer stores them as one record.
 fn extra_bytes_payload(input: &LasParts<'_>, cols: &ColumnSet) -> Result<Vec<u8>> {
-    let existing = input
-        .vlrs
-        .iter()
-        .chain(input.evlrs.iter().map(|(_, v)| v))
-        .find(|v| extra_bytes::is_extra_bytes(v));
-    let mut data = existing.map(|v| v.data.clone()).unwrap_or_default();
+    let records = input.vlrs.iter().chain(input.evlrs.iter().map(|(_, v)| v));
+    let mut data = extra_bytes::merged_payload(records)
+        .map_err(|why| Error::bad_input(input.path, None, why))?;
     let described: usize = parse(&data)
         .map(|d| d.iter().map(|d| d.size).sum())
         .unwrap_or(0);

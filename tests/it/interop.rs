@@ -1,0 +1,249 @@
+//! Outputs that the tools LIDAR people use read as intended (issue 13), checked with laspy (an
+//! independent reader) and, where PDAL is concerned, against what the LAS 1.4 specification
+//! (R15) requires of the bytes, since PDAL is not installable in the test environment.
+
+use std::path::Path;
+use std::process::Command;
+
+use crate::common::{process, records, shared};
+
+/// laspy with lazrs is available; a failure under CI=true, else a loud skip.
+pub fn laspy_available() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import laspy, lazrs"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        if std::env::var("CI").is_ok_and(|v| v == "true") {
+            panic!("python3 with laspy and lazrs is required under CI=true");
+        }
+        eprintln!("SKIPPED: laspy check (python3 -c 'import laspy, lazrs' failed)");
+    }
+    ok
+}
+
+/// Runs a Python snippet with laspy on `args`, asserting it exits 0; returns its stdout.
+pub fn laspy(code: &str, args: &[&Path]) -> String {
+    let out = Command::new("python3")
+        .arg("-c")
+        .arg(code)
+        .args(args)
+        .output()
+        .expect("python3 runs");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "laspy check failed: {stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+/// One extra-bytes descriptor of a test input: name, data type, options, scale, offset.
+struct Dim {
+    name: &'static str,
+    ty: u8,
+    scale: Option<f64>,
+    offset: Option<f64>,
+}
+
+impl Dim {
+    fn size(&self) -> usize {
+        match self.ty {
+            1 | 2 => 1,
+            3 | 4 => 2,
+            5 | 6 | 9 => 4,
+            _ => 8,
+        }
+    }
+
+    /// The 192-byte descriptor, from LAS 1.4 R15 table 24.
+    fn descriptor(&self) -> [u8; 192] {
+        let mut d = [0u8; 192];
+        d[2] = self.ty;
+        let mut options = 0u8;
+        if let Some(s) = self.scale {
+            options |= 0x08;
+            d[112..120].copy_from_slice(&s.to_le_bytes());
+        }
+        if let Some(o) = self.offset {
+            options |= 0x10;
+            d[136..144].copy_from_slice(&o.to_le_bytes());
+        }
+        d[3] = options;
+        d[4..4 + self.name.len()].copy_from_slice(self.name.as_bytes());
+        d
+    }
+}
+
+/// The dimensions of the two-VLR input, split as (first VLR, second VLR).
+const FIRST: [Dim; 2] = [
+    Dim {
+        name: "Amplitude",
+        ty: 9,
+        scale: None,
+        offset: None,
+    },
+    Dim {
+        name: "Deviation",
+        ty: 3,
+        scale: Some(0.1),
+        offset: None,
+    },
+];
+const SECOND: [Dim; 2] = [
+    Dim {
+        name: "Reflectance",
+        ty: 4,
+        scale: Some(0.01),
+        offset: Some(-5.0),
+    },
+    Dim {
+        name: "Echo",
+        ty: 1,
+        scale: None,
+        offset: None,
+    },
+];
+
+/// The raw extra bytes of point `i`: Amplitude i/2 (f32), Deviation raw i (0.1 i), Reflectance
+/// raw i - 200 (0.01 (i - 200) - 5), Echo i mod 7.
+fn extra_bytes_of(i: usize) -> Vec<u8> {
+    let mut e = Vec::new();
+    e.extend_from_slice(&(i as f32 * 0.5).to_le_bytes());
+    e.extend_from_slice(&(i as u16).to_le_bytes());
+    e.extend_from_slice(&(i as i16 - 200).to_le_bytes());
+    e.push((i % 7) as u8);
+    e
+}
+
+/// A VLR (LAS 1.4 R15 table 15) with its 54-byte header.
+fn vlr(user: &str, record: u16, data: &[u8]) -> Vec<u8> {
+    let mut v = vec![0u8; 54];
+    v[2..2 + user.len()].copy_from_slice(user.as_bytes());
+    v[18..20].copy_from_slice(&record.to_le_bytes());
+    v[20..22].copy_from_slice(&(data.len() as u16).to_le_bytes());
+    v.extend_from_slice(data);
+    v
+}
+
+/// Writes a LAS 1.4 point format 8 file of a 20 x 20 grid on the paraboloid z = (x^2 + y^2)/100
+/// (metre scale 0.001), whose extra bytes are described by two extra-bytes VLRs ([`FIRST`] and
+/// [`SECOND`]), byte by byte from the LAS 1.4 R15 specification (header table 4, point format 8
+/// table 13), independently of the library's writer.
+fn write_two_eb_vlr_las14(path: &Path) -> usize {
+    let eb = |dims: &[Dim]| -> Vec<u8> { dims.iter().flat_map(|d| d.descriptor()).collect() };
+    let mut vlrs = vlr("LASF_Spec", 4, &eb(&FIRST));
+    vlrs.extend(vlr("LASF_Spec", 4, &eb(&SECOND)));
+    let extra: usize = FIRST.iter().chain(&SECOND).map(Dim::size).sum();
+    let record_length = 38 + extra;
+    let n = 400usize;
+    let mut h = vec![0u8; 375];
+    h[0..4].copy_from_slice(b"LASF");
+    h[6..8].copy_from_slice(&0x10u16.to_le_bytes()); // WKT bit: required for formats 6-10
+    h[24] = 1;
+    h[25] = 4;
+    h[26..30].copy_from_slice(b"TEST");
+    h[94..96].copy_from_slice(&375u16.to_le_bytes());
+    h[96..100].copy_from_slice(&(375 + vlrs.len() as u32).to_le_bytes());
+    h[100..104].copy_from_slice(&2u32.to_le_bytes());
+    h[104] = 8;
+    h[105..107].copy_from_slice(&(record_length as u16).to_le_bytes());
+    // Legacy counts (107..131) stay 0, as format 8 requires; the 64-bit counts follow.
+    let (lo, hi) = ([-10.0, -10.0, 0.0], [9.0, 9.0, 1.81]);
+    for a in 0..3 {
+        h[131 + 8 * a..139 + 8 * a].copy_from_slice(&0.001f64.to_le_bytes());
+        h[179 + 16 * a..187 + 16 * a].copy_from_slice(&f64::to_le_bytes(hi[a]));
+        h[187 + 16 * a..195 + 16 * a].copy_from_slice(&f64::to_le_bytes(lo[a]));
+    }
+    h[247..255].copy_from_slice(&(n as u64).to_le_bytes());
+    h[255..263].copy_from_slice(&(n as u64).to_le_bytes());
+    let mut data = h;
+    data.extend_from_slice(&vlrs);
+    for i in 0..n {
+        let (x, y) = ((i % 20) as f64 - 10.0, (i / 20) as f64 - 10.0);
+        let z = (x * x + y * y) / 100.0;
+        let mut r = vec![0u8; 38];
+        for (a, v) in [x, y, z].into_iter().enumerate() {
+            let q = (v / 0.001).round() as i32;
+            r[4 * a..4 * a + 4].copy_from_slice(&q.to_le_bytes());
+        }
+        r[12..14].copy_from_slice(&(i as u16).to_le_bytes()); // intensity
+        r[14] = 0x11; // return 1 of 1
+        r[16] = 2; // ground
+        r[22..30].copy_from_slice(&(i as f64).to_le_bytes()); // GPS time
+        r[36..38].copy_from_slice(&7u16.to_le_bytes()); // NIR
+        data.extend_from_slice(&r);
+        data.extend_from_slice(&extra_bytes_of(i));
+    }
+    std::fs::write(path, data).expect("writes the test input");
+    n
+}
+
+/// Issue 13 item 1: an input whose extra bytes are described by two extra-bytes VLRs gives an
+/// output with exactly one, holding every input dimension under its own name (then tilecurv's),
+/// so that PDAL (which refuses an extra-bytes specification longer than the records) and laspy
+/// (which reads only the first record) see every dimension.
+#[test]
+fn two_extra_bytes_vlrs_are_merged_into_one() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("two_eb.las");
+    let n = write_two_eb_vlr_las14(&input);
+    let (src, _) = records(&input);
+    let names: Vec<&str> = src.extra.iter().map(|d| d.name.as_str()).collect();
+    assert_eq!(names, ["Amplitude", "Deviation", "Reflectance", "Echo"]);
+    for ext in ["las", "laz"] {
+        let output = dir.path().join(format!("out.{ext}"));
+        process(&input, &output, &[]);
+        let (out, _) = records(&output);
+        let eb = out
+            .vlrs
+            .iter()
+            .chain(out.evlrs.iter().map(|(_, v)| v))
+            .filter(|v| v.is("LASF_Spec", 4))
+            .count();
+        assert_eq!(eb, 1, "{ext}: one extra-bytes record");
+        let described: usize = out.extra.iter().map(|d| d.size).sum();
+        assert_eq!(described, out.header.extra_bytes_len() as usize);
+        if !laspy_available() {
+            continue;
+        }
+        let check = r#"
+import sys, laspy, numpy as np
+a, b = laspy.read(sys.argv[1]), laspy.read(sys.argv[2])
+n = len(b.points)
+i = np.arange(n)
+eb = [v for v in list(b.header.vlrs) + list(b.header.evlrs or []) if v.user_id == "LASF_Spec" and v.record_id == 4]
+assert len(eb) == 1, f"{len(eb)} extra-bytes records"
+names = list(b.point_format.extra_dimension_names)
+want = ["Amplitude", "Deviation", "Reflectance", "Echo", "NormalX", "NormalY", "NormalZ", "H", "K", "k1", "k2", "CurvatureFlags"]
+assert names == want, names
+assert np.array_equal(np.asarray(b["Amplitude"]), (i * 0.5).astype(np.float32))
+assert np.allclose(np.asarray(b["Deviation"]), i * 0.1, rtol=0, atol=1e-9)
+assert np.allclose(np.asarray(b["Reflectance"]), (i - 200) * 0.01 - 5, rtol=0, atol=1e-9)
+assert np.array_equal(np.asarray(b["Echo"]), i % 7)
+for d in a.point_format.dimension_names:
+    if d != "ExtraBytes":
+        assert np.asarray(a[d]).tobytes() == np.asarray(b[d]).tobytes(), d
+assert np.isfinite(np.asarray(b["H"])).sum() > n // 2
+print("ok", n)
+"#;
+        let said = laspy(check, &[&input, &output]);
+        assert_eq!(said.trim(), format!("ok {n}"), "{ext}");
+    }
+}
+
+/// The shared LAS 1.2 file with extra bytes keeps them through the same path (one record).
+#[test]
+fn one_extra_bytes_vlr_stays_one() {
+    let Some(input) = shared("las/MixedConifer.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let output = dir.path().join("mc.las");
+    process(&input, &output, &[]);
+    let (out, _) = records(&output);
+    let eb: Vec<_> = out.vlrs.iter().filter(|v| v.is("LASF_Spec", 4)).collect();
+    assert_eq!(eb.len(), 1);
+    assert_eq!(out.extra[0].name, "treeID");
+}
