@@ -244,6 +244,9 @@ pub struct Config {
     /// Process this many points sampled on the faces of each (mesh) input instead of its
     /// vertices (`--sample-faces`).
     pub sample_faces: Option<u64>,
+    /// Write a LAS/LAZ output in its input's LAS version (default: LAS 1.4, so that PDAL reads
+    /// the extra-bytes columns of LAS 1.0-1.3 inputs).
+    pub keep_version: bool,
 }
 
 impl Default for Config {
@@ -270,6 +273,7 @@ impl Default for Config {
             chunk_points: 1_000_000,
             work_dir: None,
             sample_faces: None,
+            keep_version: false,
         }
     }
 }
@@ -313,6 +317,7 @@ impl Config {
                 "sample_faces",
                 self.sample_faces.map(|n| n.to_string()).unwrap_or_default(),
             ),
+            p("keep_version", self.keep_version.to_string()),
         ]);
         v
     }
@@ -349,6 +354,7 @@ impl Config {
                 }
             }
             "tile" => self.tile = Length::parse(value)?,
+            "keep_version" => self.keep_version = flag(value)?,
             "sample_faces" => {
                 self.sample_faces = (!value.is_empty()).then(|| num(value)).transpose()?
             }
@@ -459,6 +465,7 @@ mod tests {
             threads: 1,
             chunk_points: 1000,
             work_dir: None,
+            keep_version: false,
         };
         let e = cfg
             .validate()

@@ -141,6 +141,13 @@ pub struct ResultArgs {
     /// on --threads or --chunk-size. The mesh is held in memory, the samples are streamed.
     #[arg(long, value_name = "N", value_parser = crate::tools::generate::parse_count)]
     sample_faces: Option<u64>,
+
+    /// Write a LAS/LAZ output in its input's LAS version. By default a LAS 1.0-1.3 input gives
+    /// a LAS 1.4 output (same point format and records; a 375-byte header with the 64-bit
+    /// counts), because PDAL reads the extra-bytes columns of LAS 1.4 files only (without
+    /// --readers.las.use_eb_vlr=true it shows none of the new columns in a LAS 1.2 file).
+    #[arg(long)]
+    keep_version: bool,
 }
 
 /// The options that change how a run executes, never its output.
@@ -265,6 +272,7 @@ impl ResultArgs {
             ColumnType::F32
         };
         cfg.sample_faces = self.sample_faces;
+        cfg.keep_version = self.keep_version;
     }
 }
 

@@ -9,6 +9,7 @@ use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::crs::UnitSource;
+use crate::io::sink::OutputOptions;
 use crate::io::source::PointSource;
 use crate::progress::Reporter;
 use crate::run::spec::{parameters, RunSpec};
@@ -197,6 +198,9 @@ pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         grid: TileGrid { size: tile_size },
         params: parameters(cfg, tile_size, &unit_name, file_normals),
         config: cfg.params(),
+        output_options: OutputOptions {
+            keep_las_version: cfg.keep_version,
+        },
         unit_name,
         file_normals,
         cols,

@@ -247,3 +247,85 @@ fn one_extra_bytes_vlr_stays_one() {
     assert_eq!(eb.len(), 1);
     assert_eq!(out.extra[0].name, "treeID");
 }
+
+/// Issue 13 item 2: a LAS 1.0-1.3 input gives a LAS 1.4 output by default, since PDAL reads
+/// the extra-bytes VLR of LAS 1.4 files only. PDAL is not installable here, so this checks
+/// what it relies on: what laspy reads back and what LAS 1.4 R15 requires of the header (375
+/// bytes, the 64-bit point counts, the legacy counts kept for formats 0-5, the global encoding's
+/// WKT bit set only when a WKT record is the CRS). The points, the header's other fields and
+/// every VLR survive; `--keep-version` keeps the input's version.
+#[test]
+fn old_las_versions_become_las14_with_every_field_and_vlr() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let laspy_ok = laspy_available();
+    let check = r#"
+import struct, sys, laspy, numpy as np
+src, out, want = sys.argv[1], sys.argv[2], sys.argv[3]
+a, b = laspy.read(src), laspy.read(out)
+raw_a, raw_b = open(src, "rb").read(400), open(out, "rb").read(400)
+assert str(b.header.version) == want, b.header.version
+assert b.header.point_format.id == a.header.point_format.id
+assert len(a.points) == len(b.points)
+for d in a.point_format.dimension_names:
+    assert np.asarray(a[d]).tobytes() == np.asarray(b[d]).tobytes(), d
+for f in ["scales", "offsets", "mins", "maxs", "system_identifier", "generating_software",
+          "creation_date", "file_source_id", "uuid", "point_count"]:
+    x, y = getattr(a.header, f), getattr(b.header, f)
+    assert np.array_equal(x, y) if isinstance(x, np.ndarray) else x == y, f
+assert list(b.header.number_of_points_by_return[:5]) == list(a.header.number_of_points_by_return[:5])
+assert not any(b.header.number_of_points_by_return[5:])
+ga, gb = struct.unpack_from("<H", raw_a, 6)[0], struct.unpack_from("<H", raw_b, 6)[0]
+assert gb & 0x0f == ga & 0x0f, (ga, gb)
+def vlrs(path):
+    data = open(path, "rb").read(1 << 20)
+    pos, n, out = struct.unpack_from("<H", data, 94)[0], struct.unpack_from("<I", data, 100)[0], []
+    for _ in range(n):
+        user = data[pos + 2:pos + 18].rstrip(b"\0").decode()
+        rid, length = struct.unpack_from("<HH", data, pos + 18)
+        out.append((user, rid, data[pos + 54:pos + 54 + length]))
+        pos += 54 + length
+    return out
+va = [v for v in vlrs(src) if v[0] != "laszip encoded"]
+vb = vlrs(out)
+for v in va:
+    assert v in vb or (v[0], v[1]) == ("LASF_Spec", 4) and any(w[:2] == v[:2] and w[2].startswith(v[2]) for w in vb), v[:2]
+geotiff = any(v[:2] == ("LASF_Projection", 34735) for v in va)
+wkt = any(v[:2] == ("LASF_Projection", 2112) for v in va)
+if want == "1.4":
+    assert struct.unpack_from("<H", raw_b, 94)[0] == 375
+    assert struct.unpack_from("<Q", raw_b, 247)[0] == len(a.points)
+    assert struct.unpack_from("<I", raw_b, 107)[0] == len(a.points), "legacy count kept"
+    assert bool(gb & 0x10) == (wkt and not geotiff), gb
+    assert "H" in b.point_format.extra_dimension_names
+print("ok")
+"#;
+    for (f, ext) in [
+        ("Haystack_Rock.las", "las"),
+        ("autzen_trim.laz", "laz"),
+        ("32-1-472-150-76.laz", "laz"),
+        ("MixedConifer.las", "las"),
+    ] {
+        let Some(input) = shared(&format!("las/{f}")) else {
+            continue;
+        };
+        let (src, _) = records(&input);
+        assert!(src.header.version.1 < 4, "{f} is an old version");
+        for keep in [false, true] {
+            let output = dir.path().join(format!("{f}.{keep}.{ext}"));
+            process(
+                &input,
+                &output,
+                if keep { &["--keep-version"] } else { &[] },
+            );
+            let (out, _) = records(&output);
+            let want = if keep { src.header.version } else { (1, 4) };
+            assert_eq!(out.header.version, want, "{f}");
+            assert_eq!(out.header.point_format, src.header.point_format);
+            if laspy_ok {
+                let v = format!("{}.{}", want.0, want.1);
+                let said = laspy(check, &[&input, &output, Path::new(&v)]);
+                assert_eq!(said.trim(), "ok", "{f}");
+            }
+        }
+    }
+}

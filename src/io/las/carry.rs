@@ -2,7 +2,8 @@
 //! look like one): the input's header, VLRs and EVLRs carried over by the [`LasFileWriter`],
 //! each record followed by the new columns, and the extra-bytes descriptors of all the input's
 //! extra-bytes records, merged into one, extended with the new columns' (after an
-//! "undocumented" descriptor for any extra bytes the input left undescribed).
+//! "undocumented" descriptor for any extra bytes the input left undescribed). The output is
+//! LAS 1.4 unless the input's version is kept ([`Version`]; `upgrade` rewrites the header).
 
 use std::path::Path;
 
@@ -10,7 +11,17 @@ use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::las::extra_bytes::{self, encode, encode_undocumented, parse, DESCRIPTOR_SIZE};
 use crate::io::las::parts::LasParts;
+use crate::io::las::upgrade;
 use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
+
+/// The LAS version of the output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Version {
+    /// The input's.
+    Input,
+    /// LAS 1.4, whatever the input's (a 1.0-1.3 header is rewritten by [`upgrade::to_las14`]).
+    Las14,
+}
 
 /// Creates the writer of `output` for records of `input` followed by the columns `cols`.
 pub fn create(
@@ -18,8 +29,16 @@ pub fn create(
     output: &Path,
     cols: &ColumnSet,
     provenance: &str,
+    version: Version,
 ) -> Result<LasFileWriter> {
-    let h = input.header;
+    let upgraded;
+    let h = match version {
+        Version::Input => input.header,
+        Version::Las14 => {
+            upgraded = upgrade::to_las14(input.header, input.vlrs);
+            &upgraded
+        }
+    };
     let record_length =
         u16::try_from(h.record_length as usize + cols.record_size()).map_err(|_| {
             Error::bad_input(
