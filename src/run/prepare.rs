@@ -69,12 +69,13 @@ pub fn check_outputs(cfg: &Config, outputs: &[PathBuf]) -> Result<()> {
 }
 
 /// The horizontal unit shared by every input (the first one decides; another unit is an
-/// error): its symbol and, with a CRS, its length in metres.
+/// error): its symbol ("unit" without one), with a CRS its length in metres, and its words for
+/// the log ("unit m", or "no length unit (why)").
 fn common_unit(
     cfg: &Config,
     sources: &[Box<dyn PointSource>],
     reporter: &dyn Reporter,
-) -> Result<(String, Option<crate::io::crs::LengthUnit>)> {
+) -> Result<(String, Option<crate::io::crs::LengthUnit>, String)> {
     let unit = sources[0].unit();
     for s in &sources[1..] {
         let u = s.unit();
@@ -89,7 +90,10 @@ fn common_unit(
         }
     }
     Ok(match unit {
-        UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => (u.symbol(), Some(u)),
+        UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => {
+            let symbol = u.symbol();
+            (symbol.clone(), Some(u), format!("unit {symbol}"))
+        }
         UnitSource::Unknown(why) => {
             if cfg.tile.has_unit() {
                 reporter.warn(&format!(
@@ -98,7 +102,8 @@ fn common_unit(
                     cfg.tile
                 ));
             }
-            ("unit".to_string(), None)
+            let words = format!("no length unit ({why})");
+            ("unit".to_string(), None, words)
         }
     })
 }
@@ -154,7 +159,11 @@ pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
             None => crate::io::source::open(p),
         })
         .collect::<Result<Vec<_>>>()?;
-    let (unit_name, unit) = common_unit(cfg, &sources, reporter)?;
+    let (unit_name, unit, unit_words) = common_unit(cfg, &sources, reporter)?;
+    let tile_units = match unit {
+        Some(_) => unit_name.clone(),
+        None => "file units".to_string(),
+    };
     let tile_size = cfg.tile.in_file_units(unit.as_ref());
     let file_normals = use_file_normals(cfg, &sources)?;
     let estimator = cfg.estimator.build(&cfg.params);
@@ -171,7 +180,7 @@ pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     };
     for s in &sources {
         reporter.info(&format!(
-            "{}: {} points, {}, unit {unit_name}; tile {} = {tile_size:.3} {unit_name}; normals {}",
+            "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}; normals {}",
             s.path().display(),
             s.len(),
             s.describe(),

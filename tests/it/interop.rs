@@ -129,12 +129,17 @@ fn vlr(user: &str, record: u16, data: &[u8]) -> Vec<u8> {
 
 /// Writes a LAS 1.4 point format 8 file of a 20 x 20 grid on the paraboloid z = (x^2 + y^2)/100
 /// (metre scale 0.001), whose extra bytes are described by two extra-bytes VLRs ([`FIRST`] and
-/// [`SECOND`]), byte by byte from the LAS 1.4 R15 specification (header table 4, point format 8
-/// table 13), independently of the library's writer.
-fn write_two_eb_vlr_las14(path: &Path) -> usize {
+/// [`SECOND`]) and, when given, a WKT CRS record, byte by byte from the LAS 1.4 R15
+/// specification (header table 4, point format 8 table 13), independently of the library's
+/// writer.
+fn write_two_eb_vlr_las14(path: &Path, wkt: Option<&str>) -> usize {
     let eb = |dims: &[Dim]| -> Vec<u8> { dims.iter().flat_map(|d| d.descriptor()).collect() };
     let mut vlrs = vlr("LASF_Spec", 4, &eb(&FIRST));
     vlrs.extend(vlr("LASF_Spec", 4, &eb(&SECOND)));
+    if let Some(w) = wkt {
+        vlrs.extend(vlr("LASF_Projection", 2112, w.as_bytes()));
+    }
+    let num_vlrs = 2 + wkt.is_some() as u32;
     let extra: usize = FIRST.iter().chain(&SECOND).map(Dim::size).sum();
     let record_length = 38 + extra;
     let n = 400usize;
@@ -146,7 +151,7 @@ fn write_two_eb_vlr_las14(path: &Path) -> usize {
     h[26..30].copy_from_slice(b"TEST");
     h[94..96].copy_from_slice(&375u16.to_le_bytes());
     h[96..100].copy_from_slice(&(375 + vlrs.len() as u32).to_le_bytes());
-    h[100..104].copy_from_slice(&2u32.to_le_bytes());
+    h[100..104].copy_from_slice(&num_vlrs.to_le_bytes());
     h[104] = 8;
     h[105..107].copy_from_slice(&(record_length as u16).to_le_bytes());
     // Legacy counts (107..131) stay 0, as format 8 requires; the 64-bit counts follow.
@@ -188,7 +193,7 @@ fn write_two_eb_vlr_las14(path: &Path) -> usize {
 fn two_extra_bytes_vlrs_are_merged_into_one() {
     let dir = tempfile::tempdir().expect("temp dir");
     let input = dir.path().join("two_eb.las");
-    let n = write_two_eb_vlr_las14(&input);
+    let n = write_two_eb_vlr_las14(&input, None);
     let (src, _) = records(&input);
     let names: Vec<&str> = src.extra.iter().map(|d| d.name.as_str()).collect();
     assert_eq!(names, ["Amplitude", "Deviation", "Reflectance", "Echo"]);
@@ -326,6 +331,38 @@ print("ok")
                 let said = laspy(check, &[&input, &output, Path::new(&v)]);
                 assert_eq!(said.trim(), "ok", "{f}");
             }
+        }
+    }
+}
+
+/// Issue 13 item 4: the log names the unit of a geocentric WKT CRS (metres: a COPC or LAS 1.4
+/// file in EPSG:4978 was told it had no CRS), and a file without a CRS, or a geographic one,
+/// says why it has no length unit instead of "unit unit".
+#[test]
+fn crs_messages_name_the_unit_or_why_there_is_none() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let geoccs = r#"GEOCCS["WGS 84",DATUM["World Geodetic System 1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Geocentric X",OTHER],AXIS["Geocentric Y",OTHER],AXIS["Geocentric Z",NORTH],AUTHORITY["EPSG","4978"]]"#;
+    let geog = r#"GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4326"]]"#;
+    for (name, wkt, want) in [
+        ("geoccs", Some(geoccs), "unit m; tile 50m = 50.000 m"),
+        ("none", None, "no length unit (the file has no CRS"),
+        ("geog", Some(geog), "no length unit (the CRS is geographic"),
+    ] {
+        let input = dir.path().join(format!("{name}.las"));
+        write_two_eb_vlr_las14(&input, wkt);
+        let output = dir.path().join(format!("{name}_out.las"));
+        let out = crate::common::tilecurv(&[
+            "process",
+            input.to_str().expect("utf-8"),
+            "-o",
+            output.to_str().expect("utf-8"),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+        assert!(!err.contains("unit unit"), "{name}: {err}");
+        if wkt == Some(geoccs) {
+            assert!(!err.contains("no CRS"), "{name}: {err}");
         }
     }
 }
