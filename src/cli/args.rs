@@ -456,3 +456,15 @@ pub struct AssembleArgs {
     #[command(flatten)]
     pub exec: ExecArgs,
 }
+
+/// `tilecurv info`.
+#[derive(clap::Args, Debug)]
+pub struct InfoArgs {
+    /// Point cloud files (any format `process` reads).
+    #[arg(required = true, num_args = 1..)]
+    pub files: Vec<PathBuf>,
+
+    /// Print a JSON array with one object per file instead of text.
+    #[arg(long)]
+    pub json: bool,
+}

@@ -155,7 +155,7 @@ pub fn wkt_unit(wkt: &str) -> Option<LengthUnit> {
 }
 
 /// `wkt` without the whitespace outside quoted names: writers put spaces anywhere ("UNIT [").
-fn without_spaces(wkt: &str) -> String {
+pub(crate) fn without_spaces(wkt: &str) -> String {
     let mut in_str = false;
     wkt.chars()
         .filter(|&c| {
@@ -170,7 +170,7 @@ fn without_spaces(wkt: &str) -> String {
 /// The first linear unit inside the CRS group of `wkt` (passed through [`without_spaces`])
 /// that opens at byte `start`, outside the subtrees whose units are not the CRS axes' (base
 /// CRS, conversion parameters, prime meridian, vertical CRS).
-fn crs_unit(wkt: &str, start: usize) -> Option<LengthUnit> {
+pub(crate) fn crs_unit(wkt: &str, start: usize) -> Option<LengthUnit> {
     let upper = wkt.to_ascii_uppercase();
     let bytes = upper.as_bytes();
     let open = start + upper[start..].find('[')?;

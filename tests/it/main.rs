@@ -5,6 +5,7 @@ mod closed_form;
 mod common;
 mod features;
 mod formats;
+mod info;
 mod interop;
 mod invariance;
 #[path = "../kit/mod.rs"]
