@@ -247,6 +247,9 @@ pub struct Config {
     /// Write a LAS/LAZ output in its input's LAS version (default: LAS 1.4, so that PDAL reads
     /// the extra-bytes columns of LAS 1.0-1.3 inputs).
     pub keep_version: bool,
+    /// Name a PLY output's new columns as in LAS (`NormalX`, `H`) instead of CloudCompare's
+    /// `nx`, `scalar_H`.
+    pub ply_las_names: bool,
 }
 
 impl Default for Config {
@@ -274,6 +277,7 @@ impl Default for Config {
             work_dir: None,
             sample_faces: None,
             keep_version: false,
+            ply_las_names: false,
         }
     }
 }
@@ -318,6 +322,7 @@ impl Config {
                 self.sample_faces.map(|n| n.to_string()).unwrap_or_default(),
             ),
             p("keep_version", self.keep_version.to_string()),
+            p("ply_las_names", self.ply_las_names.to_string()),
         ]);
         v
     }
@@ -355,6 +360,7 @@ impl Config {
             }
             "tile" => self.tile = Length::parse(value)?,
             "keep_version" => self.keep_version = flag(value)?,
+            "ply_las_names" => self.ply_las_names = flag(value)?,
             "sample_faces" => {
                 self.sample_faces = (!value.is_empty()).then(|| num(value)).transpose()?
             }
@@ -466,6 +472,7 @@ mod tests {
             chunk_points: 1000,
             work_dir: None,
             keep_version: false,
+            ply_las_names: false,
         };
         let e = cfg
             .validate()

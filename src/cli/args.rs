@@ -148,6 +148,13 @@ pub struct ResultArgs {
     /// --readers.las.use_eb_vlr=true it shows none of the new columns in a LAS 1.2 file).
     #[arg(long)]
     keep_version: bool,
+
+    /// Name the new columns of a PLY output as in LAS (NormalX/Y/Z, H, K, k1, k2,
+    /// CurvatureFlags). By default they are nx/ny/nz and scalar_H, scalar_K, ...: the names
+    /// CloudCompare loads as normals and scalar fields without a dialog (its command line
+    /// ignores other names) and shows without the scalar_ prefix.
+    #[arg(long)]
+    ply_las_names: bool,
 }
 
 /// The options that change how a run executes, never its output.
@@ -273,6 +280,7 @@ impl ResultArgs {
         };
         cfg.sample_faces = self.sample_faces;
         cfg.keep_version = self.keep_version;
+        cfg.ply_las_names = self.ply_las_names;
     }
 }
 

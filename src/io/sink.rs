@@ -9,7 +9,7 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::las::{carry, convert::ConvertedSink};
-use crate::io::ply::PlyWriter;
+use crate::io::ply::{PlyNames, PlyWriter};
 use crate::io::source::{PointSource, SourceLayout};
 
 pub use crate::io::output::PointSink;
@@ -59,6 +59,8 @@ pub fn check_output_path(output: &Path) -> Result<()> {
 pub struct OutputOptions {
     /// A LAS/LAZ output keeps its LAS input's version instead of becoming LAS 1.4.
     pub keep_las_version: bool,
+    /// How a PLY output names the new columns.
+    pub ply_names: PlyNames,
 }
 
 /// Creates the writer for `output`: LAS/LAZ (a LAS input's records kept byte for byte, any
@@ -84,8 +86,13 @@ pub fn create_sink(
                 Box::new(ConvertedSink::create(source, output, cols, provenance)?)
             }
         },
-        OutputFormat::Ply { ascii } => {
-            Box::new(PlyWriter::create(source, output, cols, provenance, ascii)?)
-        }
+        OutputFormat::Ply { ascii } => Box::new(PlyWriter::create(
+            source,
+            output,
+            cols,
+            provenance,
+            ascii,
+            options.ply_names,
+        )?),
     })
 }

@@ -209,6 +209,11 @@ pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         config: cfg.params(),
         output_options: OutputOptions {
             keep_las_version: cfg.keep_version,
+            ply_names: if cfg.ply_las_names {
+                crate::io::ply::PlyNames::Las
+            } else {
+                crate::io::ply::PlyNames::CloudCompare
+            },
         },
         unit_name,
         file_normals,

@@ -77,6 +77,7 @@ pub fn parameters(cfg: &Config, tile_size: f64, unit: &str, file_normals: bool) 
         p("directions", cfg.directions.to_string()),
         p("features", cfg.features.to_string()),
         p("keep_version", cfg.keep_version.to_string()),
+        p("ply_las_names", cfg.ply_las_names.to_string()),
     ];
     if let Some(n) = cfg.sample_faces {
         v.push(p(

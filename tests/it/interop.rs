@@ -366,3 +366,57 @@ fn crs_messages_name_the_unit_or_why_there_is_none() {
         }
     }
 }
+
+/// Issue 13 item 12: a PLY output names its new columns as CloudCompare loads them without a
+/// dialog (its PLY filter takes a vertex property as a scalar field only when its name contains
+/// "scal", strips a `scalar_` prefix, and reads `nx ny nz` as normals): `nx ny nz`, then
+/// `scalar_H` and so on; `--ply-las-names` keeps the LAS names. Values equal the LAS output's.
+#[test]
+fn ply_columns_are_named_for_cloudcompare() {
+    let input = crate::common::root().join("data/Haystack_Rock.las");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (ply, plain, las) = (
+        dir.path().join("h.ply"),
+        dir.path().join("h_plain.ply"),
+        dir.path().join("h.las"),
+    );
+    process(&input, &ply, &[]);
+    process(&input, &plain, &["--ply-las-names"]);
+    process(&input, &las, &[]);
+    let t = crate::common::read_ply(&ply);
+    let new: Vec<&str> = t
+        .names
+        .iter()
+        .map(String::as_str)
+        .skip_while(|n| *n != "nx")
+        .collect();
+    assert_eq!(
+        new,
+        [
+            "nx",
+            "ny",
+            "nz",
+            "scalar_H",
+            "scalar_K",
+            "scalar_k1",
+            "scalar_k2",
+            "scalar_CurvatureFlags"
+        ]
+    );
+    for n in &new[3..] {
+        assert!(n.to_ascii_uppercase().contains("SCAL"), "{n}");
+    }
+    let p = crate::common::read_ply(&plain);
+    assert!(p.names.iter().any(|n| n == "H") && p.names.iter().any(|n| n == "NormalX"));
+    let h_las = crate::common::column(&las, "H");
+    let idx = t
+        .names
+        .iter()
+        .position(|n| n == "scalar_H")
+        .expect("scalar_H");
+    let h_ply: Vec<f64> = t.rows.iter().map(|r| r[idx]).collect();
+    assert_eq!(h_las.len(), h_ply.len());
+    for (a, b) in h_las.iter().zip(&h_ply) {
+        assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+    }
+}
