@@ -9,8 +9,9 @@ use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::crs::UnitSource;
+use crate::io::las::writer::PROVENANCE;
 use crate::io::sink::OutputOptions;
-use crate::io::source::PointSource;
+use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
 use crate::run::spec::{parameters, RunSpec};
 
@@ -136,6 +137,41 @@ fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bo
     Ok(with_normals > 0 && !cfg.ignore_file_normals)
 }
 
+/// Refuses, before any work, an input that already has a column named like one of the new
+/// ones (case-insensitive, as LAS readers match names): the output would hold two. A tilecurv
+/// output (its provenance record says so) is named as such; replacing its columns is not
+/// supported yet, so the original file must be processed instead.
+fn check_new_names(sources: &[Box<dyn PointSource>], cols: &ColumnSet) -> Result<()> {
+    for s in sources {
+        let props = s.properties();
+        let Some(clash) = cols
+            .columns()
+            .into_iter()
+            .find(|c| props.iter().any(|p| p.name.eq_ignore_ascii_case(&c.name)))
+        else {
+            continue;
+        };
+        let ours = match s.layout() {
+            SourceLayout::Las(parts) => parts.vlrs.iter().any(|v| v.is(PROVENANCE.0, PROVENANCE.1)),
+            SourceLayout::Converted => false,
+        };
+        let what = if ours {
+            "it is a tilecurv output, with tilecurv's provenance record".to_string()
+        } else {
+            "is it a tilecurv output?".to_string()
+        };
+        return Err(Error::bad_input(
+            s.path(),
+            None,
+            format!(
+                "the input already has an extra dimension named {:?} ({what}); process the original file instead",
+                clash.name
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Opens and checks the inputs of `cfg`, checks its outputs, and resolves the run. Nothing is
 /// written except the output directory of a multi-input run.
 pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
@@ -178,6 +214,7 @@ pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         },
         unit: unit_name.clone(),
     };
+    check_new_names(&sources, &cols)?;
     for s in &sources {
         reporter.info(&format!(
             "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}; normals {}",
