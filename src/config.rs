@@ -244,6 +244,12 @@ pub struct Config {
     /// Process this many points sampled on the faces of each (mesh) input instead of its
     /// vertices (`--sample-faces`).
     pub sample_faces: Option<u64>,
+    /// Write a LAS/LAZ output in its input's LAS version (default: LAS 1.4, so that PDAL reads
+    /// the extra-bytes columns of LAS 1.0-1.3 inputs).
+    pub keep_version: bool,
+    /// Name a PLY output's new columns as in LAS (`NormalX`, `H`) instead of CloudCompare's
+    /// `nx`, `scalar_H`.
+    pub ply_las_names: bool,
 }
 
 impl Default for Config {
@@ -270,6 +276,8 @@ impl Default for Config {
             chunk_points: 1_000_000,
             work_dir: None,
             sample_faces: None,
+            keep_version: false,
+            ply_las_names: false,
         }
     }
 }
@@ -313,6 +321,8 @@ impl Config {
                 "sample_faces",
                 self.sample_faces.map(|n| n.to_string()).unwrap_or_default(),
             ),
+            p("keep_version", self.keep_version.to_string()),
+            p("ply_las_names", self.ply_las_names.to_string()),
         ]);
         v
     }
@@ -349,6 +359,8 @@ impl Config {
                 }
             }
             "tile" => self.tile = Length::parse(value)?,
+            "keep_version" => self.keep_version = flag(value)?,
+            "ply_las_names" => self.ply_las_names = flag(value)?,
             "sample_faces" => {
                 self.sample_faces = (!value.is_empty()).then(|| num(value)).transpose()?
             }

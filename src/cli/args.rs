@@ -141,6 +141,20 @@ pub struct ResultArgs {
     /// on --threads or --chunk-size. The mesh is held in memory, the samples are streamed.
     #[arg(long, value_name = "N", value_parser = crate::tools::generate::parse_count)]
     sample_faces: Option<u64>,
+
+    /// Write a LAS/LAZ output in its input's LAS version. By default a LAS 1.0-1.3 input gives
+    /// a LAS 1.4 output (same point format and records; a 375-byte header with the 64-bit
+    /// counts), because PDAL reads the extra-bytes columns of LAS 1.4 files only (without
+    /// --readers.las.use_eb_vlr=true it shows none of the new columns in a LAS 1.2 file).
+    #[arg(long)]
+    keep_version: bool,
+
+    /// Name the new columns of a PLY output as in LAS (NormalX/Y/Z, H, K, k1, k2,
+    /// CurvatureFlags). By default they are nx/ny/nz and scalar_H, scalar_K, ...: the names
+    /// CloudCompare loads as normals and scalar fields without a dialog (its command line
+    /// ignores other names) and shows without the scalar_ prefix.
+    #[arg(long)]
+    ply_las_names: bool,
 }
 
 /// The options that change how a run executes, never its output.
@@ -265,6 +279,8 @@ impl ResultArgs {
             ColumnType::F32
         };
         cfg.sample_faces = self.sample_faces;
+        cfg.keep_version = self.keep_version;
+        cfg.ply_las_names = self.ply_las_names;
     }
 }
 
@@ -447,4 +463,16 @@ pub struct AssembleArgs {
 
     #[command(flatten)]
     pub exec: ExecArgs,
+}
+
+/// `tilecurv info`.
+#[derive(clap::Args, Debug)]
+pub struct InfoArgs {
+    /// Point cloud files (any format `process` reads).
+    #[arg(required = true, num_args = 1..)]
+    pub files: Vec<PathBuf>,
+
+    /// Print a JSON array with one object per file instead of text.
+    #[arg(long)]
+    pub json: bool,
 }

@@ -2,6 +2,7 @@
 //! the commands run, and the exit codes. The binary (`main.rs`) only calls [`main_with_args`].
 
 mod args;
+mod info;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -11,8 +12,8 @@ use crate::config::Config;
 use crate::error::{Error, ExitClass};
 use crate::progress::TermReporter;
 use args::{
-    AssembleArgs, BucketArgs, GenerateArgs, GenerateKind, PlanArgs, ProcessArgs, RunTileArgs,
-    StatusArgs, TerrainArgs,
+    AssembleArgs, BucketArgs, GenerateArgs, GenerateKind, InfoArgs, PlanArgs, ProcessArgs,
+    RunTileArgs, StatusArgs, TerrainArgs,
 };
 
 /// Exit codes, as documented in `--help` and the README.
@@ -61,6 +62,11 @@ enum Command {
     Process(ProcessArgs),
     /// Write a synthetic point cloud with its exact curvature, for testing and benchmarking.
     Generate(GenerateArgs),
+    /// Describe point cloud files: format, version, point count, bounds, CRS with its
+    /// horizontal and vertical units, extra dimensions with types and scales, and the tilecurv
+    /// provenance of an output. Reads headers only (other formats are scanned for bounds).
+    #[command(after_help = EXIT_HELP)]
+    Info(InfoArgs),
     /// Cluster stage 1: check the inputs, write the work directory's manifest and task layout,
     /// and print `bucket tasks: B` and `tasks: N` (the last line). Then run `bucket`, `run-tile`
     /// for every task index, and `assemble` (scripts/slurm/submit.sh chains them on Slurm).
@@ -141,6 +147,7 @@ pub fn main_with_args() -> i32 {
             kind: GenerateKind::Terrain(args),
         }) => generate(args),
         Command::Process(args) => process(args),
+        Command::Info(a) => info::info(a),
         Command::Plan(a) => stages::plan(a),
         Command::Bucket(a) => stages::bucket(a),
         Command::RunTile(a) => stages::run_tile(a),

@@ -1,5 +1,6 @@
-//! The horizontal length unit of a file's CRS, from its OGC WKT VLR or its GeoTIFF keys, so that
-//! `--tile 50m` means 50 metres in a file stored in feet. Pure: works on VLR payloads.
+//! The horizontal length unit of a file's CRS (projected or geocentric), from its OGC WKT VLR or
+//! its GeoTIFF keys, so that `--tile 50m` means 50 metres in a file stored in feet, or why there
+//! is none (no CRS, a geographic CRS). Pure: works on VLR payloads.
 
 use crate::io::las::vlr::Vlr;
 
@@ -57,12 +58,15 @@ impl UnitSource {
 }
 
 /// Determines the horizontal unit from a file's VLRs (and EVLRs, where LAS 1.4 may keep the WKT).
+/// A WKT without a linear unit gives way to GeoTIFF keys; without them its reason is kept.
 pub fn horizontal_unit<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> UnitSource {
     let records: Vec<&Vlr> = records.into_iter().collect();
+    let mut wkt_reason = None;
     if let Some(v) = records.iter().find(|v| v.is("LASF_Projection", 2112)) {
         let text = String::from_utf8_lossy(&v.data);
-        if let Some(u) = wkt_unit(&text) {
-            return UnitSource::Wkt(u);
+        match wkt_crs_unit(&text) {
+            Ok(u) => return UnitSource::Wkt(u),
+            Err(why) => wkt_reason = Some(why),
         }
     }
     if let Some(v) = records.iter().find(|v| v.is("LASF_Projection", 34735)) {
@@ -75,7 +79,48 @@ pub fn horizontal_unit<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> UnitSo
             Err(why) => return UnitSource::Unknown(why),
         }
     }
-    UnitSource::Unknown("the file has no CRS (no WKT or GeoTIFF VLR)".into())
+    UnitSource::Unknown(
+        wkt_reason.unwrap_or_else(|| "the file has no CRS, no WKT or GeoTIFF VLR".into()),
+    )
+}
+
+/// The horizontal unit of the CRS in an OGC WKT (1 or 2) string: the linear unit of a projected
+/// CRS ([`wkt_unit`]) or of a geocentric one (WKT1 `GEOCCS`, WKT2 `GEODCRS` with a Cartesian
+/// coordinate system: x, y, z in that unit, usually metres). Otherwise the reason, for the
+/// message: a geographic CRS has angles, not lengths.
+pub fn wkt_crs_unit(wkt: &str) -> Result<LengthUnit, String> {
+    if let Some(u) = wkt_unit(wkt) {
+        return Ok(u);
+    }
+    let wkt = without_spaces(wkt);
+    let upper = wkt.to_ascii_uppercase();
+    let geocentric = ["GEOCCS[", "GEOCENTRICCRS["]
+        .iter()
+        .chain(
+            ["GEODCRS[", "GEODETICCRS["]
+                .iter()
+                .filter(|_| upper.contains("CS[CARTESIAN")),
+        )
+        .find_map(|k| upper.find(k).map(|p| (p, k.len())));
+    if let Some((p, _)) = geocentric {
+        return crs_unit(&wkt, p).ok_or_else(|| {
+            "the WKT CRS is geocentric but names no linear unit tilecurv can read".into()
+        });
+    }
+    let geographic = [
+        "GEOGCS[",
+        "GEOGCRS[",
+        "GEOGRAPHICCRS[",
+        "GEODCRS[",
+        "GEODETICCRS[",
+    ];
+    if geographic.iter().any(|k| upper.contains(k)) {
+        return Err(
+            "the CRS is geographic (longitude and latitude in angles), which has no length unit"
+                .into(),
+        );
+    }
+    Err("the WKT CRS is neither projected, geocentric nor geographic, or names no linear unit tilecurv can read".into())
 }
 
 /// Finds the end of the bracketed group that opens at `open` (the index of '[' or '(').
@@ -100,23 +145,33 @@ fn group_end(s: &[u8], open: usize) -> Option<usize> {
 
 /// The linear unit of the projected CRS in an OGC WKT (1 or 2) string.
 pub fn wkt_unit(wkt: &str) -> Option<LengthUnit> {
-    // Writers put spaces anywhere ("UNIT [ ..."): drop whitespace outside quoted names.
+    let wkt = without_spaces(wkt);
+    let upper = wkt.to_ascii_uppercase();
+    let start = ["PROJCRS[", "PROJCS[", "PROJECTEDCRS["]
+        .iter()
+        .filter_map(|k| upper.find(k))
+        .min()?;
+    crs_unit(&wkt, start)
+}
+
+/// `wkt` without the whitespace outside quoted names: writers put spaces anywhere ("UNIT [").
+pub(crate) fn without_spaces(wkt: &str) -> String {
     let mut in_str = false;
-    let wkt: String = wkt
-        .chars()
+    wkt.chars()
         .filter(|&c| {
             if c == '"' {
                 in_str = !in_str;
             }
             in_str || !c.is_whitespace()
         })
-        .collect();
-    let wkt = wkt.as_str();
+        .collect()
+}
+
+/// The first linear unit inside the CRS group of `wkt` (passed through [`without_spaces`])
+/// that opens at byte `start`, outside the subtrees whose units are not the CRS axes' (base
+/// CRS, conversion parameters, prime meridian, vertical CRS).
+pub(crate) fn crs_unit(wkt: &str, start: usize) -> Option<LengthUnit> {
     let upper = wkt.to_ascii_uppercase();
-    let start = ["PROJCRS[", "PROJCS[", "PROJECTEDCRS["]
-        .iter()
-        .filter_map(|k| upper.find(k))
-        .min()?;
     let bytes = upper.as_bytes();
     let open = start + upper[start..].find('[')?;
     let end = group_end(bytes, open)?;
@@ -132,6 +187,7 @@ pub fn wkt_unit(wkt: &str) -> Option<LengthUnit> {
         "CONVERSION[",
         "VERT_CS[",
         "VERTCRS[",
+        "PRIMEM[",
     ] {
         while let Some(p) = find(&body, key.as_bytes()) {
             let o = p + key.len() - 1;
@@ -250,6 +306,22 @@ mod tests {
         let wkt = r#"PROJCRS["x",BASEGEOGCRS["g",ANGLEUNIT["degree",0.01745]],CONVERSION["c",PARAMETER["False easting",0,LENGTHUNIT["metre",1]]],CS[Cartesian,2],AXIS["E",east,LENGTHUNIT["US survey foot",0.304800609601219]]]"#;
         let u = wkt_unit(wkt).expect("unit");
         assert!((u.metres - 0.304800609601219).abs() < 1e-15);
+    }
+
+    #[test]
+    fn geocentric_wkt_has_metres_and_geographic_has_no_length_unit() {
+        let geoccs = r#"GEOCCS["WGS 84",DATUM["World Geodetic System 1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Geocentric X",OTHER],AXIS["Geocentric Y",OTHER],AXIS["Geocentric Z",NORTH],AUTHORITY["EPSG","4978"]]"#;
+        assert_eq!(wkt_crs_unit(geoccs).expect("metres").symbol(), "m");
+        let wkt2 = r#"GEODCRS["WGS 84",DATUM["World Geodetic System 1984",ELLIPSOID["WGS 84",6378137,298.257223563,LENGTHUNIT["metre",1]]],PRIMEM["Greenwich",0,ANGLEUNIT["degree",0.0174532925199433]],CS[Cartesian,3],AXIS["(X)",geocentricX],AXIS["(Y)",geocentricY],AXIS["(Z)",geocentricZ],LENGTHUNIT["metre",1]]"#;
+        assert_eq!(wkt_crs_unit(wkt2).expect("metres").metres, 1.0);
+        let geog = r#"GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4326"]]"#;
+        let why = wkt_crs_unit(geog).expect_err("no length unit");
+        assert!(why.contains("geographic"), "{why}");
+        let vlr = Vlr::new("LASF_Projection", 2112, "", geog.as_bytes().to_vec());
+        match horizontal_unit([&vlr]) {
+            UnitSource::Unknown(why) => assert!(why.contains("geographic"), "{why}"),
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]

@@ -4,6 +4,8 @@
 pub mod bucket;
 pub mod columns;
 pub mod crs;
+pub mod crs_summary;
+pub mod info;
 pub mod las;
 pub mod output;
 pub mod ply;

@@ -1,7 +1,14 @@
 //! PLY output: one `vertex` element with every property of the input (names and types as the
 //! input declares them; for LAS input x, y, z as double and the standard fields) followed by
-//! tilecurv's columns under their own names, binary little endian or ASCII. Written to a
-//! temporary file renamed over the output by `finish`, like the LAS writer.
+//! tilecurv's columns, binary little endian or ASCII. Written to a temporary file renamed over
+//! the output by `finish`, like the LAS writer.
+//!
+//! The new columns are named for CloudCompare by default ([`PlyNames`]): its PLY reader (libs/
+//! qCC_io/PlyFilter.cpp) takes a vertex property as a scalar field without asking only when its
+//! name contains "scal" (or names an intensity), and strips a `scalar_` prefix back off (with
+//! `_` read as a space), while `nx ny nz` are its (and MeshLab's) normals. So the normals are
+//! written as `nx ny nz` and every other column as `scalar_<name>` (`scalar_H`, ...), which
+//! CloudCompare's command line shows as `H`; the LAS names are an option.
 
 use std::fmt::Write as _;
 use std::fs::File;
@@ -33,6 +40,29 @@ pub struct PlyWriter {
     text: String,
 }
 
+/// How the new columns are named in a PLY output.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum PlyNames {
+    /// `nx ny nz` and `scalar_<name>`: what CloudCompare loads as normals and scalar fields.
+    #[default]
+    CloudCompare,
+    /// The LAS column names (`NormalX`, `H`, ...).
+    Las,
+}
+
+impl PlyNames {
+    /// The PLY property name of the new column `name`.
+    pub fn name(self, name: &str) -> String {
+        match (self, name) {
+            (PlyNames::Las, _) => name.to_string(),
+            (PlyNames::CloudCompare, "NormalX") => "nx".into(),
+            (PlyNames::CloudCompare, "NormalY") => "ny".into(),
+            (PlyNames::CloudCompare, "NormalZ") => "nz".into(),
+            (PlyNames::CloudCompare, n) => format!("scalar_{n}"),
+        }
+    }
+}
+
 /// A property name PLY can carry: no whitespace (LAS extra dimensions may have some).
 fn ply_name(name: &str) -> String {
     let n = name.split_whitespace().collect::<Vec<_>>().join("_");
@@ -52,6 +82,7 @@ impl PlyWriter {
         cols: &ColumnSet,
         provenance: &str,
         ascii: bool,
+        names: PlyNames,
     ) -> Result<Self> {
         // PLY has no 64-bit integers: those (from LAS extra bytes or PCD) are written as double.
         let props: Vec<(Property, ScalarType)> = source
@@ -67,16 +98,24 @@ impl PlyWriter {
             })
             .collect();
         let new = cols.columns();
+        let taken = |n: &str| props.iter().any(|(p, _)| p.name.eq_ignore_ascii_case(n));
+        let mut new_names = Vec::with_capacity(new.len());
         for c in &new {
-            if props
-                .iter()
-                .any(|(p, _)| p.name.eq_ignore_ascii_case(&c.name))
-            {
+            let mapped = names.name(&c.name);
+            // An input's own `nx` (ignored with --ignore-file-normals) leaves the LAS name; any
+            // other clash (a tilecurv output fed back in) is refused.
+            let normal = mapped.len() == 2 && mapped.starts_with('n');
+            let name = if normal && taken(&mapped) {
+                c.name.clone()
+            } else {
+                mapped
+            };
+            if let Some(clash) = [&name, &c.name].into_iter().find(|n| taken(n)) {
                 return Err(Error::bad_input(source.path(), None, format!(
-                    "the input already has a property named {:?} (is it a tilecurv output?); process the original file instead",
-                    c.name
+                    "the input already has a property named {clash:?} (is it a tilecurv output?); process the original file instead"
                 )));
             }
+            new_names.push(name);
         }
         let mut head = String::from("ply\n");
         head += if ascii {
@@ -87,14 +126,14 @@ impl PlyWriter {
         for line in provenance.lines() {
             let _ = writeln!(head, "comment {line}");
         }
-        for c in &new {
-            let _ = writeln!(head, "comment {}: {}", c.name, c.description);
+        for (c, name) in new.iter().zip(&new_names) {
+            let _ = writeln!(head, "comment {name}: {}", c.description);
         }
         let _ = writeln!(head, "element vertex {}", source.len());
         let typed = props
             .iter()
             .map(|(p, ty)| (*ty, ply_name(&p.name)))
-            .chain(new.iter().map(|c| (c.ty, c.name.clone())));
+            .chain(new.iter().zip(&new_names).map(|(c, n)| (c.ty, n.clone())));
         for (ty, name) in typed {
             let ty = ply_type_name(ty).unwrap_or("double");
             let _ = writeln!(head, "property {ty} {name}");

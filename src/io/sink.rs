@@ -9,7 +9,7 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::las::{carry, convert::ConvertedSink};
-use crate::io::ply::PlyWriter;
+use crate::io::ply::{PlyNames, PlyWriter};
 use crate::io::source::{PointSource, SourceLayout};
 
 pub use crate::io::output::PointSink;
@@ -53,6 +53,16 @@ pub fn check_output_path(output: &Path) -> Result<()> {
     output_format(output).map(|_| ())
 }
 
+/// How outputs are written, besides their columns (the options of a run that change the
+/// output's bytes but not its values).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct OutputOptions {
+    /// A LAS/LAZ output keeps its LAS input's version instead of becoming LAS 1.4.
+    pub keep_las_version: bool,
+    /// How a PLY output names the new columns.
+    pub ply_names: PlyNames,
+}
+
 /// Creates the writer for `output`: LAS/LAZ (a LAS input's records kept byte for byte, any
 /// other input converted) or PLY.
 pub fn create_sink(
@@ -60,16 +70,29 @@ pub fn create_sink(
     output: &Path,
     cols: &ColumnSet,
     provenance: &str,
+    options: &OutputOptions,
 ) -> Result<Box<dyn PointSink>> {
     Ok(match output_format(output)? {
         OutputFormat::Las | OutputFormat::Laz => match source.layout() {
-            SourceLayout::Las(parts) => Box::new(carry::create(parts, output, cols, provenance)?),
+            SourceLayout::Las(parts) => {
+                let version = if options.keep_las_version {
+                    carry::Version::Input
+                } else {
+                    carry::Version::Las14
+                };
+                Box::new(carry::create(parts, output, cols, provenance, version)?)
+            }
             SourceLayout::Converted => {
                 Box::new(ConvertedSink::create(source, output, cols, provenance)?)
             }
         },
-        OutputFormat::Ply { ascii } => {
-            Box::new(PlyWriter::create(source, output, cols, provenance, ascii)?)
-        }
+        OutputFormat::Ply { ascii } => Box::new(PlyWriter::create(
+            source,
+            output,
+            cols,
+            provenance,
+            ascii,
+            options.ply_names,
+        )?),
     })
 }

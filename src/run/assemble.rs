@@ -12,7 +12,7 @@ use crate::core::plan::TilePlan;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::results::{tile_path, Merger};
-use crate::io::sink::{create_sink, PointSink};
+use crate::io::sink::{create_sink, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::WorkDir;
 use crate::progress::Reporter;
@@ -52,6 +52,7 @@ pub fn assemble_outputs(
             &spec.cols,
             output,
             &provenance,
+            &spec.output_options,
             chunk,
             exec.reporter,
             exec.cancel,
@@ -74,11 +75,12 @@ pub fn assemble(
     cols: &ColumnSet,
     output: &Path,
     provenance: &str,
+    options: &OutputOptions,
     chunk_points: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<()> {
-    let mut writer = create_sink(source, output, cols, provenance)?;
+    let mut writer = create_sink(source, output, cols, provenance, options)?;
     match merge_into(
         writer.as_mut(),
         source,

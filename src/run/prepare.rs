@@ -9,7 +9,9 @@ use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::crs::UnitSource;
-use crate::io::source::PointSource;
+use crate::io::las::writer::PROVENANCE;
+use crate::io::sink::OutputOptions;
+use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
 use crate::run::spec::{parameters, RunSpec};
 
@@ -68,12 +70,13 @@ pub fn check_outputs(cfg: &Config, outputs: &[PathBuf]) -> Result<()> {
 }
 
 /// The horizontal unit shared by every input (the first one decides; another unit is an
-/// error): its symbol and, with a CRS, its length in metres.
+/// error): its symbol ("unit" without one), with a CRS its length in metres, and its words for
+/// the log ("unit m", or "no length unit (why)").
 fn common_unit(
     cfg: &Config,
     sources: &[Box<dyn PointSource>],
     reporter: &dyn Reporter,
-) -> Result<(String, Option<crate::io::crs::LengthUnit>)> {
+) -> Result<(String, Option<crate::io::crs::LengthUnit>, String)> {
     let unit = sources[0].unit();
     for s in &sources[1..] {
         let u = s.unit();
@@ -88,7 +91,10 @@ fn common_unit(
         }
     }
     Ok(match unit {
-        UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => (u.symbol(), Some(u)),
+        UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => {
+            let symbol = u.symbol();
+            (symbol.clone(), Some(u), format!("unit {symbol}"))
+        }
         UnitSource::Unknown(why) => {
             if cfg.tile.has_unit() {
                 reporter.warn(&format!(
@@ -97,7 +103,8 @@ fn common_unit(
                     cfg.tile
                 ));
             }
-            ("unit".to_string(), None)
+            let words = format!("no length unit ({why})");
+            ("unit".to_string(), None, words)
         }
     })
 }
@@ -130,6 +137,41 @@ fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bo
     Ok(with_normals > 0 && !cfg.ignore_file_normals)
 }
 
+/// Refuses, before any work, an input that already has a column named like one of the new
+/// ones (case-insensitive, as LAS readers match names): the output would hold two. A tilecurv
+/// output (its provenance record says so) is named as such; replacing its columns is not
+/// supported yet, so the original file must be processed instead.
+fn check_new_names(sources: &[Box<dyn PointSource>], cols: &ColumnSet) -> Result<()> {
+    for s in sources {
+        let props = s.properties();
+        let Some(clash) = cols
+            .columns()
+            .into_iter()
+            .find(|c| props.iter().any(|p| p.name.eq_ignore_ascii_case(&c.name)))
+        else {
+            continue;
+        };
+        let ours = match s.layout() {
+            SourceLayout::Las(parts) => parts.vlrs.iter().any(|v| v.is(PROVENANCE.0, PROVENANCE.1)),
+            SourceLayout::Converted => false,
+        };
+        let what = if ours {
+            "it is a tilecurv output, with tilecurv's provenance record".to_string()
+        } else {
+            "is it a tilecurv output?".to_string()
+        };
+        return Err(Error::bad_input(
+            s.path(),
+            None,
+            format!(
+                "the input already has an extra dimension named {:?} ({what}); process the original file instead",
+                clash.name
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Opens and checks the inputs of `cfg`, checks its outputs, and resolves the run. Nothing is
 /// written except the output directory of a multi-input run.
 pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
@@ -158,7 +200,11 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
             None => crate::io::source::open(p),
         })
         .collect::<Result<Vec<_>>>()?;
-    let (unit_name, unit) = common_unit(cfg, &sources, reporter)?;
+    let (unit_name, unit, unit_words) = common_unit(cfg, &sources, reporter)?;
+    let tile_units = match unit {
+        Some(_) => unit_name.clone(),
+        None => "file units".to_string(),
+    };
     let tile_size = cfg.tile.in_file_units(unit.as_ref());
     let file_normals = use_file_normals(cfg, &sources)?;
     let estimator = cfg.estimator.build(&cfg.params);
@@ -173,9 +219,10 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         },
         unit: unit_name.clone(),
     };
+    check_new_names(&sources, &cols)?;
     for s in &sources {
         reporter.info(&format!(
-            "{}: {} points, {}, unit {unit_name}; tile {} = {tile_size:.3} {unit_name}; normals {}",
+            "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}; normals {}",
             s.path().display(),
             s.len(),
             s.describe(),
@@ -202,6 +249,14 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         grid: TileGrid { size: tile_size },
         params: parameters(cfg, tile_size, &unit_name, file_normals),
         config: cfg.params(),
+        output_options: OutputOptions {
+            keep_las_version: cfg.keep_version,
+            ply_names: if cfg.ply_las_names {
+                crate::io::ply::PlyNames::Las
+            } else {
+                crate::io::ply::PlyNames::CloudCompare
+            },
+        },
         unit_name,
         file_normals,
         cols,

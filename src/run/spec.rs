@@ -9,6 +9,7 @@ use crate::config::{ColumnType, Config, OrientMode};
 use crate::core::estimate::Estimator;
 use crate::core::plan::TileGrid;
 use crate::io::columns::ColumnSet;
+use crate::io::sink::OutputOptions;
 use crate::io::source::PointSource;
 use crate::io::workdir::Fingerprint;
 
@@ -49,6 +50,8 @@ pub struct RunSpec {
     pub params: Vec<Param>,
     /// Every output-changing option as given ([`Config::params`]): the manifest stores them.
     pub config: Vec<crate::config::Param>,
+    /// How the outputs are written besides their columns.
+    pub output_options: OutputOptions,
 }
 
 /// The parameters of `cfg` that change the output, with the resolved tile size, unit and
@@ -73,6 +76,8 @@ pub fn parameters(cfg: &Config, tile_size: f64, unit: &str, file_normals: bool) 
         ),
         p("directions", cfg.directions.to_string()),
         p("features", cfg.features.to_string()),
+        p("keep_version", cfg.keep_version.to_string()),
+        p("ply_las_names", cfg.ply_las_names.to_string()),
     ];
     if let Some(n) = cfg.sample_faces {
         v.push(p(

@@ -216,11 +216,15 @@ pub struct Table {
 }
 
 impl Table {
+    /// The column `name`, or a new column under its default PLY name (`NormalX` as `nx`, `H`
+    /// as `scalar_H`).
     pub fn col(&self, name: &str) -> Vec<f64> {
+        let ply = tilecurv::io::ply::PlyNames::CloudCompare.name(name);
         let j = self
             .names
             .iter()
             .position(|n| n == name)
+            .or_else(|| self.names.iter().position(|n| *n == ply))
             .unwrap_or_else(|| panic!("no property {name} in {:?}", self.names));
         self.rows.iter().map(|r| r[j]).collect()
     }

@@ -6,6 +6,8 @@ mod cluster;
 mod common;
 mod features;
 mod formats;
+mod info;
+mod interop;
 mod invariance;
 #[path = "../kit/mod.rs"]
 mod kit;

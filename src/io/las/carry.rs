@@ -1,8 +1,9 @@
 //! The LAS/LAZ output of `process` for a LAS input (or a converted one, which `convert` makes
 //! look like one): the input's header, VLRs and EVLRs carried over by the [`LasFileWriter`],
-//! each record followed by the new columns, and the extra-bytes descriptors extended with the
-//! new columns' (after an "undocumented" descriptor for any extra bytes the input left
-//! undescribed).
+//! each record followed by the new columns, and the extra-bytes descriptors of all the input's
+//! extra-bytes records, merged into one, extended with the new columns' (after an
+//! "undocumented" descriptor for any extra bytes the input left undescribed). The output is
+//! LAS 1.4 unless the input's version is kept ([`Version`]; `upgrade` rewrites the header).
 
 use std::path::Path;
 
@@ -10,7 +11,17 @@ use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::las::extra_bytes::{self, encode, encode_undocumented, parse, DESCRIPTOR_SIZE};
 use crate::io::las::parts::LasParts;
+use crate::io::las::upgrade;
 use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
+
+/// The LAS version of the output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Version {
+    /// The input's.
+    Input,
+    /// LAS 1.4, whatever the input's (a 1.0-1.3 header is rewritten by [`upgrade::to_las14`]).
+    Las14,
+}
 
 /// Creates the writer of `output` for records of `input` followed by the columns `cols`.
 pub fn create(
@@ -18,8 +29,16 @@ pub fn create(
     output: &Path,
     cols: &ColumnSet,
     provenance: &str,
+    version: Version,
 ) -> Result<LasFileWriter> {
-    let h = input.header;
+    let upgraded;
+    let h = match version {
+        Version::Input => input.header,
+        Version::Las14 => {
+            upgraded = upgrade::to_las14(input.header, input.vlrs);
+            &upgraded
+        }
+    };
     let record_length =
         u16::try_from(h.record_length as usize + cols.record_size()).map_err(|_| {
             Error::bad_input(
@@ -44,15 +63,13 @@ pub fn create(
     LasFileWriter::create(output, spec)
 }
 
-/// The extra-bytes descriptors of the output: the input's (padded with an "undocumented"
-/// descriptor if the input's records have more extra bytes than its VLR describes), then ours.
+/// The extra-bytes descriptors of the output: the input's, from all its extra-bytes records
+/// in file order (padded with an "undocumented" descriptor if the input's records have more
+/// extra bytes than they describe), then ours. The writer stores them as one record.
 fn extra_bytes_payload(input: &LasParts<'_>, cols: &ColumnSet) -> Result<Vec<u8>> {
-    let existing = input
-        .vlrs
-        .iter()
-        .chain(input.evlrs.iter().map(|(_, v)| v))
-        .find(|v| extra_bytes::is_extra_bytes(v));
-    let mut data = existing.map(|v| v.data.clone()).unwrap_or_default();
+    let records = input.vlrs.iter().chain(input.evlrs.iter().map(|(_, v)| v));
+    let mut data = extra_bytes::merged_payload(records)
+        .map_err(|why| Error::bad_input(input.path, None, why))?;
     let described: usize = parse(&data)
         .map(|d| d.iter().map(|d| d.size).sum())
         .unwrap_or(0);

@@ -88,7 +88,7 @@ impl ConvertedSink {
             evlrs: &[],
             extra: &extra,
         };
-        let writer = carry::create(input, output, cols, provenance)?;
+        let writer = carry::create(input, output, cols, provenance, carry::Version::Input)?;
         let convert = Convert {
             xyz,
             props,

@@ -203,7 +203,32 @@ pub fn vlr(data: Vec<u8>) -> Vlr {
     Vlr::new(USER_ID, RECORD_ID, "Extra Bytes Record", data)
 }
 
-/// Whether `v` is the extra-bytes VLR.
+/// Whether `v` is an extra-bytes VLR or EVLR.
 pub fn is_extra_bytes(v: &Vlr) -> bool {
     v.is(USER_ID, RECORD_ID)
+}
+
+/// The descriptors of every extra-bytes record among `records` (a file's VLRs, then its EVLRs),
+/// concatenated in that order: one payload describing the records' extra bytes from the first
+/// byte. Some writers split the descriptors over two records, while readers (laspy, PDAL) take
+/// one, so a file must be read through all of them and written with exactly one. Fails when a
+/// record's payload is not a whole number of descriptors, since the concatenation would then
+/// misplace every descriptor after it.
+pub fn merged_payload<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> Result<Vec<u8>, String> {
+    let mut data = Vec::new();
+    for (i, v) in records
+        .into_iter()
+        .filter(|v| is_extra_bytes(v))
+        .enumerate()
+    {
+        if !v.data.len().is_multiple_of(DESCRIPTOR_SIZE) {
+            return Err(format!(
+                "extra-bytes record {} is {} bytes, not a multiple of {DESCRIPTOR_SIZE}",
+                i + 1,
+                v.data.len()
+            ));
+        }
+        data.extend_from_slice(&v.data);
+    }
+    Ok(data)
 }

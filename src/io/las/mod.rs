@@ -9,5 +9,6 @@ pub mod extra_bytes;
 pub mod fields;
 pub mod header;
 pub mod parts;
+pub mod upgrade;
 pub mod vlr;
 pub mod writer;

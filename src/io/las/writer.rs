@@ -63,8 +63,10 @@ pub struct LasFileSpec<'a> {
     /// The EVLRs to carry over with their byte offsets in the input (the header's waveform
     /// start names the waveform record, which is then located in the output); COPC dropped.
     pub evlrs: &'a [(u64, Vlr)],
-    /// The extra-bytes descriptors of the output records (encoded): the payload of every
-    /// carried extra-bytes VLR or EVLR, or of a new VLR after the carried ones if there is none.
+    /// The extra-bytes descriptors of the output records (encoded), written as exactly one
+    /// record: in place of the first carried extra-bytes VLR (else EVLR), the others dropped
+    /// (their descriptors are expected in this payload), or as a new VLR after the carried
+    /// ones if there is none.
     pub extra_bytes: Vec<u8>,
     /// The provenance text, written as the provenance VLR (after the extra bytes).
     pub provenance: &'a str,
@@ -104,23 +106,21 @@ impl LasFileSpec<'_> {
         compressed: bool,
     ) -> Result<(Vec<Vlr>, Option<laz::LazVlr>)> {
         let mut vlrs: Vec<Vlr> = Vec::new();
-        // An extra-bytes EVLR takes the payload instead of a new VLR.
-        let mut placed = self
-            .evlrs
-            .iter()
-            .any(|(_, v)| extra_bytes::is_extra_bytes(v));
+        let home = self.extra_bytes_home();
         for v in self.vlrs {
             if is_laszip(v) || is_copc(v) {
                 continue;
             }
             if extra_bytes::is_extra_bytes(v) {
-                vlrs.push(self.with_extra_bytes(v));
-                placed = true;
+                if home == ExtraBytesHome::FirstVlr && !vlrs.iter().any(extra_bytes::is_extra_bytes)
+                {
+                    vlrs.push(self.with_extra_bytes(v));
+                }
             } else {
                 vlrs.push(v.clone());
             }
         }
-        if !placed {
+        if home == ExtraBytesHome::NewVlr {
             vlrs.push(extra_bytes::vlr(self.extra_bytes.clone()));
         }
         vlrs.push(Vlr::new(
@@ -138,11 +138,13 @@ impl LasFileSpec<'_> {
         Ok((vlrs, Some(lv)))
     }
 
-    /// The output's EVLRs (COPC dropped, extra bytes replaced) and the index of the waveform
-    /// record among them.
+    /// The output's EVLRs (COPC dropped, the extra bytes in the first extra-bytes EVLR if no
+    /// VLR holds them, other extra-bytes EVLRs dropped) and the index of the waveform record
+    /// among them.
     fn evlrs(&self, header: &LasHeader) -> (Vec<Vlr>, Option<usize>) {
-        let mut evlrs = Vec::new();
+        let mut evlrs: Vec<Vlr> = Vec::new();
         let mut waveform = None;
+        let home = self.extra_bytes_home();
         for (off, v) in self.evlrs {
             if is_copc(v) {
                 continue;
@@ -151,12 +153,31 @@ impl LasFileSpec<'_> {
                 waveform = Some(evlrs.len());
             }
             if extra_bytes::is_extra_bytes(v) {
-                evlrs.push(self.with_extra_bytes(v));
+                if home == ExtraBytesHome::FirstEvlr
+                    && !evlrs.iter().any(extra_bytes::is_extra_bytes)
+                {
+                    evlrs.push(self.with_extra_bytes(v));
+                }
             } else {
                 evlrs.push(v.clone());
             }
         }
         (evlrs, waveform)
+    }
+
+    /// Where the one extra-bytes record of the output goes.
+    fn extra_bytes_home(&self) -> ExtraBytesHome {
+        if self.vlrs.iter().any(extra_bytes::is_extra_bytes) {
+            ExtraBytesHome::FirstVlr
+        } else if self
+            .evlrs
+            .iter()
+            .any(|(_, v)| extra_bytes::is_extra_bytes(v))
+        {
+            ExtraBytesHome::FirstEvlr
+        } else {
+            ExtraBytesHome::NewVlr
+        }
     }
 
     fn with_extra_bytes(&self, v: &Vlr) -> Vlr {
@@ -165,6 +186,15 @@ impl LasFileSpec<'_> {
             ..v.clone()
         }
     }
+}
+
+/// Where the output's one extra-bytes record is written: in place of the input's first
+/// extra-bytes VLR, else of its first extra-bytes EVLR, else as a new VLR.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ExtraBytesHome {
+    FirstVlr,
+    FirstEvlr,
+    NewVlr,
 }
 
 fn is_laszip(v: &Vlr) -> bool {
@@ -407,6 +437,43 @@ mod tests {
             .expect("decodes");
             assert_eq!(first, Some([0.01, 0.02, 0.03]));
         }
+    }
+
+    #[test]
+    fn several_extra_bytes_vlrs_are_written_as_one_in_place_of_the_first() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let out = dir.path().join("eb.las");
+        let col = |name: &str| {
+            extra_bytes::encode(&extra_bytes::NewColumn {
+                name: name.into(),
+                ty: extra_bytes::ScalarType::U8,
+                description: String::new(),
+            })
+            .to_vec()
+        };
+        let vlrs = [
+            extra_bytes::vlr(col("a")),
+            Vlr::new("other", 7, "kept", vec![1, 2, 3]),
+            extra_bytes::vlr(col("b")),
+        ];
+        let mut s = spec(1);
+        s.record_length = 22;
+        s.vlrs = &vlrs;
+        s.extra_bytes = [col("a"), col("b")].concat();
+        let mut w = LasFileWriter::create(&out, s).expect("creates");
+        let mut r = record([1, 2, 3]);
+        r.extend_from_slice(&[4, 5]);
+        w.write_records(&r).expect("writes");
+        w.finish().expect("finishes");
+        let src = LasSource::open(&out).expect("reads back");
+        let ids: Vec<(&str, u16)> = src
+            .vlrs
+            .iter()
+            .map(|v| (v.user_id.as_str(), v.record_id))
+            .collect();
+        assert_eq!(ids, [("LASF_Spec", 4), ("other", 7), PROVENANCE]);
+        let names: Vec<&str> = src.extra.iter().map(|d| d.name.as_str()).collect();
+        assert_eq!(names, ["a", "b"]);
     }
 
     #[test]

@@ -124,28 +124,24 @@ impl LasSource {
     }
 }
 
-/// The extra-bytes descriptors of a file (from its VLR or EVLR), checked against the records'
-/// extra bytes.
+/// The extra-bytes descriptors of a file (from every extra-bytes VLR and EVLR, in file order),
+/// checked against the records' extra bytes.
 fn extra_descriptors(
     path: &Path,
     header: &LasHeader,
     vlrs: &[Vlr],
     evlrs: &[(u64, Vlr)],
 ) -> Result<Vec<Descriptor>> {
-    let Some(v) = vlrs
-        .iter()
-        .chain(evlrs.iter().map(|(_, v)| v))
-        .find(|v| extra_bytes::is_extra_bytes(v))
-    else {
-        return Ok(Vec::new());
-    };
-    let extra = extra_bytes::parse(&v.data).map_err(|why| {
+    let bad = |why: String| {
         Error::bad_input(
             path,
             None,
             format!("{why}; fix or remove the extra-bytes VLR"),
         )
-    })?;
+    };
+    let data = extra_bytes::merged_payload(vlrs.iter().chain(evlrs.iter().map(|(_, v)| v)))
+        .map_err(bad)?;
+    let extra = extra_bytes::parse(&data).map_err(bad)?;
     let total: usize = extra.iter().map(|d| d.size).sum();
     if total > header.extra_bytes_len() as usize {
         return Err(Error::bad_input(path, Some(105), format!(

@@ -1,0 +1,167 @@
+//! `tilecurv info FILE...`: prints what `io::info` gathers about each file, as text or, with
+//! `--json`, as one JSON object per file in an array (written here: the fields are few and
+//! flat, so no JSON crate is needed).
+
+use super::args::InfoArgs;
+use super::{exit, fail};
+use crate::io::crs::UnitSource;
+use crate::io::info::{file_info, FileInfo};
+
+/// `tilecurv info`: every file's info; the first unreadable file fails the command (exit 3).
+pub fn info(a: InfoArgs) -> Result<i32, i32> {
+    let infos = a
+        .files
+        .iter()
+        .map(|p| file_info(p))
+        .collect::<crate::error::Result<Vec<_>>>()
+        .map_err(|e| fail(&e))?;
+    if a.json {
+        let items: Vec<String> = infos.iter().map(json).collect();
+        println!("[{}]", items.join(",\n"));
+    } else {
+        for (i, f) in infos.iter().enumerate() {
+            if i > 0 {
+                println!();
+            }
+            print!("{}", text(f));
+        }
+    }
+    Ok(exit::OK)
+}
+
+/// The horizontal unit in words and as JSON fields (symbol, metres or null, reason or null).
+fn horizontal(f: &FileInfo) -> (String, Option<(String, f64)>, Option<String>) {
+    match &f.crs.horizontal {
+        UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => (
+            format!("{} ({} m)", u.name, u.metres),
+            Some((u.symbol(), u.metres)),
+            None,
+        ),
+        UnitSource::Unknown(why) => (format!("none: {why}"), None, Some(why.clone())),
+    }
+}
+
+fn text(f: &FileInfo) -> String {
+    let mut t = format!("{}\n  format: {}", f.path.display(), f.format);
+    if f.copc {
+        t.push_str(" (COPC)");
+    }
+    t.push_str(&format!("\n  points: {}\n", f.points));
+    let [lo, hi] = f.bounds;
+    t.push_str(&format!(
+        "  bounds ({}): x {} .. {}, y {} .. {}, z {} .. {}\n",
+        f.bounds_from, lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+    ));
+    t.push_str(&format!(
+        "  CRS: {}{}\n",
+        f.crs.stored_as,
+        f.crs
+            .name
+            .as_ref()
+            .map(|n| format!(", {n}"))
+            .unwrap_or_default()
+    ));
+    t.push_str(&format!("  horizontal unit: {}\n", horizontal(f).0));
+    let vertical = match &f.crs.vertical {
+        Ok(u) => format!("{} ({} m)", u.name, u.metres),
+        Err(why) => format!("none: {why}"),
+    };
+    t.push_str(&format!("  vertical unit: {vertical}\n"));
+    if f.extra.is_empty() {
+        t.push_str("  extra dimensions: none\n");
+    } else {
+        t.push_str("  extra dimensions:\n");
+        for d in &f.extra {
+            t.push_str(&format!("    {} {}", d.name, d.ty));
+            if d.scale != 1.0 || d.offset != 0.0 {
+                t.push_str(&format!(" scale {} offset {}", d.scale, d.offset));
+            }
+            t.push('\n');
+        }
+    }
+    match &f.provenance {
+        Some(p) => {
+            t.push_str("  tilecurv provenance:\n");
+            for l in p.trim_end_matches('\0').lines() {
+                t.push_str(&format!("    {l}\n"));
+            }
+        }
+        None => t.push_str("  tilecurv provenance: none\n"),
+    }
+    t
+}
+
+/// A JSON string literal.
+fn s(v: &str) -> String {
+    let mut o = String::from("\"");
+    for c in v.chars() {
+        match c {
+            '"' => o.push_str("\\\""),
+            '\\' => o.push_str("\\\\"),
+            '\n' => o.push_str("\\n"),
+            c if (c as u32) < 0x20 => o.push_str(&format!("\\u{:04x}", c as u32)),
+            c => o.push(c),
+        }
+    }
+    o.push('"');
+    o
+}
+
+/// A JSON number (null when not finite, which JSON cannot hold).
+fn n(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:?}")
+    } else {
+        "null".into()
+    }
+}
+
+fn opt(v: Option<String>) -> String {
+    v.map(|x| s(&x)).unwrap_or_else(|| "null".into())
+}
+
+fn json(f: &FileInfo) -> String {
+    let [lo, hi] = f.bounds;
+    let (_, h_unit, h_why) = horizontal(f);
+    let unit = |u: Option<(String, f64)>, why: Option<String>| match u {
+        Some((sym, m)) => format!("{{\"symbol\":{},\"metres\":{}}}", s(&sym), n(m)),
+        None => format!(
+            "{{\"symbol\":null,\"metres\":null,\"reason\":{}}}",
+            opt(why)
+        ),
+    };
+    let (v_unit, v_why) = match &f.crs.vertical {
+        Ok(u) => (Some((u.symbol(), u.metres)), None),
+        Err(why) => (None, Some(why.clone())),
+    };
+    let extra: Vec<String> = f
+        .extra
+        .iter()
+        .map(|d| {
+            format!(
+                "{{\"name\":{},\"type\":{},\"scale\":{},\"offset\":{}}}",
+                s(&d.name),
+                s(&d.ty),
+                n(d.scale),
+                n(d.offset)
+            )
+        })
+        .collect();
+    format!(
+        "{{\"path\":{},\"format\":{},\"las_version\":{},\"point_format\":{},\"copc\":{},\"points\":{},\"bounds\":{{\"from\":{},\"min\":[{},{},{}],\"max\":[{},{},{}]}},\"crs\":{{\"stored_as\":{},\"name\":{},\"horizontal_unit\":{},\"vertical_unit\":{}}},\"extra_dimensions\":[{}],\"provenance\":{}}}",
+        s(&f.path.to_string_lossy()),
+        s(&f.format),
+        opt(f.las_version.clone()),
+        f.point_format.map(|p| p.to_string()).unwrap_or_else(|| "null".into()),
+        f.copc,
+        f.points,
+        s(f.bounds_from),
+        n(lo[0]), n(lo[1]), n(lo[2]), n(hi[0]), n(hi[1]), n(hi[2]),
+        s(f.crs.stored_as),
+        opt(f.crs.name.clone()),
+        unit(h_unit, h_why),
+        unit(v_unit, v_why),
+        extra.join(","),
+        opt(f.provenance.as_ref().map(|p| p.trim_end_matches('\0').to_string())),
+    )
+}

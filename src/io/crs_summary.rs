@@ -1,0 +1,165 @@
+//! A file's CRS in words, for `tilecurv info`: its name, where it is stored, its horizontal
+//! unit (the one `process` uses, from `crs`) and its vertical unit (a compound WKT's vertical
+//! CRS, or GeoTIFF's VerticalUnitsGeoKey). Pure: works on VLR payloads; reads, never converts.
+
+use crate::io::crs::{crs_unit, horizontal_unit, without_spaces, LengthUnit, UnitSource};
+use crate::io::las::vlr::Vlr;
+
+/// What a file says about its CRS.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CrsSummary {
+    /// Where the CRS is stored: "WKT", "GeoTIFF" or "none".
+    pub stored_as: &'static str,
+    /// The CRS's name (WKT) or EPSG codes (GeoTIFF), if any.
+    pub name: Option<String>,
+    /// The horizontal unit, or why there is none.
+    pub horizontal: UnitSource,
+    /// The vertical unit, or why there is none.
+    pub vertical: Result<LengthUnit, String>,
+}
+
+/// The CRS summary of a file whose VLRs and EVLRs are `records`. With both a WKT record and
+/// GeoTIFF keys, the WKT is the CRS when `wkt_bit` (LAS 1.4's global encoding bit 4) is set,
+/// the GeoTIFF keys otherwise (as LAS 1.0-1.3 readers take them).
+pub fn crs_summary<'a>(records: impl IntoIterator<Item = &'a Vlr>, wkt_bit: bool) -> CrsSummary {
+    let records: Vec<&Vlr> = records.into_iter().collect();
+    let horizontal = horizontal_unit(records.iter().copied());
+    let wkt = records
+        .iter()
+        .find(|v| v.is("LASF_Projection", 2112))
+        .map(|v| {
+            String::from_utf8_lossy(&v.data)
+                .trim_end_matches('\0')
+                .to_string()
+        });
+    let keys = records
+        .iter()
+        .find(|v| v.is("LASF_Projection", 34735))
+        .map(|v| geo_keys(&v.data));
+    let keys = keys.filter(|_| !(wkt_bit && wkt.is_some()));
+    match (wkt, keys) {
+        (_, Some(k)) => CrsSummary {
+            stored_as: "GeoTIFF",
+            name: geotiff_name(&k),
+            horizontal,
+            vertical: geotiff_vertical_unit(&k),
+        },
+        (Some(w), None) => CrsSummary {
+            stored_as: "WKT",
+            name: wkt_name(&w),
+            horizontal,
+            vertical: wkt_vertical_unit(&w),
+        },
+        (None, None) => CrsSummary {
+            stored_as: "none",
+            name: None,
+            horizontal,
+            vertical: Err("the file has no CRS".into()),
+        },
+    }
+}
+
+/// The name of the outermost CRS of a WKT: its first quoted string.
+fn wkt_name(wkt: &str) -> Option<String> {
+    let a = wkt.find('"')?;
+    let b = a + 1 + wkt[a + 1..].find('"')?;
+    Some(wkt[a + 1..b].to_string())
+}
+
+/// The unit of the vertical CRS of a (compound) WKT.
+pub fn wkt_vertical_unit(wkt: &str) -> Result<LengthUnit, String> {
+    let wkt = without_spaces(wkt);
+    let upper = wkt.to_ascii_uppercase();
+    let Some(p) = ["VERT_CS[", "VERTCRS[", "VERTICALCRS["]
+        .iter()
+        .filter_map(|k| upper.find(k))
+        .min()
+    else {
+        return Err("the WKT has no vertical CRS (not a compound CRS)".into());
+    };
+    crs_unit(&wkt, p).ok_or_else(|| "the WKT's vertical CRS names no unit".into())
+}
+
+/// The (key id, location, count, value) entries of a GeoTIFF key directory.
+fn geo_keys(data: &[u8]) -> Vec<[u16; 4]> {
+    let w: Vec<u16> = data
+        .chunks_exact(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect();
+    let n = w.get(3).copied().unwrap_or(0) as usize;
+    w.get(4..4 + 4 * n)
+        .unwrap_or(&[])
+        .chunks_exact(4)
+        .map(|e| [e[0], e[1], e[2], e[3]])
+        .collect()
+}
+
+/// The value of the GeoTIFF key `id` stored in the directory itself.
+fn key(keys: &[[u16; 4]], id: u16) -> Option<u16> {
+    keys.iter().find(|e| e[0] == id && e[1] == 0).map(|e| e[3])
+}
+
+/// The EPSG codes a GeoTIFF directory names: projected (3072) or geographic (2048), and
+/// vertical (4096).
+fn geotiff_name(keys: &[[u16; 4]]) -> Option<String> {
+    let horizontal = key(keys, 3072)
+        .map(|c| format!("EPSG:{c}"))
+        .or_else(|| key(keys, 2048).map(|c| format!("EPSG:{c} (geographic)")));
+    let vertical = key(keys, 4096).map(|c| format!("EPSG:{c}"));
+    match (horizontal, vertical) {
+        (Some(h), Some(v)) => Some(format!("{h} + {v}")),
+        (h, v) => h.or(v),
+    }
+}
+
+/// The vertical unit of a GeoTIFF directory (VerticalUnitsGeoKey 4099, an EPSG unit code).
+fn geotiff_vertical_unit(keys: &[[u16; 4]]) -> Result<LengthUnit, String> {
+    let Some(code) = key(keys, 4099) else {
+        return Err("the GeoTIFF keys have no VerticalUnitsGeoKey".into());
+    };
+    let (name, metres) = match code {
+        9001 => ("metre", 1.0),
+        9002 => ("foot", 0.3048),
+        9003 => ("US survey foot", 1200.0 / 3937.0),
+        9036 => ("kilometre", 1000.0),
+        other => {
+            return Err(format!(
+                "the GeoTIFF vertical unit code {other} is not one tilecurv knows"
+            ))
+        }
+    };
+    Ok(LengthUnit {
+        name: name.into(),
+        metres,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compound_wkt_has_a_vertical_unit() {
+        let wkt = r#"COMPD_CS["NAD83 + NAVD88 height (ftUS)",PROJCS["NAD83 / UTM 10N",GEOGCS["NAD83",DATUM["D",SPHEROID["GRS 1980",6378137,298.257222101]],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],UNIT["metre",1]],VERT_CS["NAVD88 height (ftUS)",VERT_DATUM["North American Vertical Datum 1988",2005],UNIT["US survey foot",0.304800609601219]]]"#;
+        let v = Vlr::new("LASF_Projection", 2112, "", wkt.as_bytes().to_vec());
+        let s = crs_summary([&v], false);
+        assert_eq!(s.name.as_deref(), Some("NAD83 + NAVD88 height (ftUS)"));
+        assert_eq!(s.horizontal.unit().map(|u| u.symbol()), Some("m".into()));
+        assert_eq!(s.vertical.expect("vertical").symbol(), "ftUS");
+    }
+
+    #[test]
+    fn geotiff_codes_and_vertical_units() {
+        let mut k = Vec::new();
+        for w in [
+            1u16, 1, 0, 3, 3072, 0, 1, 26910, 4096, 0, 1, 5703, 4099, 0, 1, 9003,
+        ] {
+            k.extend_from_slice(&w.to_le_bytes());
+        }
+        let v = Vlr::new("LASF_Projection", 34735, "", k);
+        let s = crs_summary([&v], false);
+        assert_eq!(s.stored_as, "GeoTIFF");
+        assert_eq!(s.name.as_deref(), Some("EPSG:26910 + EPSG:5703"));
+        assert_eq!(s.vertical.expect("vertical").symbol(), "ftUS");
+    }
+}
