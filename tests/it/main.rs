@@ -5,6 +5,7 @@ mod closed_form;
 mod common;
 mod features;
 mod formats;
+mod hostile;
 mod invariance;
 #[path = "../kit/mod.rs"]
 mod kit;
