@@ -221,3 +221,73 @@ fn coordinates_beyond_computable_magnitudes_are_bad_input() {
     assert_eq!(code, Some(3), "{err}");
     assert!(err.contains("huge.las") && err.contains("point"), "{err}");
 }
+
+/// autzen_trim.laz (110,000 points in fixed chunks of 50,000) and the offset of its chunk
+/// table, or None when the shared data is absent.
+fn autzen_laz() -> Option<(Vec<u8>, usize)> {
+    let b = std::fs::read(crate::common::shared("las/autzen_trim.laz")?).expect("read");
+    let start = u32::from_le_bytes(b[96..100].try_into().expect("4 bytes")) as usize;
+    let table = i64::from_le_bytes(b[start..start + 8].try_into().expect("8 bytes")) as usize;
+    Some((b, table))
+}
+
+#[test]
+fn corrupt_laz_chunk_tables_are_bad_input() {
+    let Some((base, table)) = autzen_laz() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let start = u32::from_le_bytes(base[96..100].try_into().expect("4 bytes")) as usize;
+    let mut cases: Vec<(&str, Vec<u8>, &str)> = Vec::new();
+    let mut b = base.clone();
+    b[table + 4..table + 8].copy_from_slice(&u32::MAX.to_le_bytes());
+    cases.push(("count.laz", b, "declares 4294967295 chunks"));
+    let mut b = base.clone();
+    b[table + 4..table + 8].copy_from_slice(&1u32.to_le_bytes());
+    cases.push(("few.laz", b, "declares 1 chunks"));
+    // The table offset pointing into the compressed data: a garbage table body.
+    let mut b = base.clone();
+    b[start..start + 8].copy_from_slice(&((start + 108) as i64).to_le_bytes());
+    cases.push(("body.laz", b, "chunk table"));
+    let mut b = base.clone();
+    b[start..start + 8].copy_from_slice(&((base.len() + 100) as i64).to_le_bytes());
+    cases.push(("past.laz", b, "chunk table offset"));
+    // A garbage table body at the right place: its chunk sizes run past the data.
+    let mut b = base.clone();
+    for (i, x) in b[table + 8..].iter_mut().enumerate() {
+        *x = (i * 37 + 11) as u8;
+    }
+    cases.push(("sizes.laz", b, "chunk"));
+    for (name, bytes, needle) in cases {
+        let (code, err) = run_bytes(dir.path(), name, &bytes, &[]);
+        assert_eq!(code, Some(3), "{name}: {err}");
+        assert!(
+            err.contains(name) && err.contains(needle) && err.contains("byte offset"),
+            "{name}: expected {needle:?} and a byte offset in: {err}"
+        );
+    }
+}
+
+#[test]
+fn a_zeroed_laz_chunk_is_an_error_naming_the_chunk() {
+    let Some((base, _)) = autzen_laz() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let start = u32::from_le_bytes(base[96..100].try_into().expect("4 bytes")) as usize;
+    // Zeroed bytes early in chunk 0, and in the middle of chunk 1: either the codec fails or
+    // the points decode far outside the header's bounds; both name the chunk's byte offset.
+    for (name, at, len) in [
+        ("z0.laz", start + 108, 3000),
+        ("z1.laz", start + 400_000, 100_000),
+    ] {
+        let mut b = base.clone();
+        b[at..at + len].fill(0);
+        let (code, err) = run_bytes(dir.path(), name, &b, &[]);
+        assert_eq!(code, Some(3), "{name}: {err}");
+        assert!(
+            err.contains(name) && err.contains("chunk") && err.contains("byte offset"),
+            "{name}: {err}"
+        );
+    }
+}
