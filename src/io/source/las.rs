@@ -7,8 +7,6 @@ use std::fs::File;
 use std::io::{Cursor, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
-use memmap2::Mmap;
-
 use crate::error::{Error, Result};
 use crate::io::crs::{horizontal_unit, UnitSource};
 use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk};
@@ -17,12 +15,12 @@ use crate::io::las::header::{LasHeader, POINT_FORMAT_SIZES};
 use crate::io::las::parts::LasParts;
 use crate::io::las::vlr::{read_evlrs, read_vlrs, Vlr};
 
-use super::{PointSource, Property, SourceLayout, SourcePoint, Stored};
+use super::{InputBytes, PointSource, Property, SourceLayout, SourcePoint, Stored};
 
 /// An opened LAS or LAZ file.
 pub struct LasSource {
     path: PathBuf,
-    map: Mmap,
+    map: InputBytes,
     /// The parsed header.
     pub header: LasHeader,
     /// The VLRs, in file order.
@@ -61,10 +59,23 @@ impl LasSource {
         // SAFETY: the map is read-only and tilecurv never writes its inputs. Another process
         // truncating the file while we run would fault; that is the usual mmap contract, and the
         // CLI documents that inputs must not change during a run.
-        let map = unsafe { Mmap::map(&file) }.map_err(|e| Error::ReadIo {
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::ReadIo {
             path: path.to_path_buf(),
             source: e,
         })?;
+        Self::from_bytes(path, InputBytes::Map(map))
+    }
+
+    /// Validates a LAS/LAZ file already read or mapped; `path` names it in errors.
+    pub fn from_bytes(path: &Path, map: InputBytes) -> Result<Self> {
+        let len = map.len() as u64;
+        if len == 0 {
+            return Err(Error::bad_input(
+                path,
+                None,
+                "the file is empty (0 bytes); expected a LAS or LAZ file",
+            ));
+        }
         let header = LasHeader::parse(path, &map, len)?;
         let vlrs = read_vlrs(path, &map, &header)?;
         let evlrs = read_evlrs(path, &map, &header)?;
@@ -147,12 +158,14 @@ impl LasSource {
     fn release(&self, from: usize, to: usize) -> usize {
         const PAGE: usize = 4096;
         let to = to / PAGE * PAGE;
+        let Some(map) = self.map.mapped() else {
+            return from;
+        };
         if to > from {
             // SAFETY: the map is a private read-only file mapping; MADV_DONTNEED on it only
             // drops cached pages, which the kernel re-reads from the file if touched again.
             let _ = unsafe {
-                self.map
-                    .unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, from, to - from)
+                map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, from, to - from)
             };
             to
         } else {
@@ -313,7 +326,13 @@ impl PointSource for LasSource {
                 } else {
                     vlr.chunk_size().max(1) as usize
                 };
-                let per_call = chunk_points.max(1).div_ceil(laz_chunk) * laz_chunk;
+                // A chunk size from the file far beyond any writer's (LASzip's is 50,000) would
+                // size the buffer from the file: then the caller's chunk size decides.
+                let per_call = if laz_chunk <= 1 << 20 {
+                    chunk_points.max(1).div_ceil(laz_chunk) * laz_chunk
+                } else {
+                    chunk_points.max(1)
+                };
                 let mut cursor = Cursor::new(&self.map[..]);
                 cursor
                     .seek(SeekFrom::Start(start as u64))
