@@ -291,3 +291,23 @@ fn a_zeroed_laz_chunk_is_an_error_naming_the_chunk() {
         );
     }
 }
+
+/// Every input the fuzz targets found (tests/fuzz_findings, named `<target>-<hash>.<ext>`) is
+/// a clean error or a success of the binary, never a panic or an abort.
+#[test]
+fn fuzz_findings_fail_cleanly() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let found = std::fs::read_dir(root().join("tests/fuzz_findings")).expect("findings dir");
+    let mut n = 0;
+    for e in found {
+        let p = e.expect("entry").path();
+        let name = p.file_name().expect("name").to_string_lossy().into_owned();
+        let (code, err) = run_bytes(dir.path(), &name, &std::fs::read(&p).expect("read"), &[]);
+        assert!(
+            matches!(code, Some(0 | 2 | 3)),
+            "{name}: exit {code:?}: {err}"
+        );
+        n += 1;
+    }
+    assert!(n > 0, "no findings read");
+}
