@@ -68,12 +68,50 @@ pub struct TileGrid {
     pub size: f64,
 }
 
+/// The largest tile key on either axis (in magnitude): keys, their neighbours' keys and their
+/// rectangles stay exact in f64 and far from the i64 limits, and a grid of keys counts in u64.
+/// A point beyond it is refused before any work ([`TileGrid::holds`]).
+pub const MAX_TILE_KEY: i64 = 1 << 40;
+
+/// The largest coordinate magnitude tilecurv computes on: squared distances between any two
+/// points stay finite in f64, and coordinates relative to a tile stay finite in f32. No survey
+/// comes near it; a coordinate beyond it is a corrupt scale or offset.
+pub const MAX_COORDINATE: f64 = 1e30;
+
+/// Whether a decoded coordinate can be computed on: finite and within [`MAX_COORDINATE`].
+pub fn computable(xyz: V3) -> bool {
+    xyz.iter().all(|c| c.abs() <= MAX_COORDINATE)
+}
+
 impl TileGrid {
-    /// The tile whose core holds (x, y). The one function that decides core membership.
+    /// The tile whose core holds (x, y). The one function that decides core membership. Total:
+    /// keys saturate at +-[`MAX_TILE_KEY`] (and NaN gives 0), so no input makes it overflow;
+    /// the points it would misplace are refused first ([`TileGrid::holds`]).
     pub fn key(&self, x: f64, y: f64) -> TileKey {
-        (
-            (x / self.size).floor() as i64,
-            (y / self.size).floor() as i64,
+        let k = |v: f64| {
+            let t = (v / self.size).floor();
+            let m = MAX_TILE_KEY as f64;
+            if t.is_nan() {
+                0
+            } else {
+                t.clamp(-m, m) as i64
+            }
+        };
+        (k(x), k(y))
+    }
+
+    /// Whether (x, y) has a tile key within +-[`MAX_TILE_KEY`] (the key is then exact).
+    pub fn holds(&self, x: f64, y: f64) -> bool {
+        let ok = |v: f64| (v / self.size).abs() < MAX_TILE_KEY as f64;
+        ok(x) && ok(y)
+    }
+
+    /// What is wrong when (x, y) of `what` is outside the grid ([`TileGrid::holds`]), and what
+    /// to do: a usage error's text.
+    pub fn outside(&self, what: &str, x: f64, y: f64) -> String {
+        format!(
+            "{what} lies at x = {x:e}, y = {y:e}: more than 2^40 tiles of --tile {} from the origin, which the tile grid cannot index; use a larger --tile (or check the file's scale and offset)",
+            self.size
         )
     }
 
@@ -339,6 +377,21 @@ mod tests {
             max: [200.0, 200.0],
         };
         assert!(all.distance_to_open_side(1.0, 3.0, &scene).is_infinite());
+    }
+
+    #[test]
+    fn keys_are_total_and_holds_says_when_they_are_exact() {
+        let g = TileGrid { size: 50.0 };
+        assert_eq!(g.key(125.0, -0.5), (2, -1));
+        for v in [1e300, f64::INFINITY, -1e21, f64::NAN] {
+            let (x, y) = g.key(v, v);
+            assert!(x.abs() <= MAX_TILE_KEY && y.abs() <= MAX_TILE_KEY, "{v}");
+            let r = g.rect((x, y));
+            assert!(r.max[0] > r.min[0], "{v}");
+            assert!(!g.holds(v, 0.0), "{v}");
+        }
+        assert!(g.holds(5e12, -5e12));
+        assert!(!computable([0.0, f64::NAN, 0.0]) && computable([1e7, 5e6, -400.0]));
     }
 
     #[test]

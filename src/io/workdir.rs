@@ -88,8 +88,21 @@ pub fn is_dead_attempt(name: &str, base: &str) -> bool {
         return false;
     };
     match pid.parse::<i32>() {
-        Ok(pid) => host == host_name() && pid != std::process::id() as i32 && !process_alive(pid),
+        Ok(pid) => host == host_name() && pid != std::process::id() as i32 && !pid_alive(pid),
         Err(_) => false,
+    }
+}
+
+/// Whether a process with this pid exists on this machine (a recycled pid counts as alive: its
+/// temporaries are then left alone, never wrongly removed).
+fn pid_alive(pid: i32) -> bool {
+    if pid <= 0 {
+        return true;
+    }
+    // SAFETY: kill with signal 0 sends nothing; it only asks whether the pid exists.
+    unsafe {
+        libc::kill(pid, 0) == 0
+            || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
     }
 }
 
@@ -166,6 +179,9 @@ pub struct WorkDir {
     /// Whether this process holds the directory's lock (`process`, `plan`); the cluster stages
     /// attach without it.
     locked: bool,
+    /// The open lock file, whose `flock` is the lock: the kernel releases it when the process
+    /// ends, however it ends.
+    _lock: Option<File>,
 }
 
 /// File name of the task layout inside the work directory (written by `plan`).
@@ -185,26 +201,52 @@ pub fn default_path(output: &Path) -> PathBuf {
     dir.join(format!(".{name}.tilecurv"))
 }
 
-/// Whether the run that wrote a lock is still alive: a live, non-zombie process that is a
-/// tilecurv (so a recycled pid does not block the directory forever).
-fn process_alive(pid: i32) -> bool {
-    if pid <= 0 {
-        return false;
-    }
-    if let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) {
-        // "pid (comm) state ...": comm may contain spaces and parentheses, so split at the last ')'.
-        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
-            return false;
+/// Takes the lock of the work directory at `path`: an exclusive `flock` on its lock file, then
+/// our pid written in it (for the message a second run prints). Two runs can never both hold
+/// it: the kernel decides, not the file's contents (a pid file read between another run's
+/// create and write read as empty, pid 0, and both runs went on), and a run that died, even by
+/// `kill -9`, holds nothing. The lock file is removed on drop, so the lock is re-checked to be
+/// on the file the path names now.
+fn take_lock(path: &Path) -> Result<File> {
+    use std::io::Read;
+    use std::os::unix::fs::MetadataExt;
+    use std::os::unix::io::AsRawFd;
+    let lock = path.join(LOCK);
+    loop {
+        let mut f = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&lock)
+            .map_err(|e| Error::write(&lock, e))?;
+        // SAFETY: flock on a file descriptor this function owns; no memory is involved.
+        if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() != std::io::ErrorKind::WouldBlock {
+                return Err(Error::write(&lock, e));
+            }
+            let mut holder = String::new();
+            let _ = f.read_to_string(&mut holder);
+            let holder = match holder.trim() {
+                "" => "starting".to_string(),
+                pid => format!("process {pid}"),
+            };
+            return Err(Error::Usage(format!(
+                "{}: another tilecurv run ({holder}) is using this work directory; wait for it, or use --work-dir",
+                path.display()
+            )));
+        }
+        let same = match (f.metadata(), std::fs::metadata(&lock)) {
+            (Ok(a), Ok(b)) => a.ino() == b.ino() && a.dev() == b.dev(),
+            _ => false,
         };
-        let comm = &stat[open + 1..close];
-        let state = stat[close + 1..].trim_start().chars().next().unwrap_or('X');
-        return comm.starts_with("tilecurv") && !matches!(state, 'Z' | 'X');
-    }
-    // No /proc: ask the kernel whether the pid exists (signal 0 sends nothing).
-    // SAFETY: kill with signal 0 has no effect on the target.
-    unsafe {
-        libc::kill(pid, 0) == 0
-            || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+        if !same {
+            continue; // the holder removed the file between our open and our lock
+        }
+        f.set_len(0).map_err(|e| Error::write(&lock, e))?;
+        writeln!(f, "{}", std::process::id()).map_err(|e| Error::write(&lock, e))?;
+        return Ok(f);
     }
 }
 
@@ -213,28 +255,7 @@ impl WorkDir {
     /// manifest with `manifest` (whose first line is the fingerprint), and discards stale work.
     pub fn open(path: &Path, manifest: &str) -> Result<Self> {
         std::fs::create_dir_all(path).map_err(|e| Error::write(path, e))?;
-        let lock = path.join(LOCK);
-        match OpenOptions::new().write(true).create_new(true).open(&lock) {
-            Ok(mut f) => {
-                let _ = writeln!(f, "{}", std::process::id());
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                let holder = std::fs::read_to_string(&lock)
-                    .ok()
-                    .and_then(|s| s.trim().parse::<i32>().ok())
-                    .unwrap_or(0);
-                if process_alive(holder) && holder != std::process::id() as i32 {
-                    return Err(Error::Usage(format!(
-                        "{}: another tilecurv run (process {holder}) is using this work directory; wait for it, or use --work-dir",
-                        path.display()
-                    )));
-                }
-                // A stale lock from a run that died: take it over.
-                std::fs::write(&lock, format!("{}\n", std::process::id()))
-                    .map_err(|e| Error::write(&lock, e))?;
-            }
-            Err(e) => return Err(Error::write(&lock, e)),
-        }
+        let lock_file = take_lock(path)?;
         let mpath = path.join(MANIFEST);
         let resume = match std::fs::read_to_string(&mpath) {
             Ok(old) if old == manifest => Resume::Resumed,
@@ -254,6 +275,7 @@ impl WorkDir {
             path: path.to_path_buf(),
             resume,
             locked: true,
+            _lock: Some(lock_file),
         })
     }
 
@@ -273,6 +295,7 @@ impl WorkDir {
                 path: path.to_path_buf(),
                 resume: Resume::Resumed,
                 locked: false,
+                _lock: None,
             },
             manifest,
         ))
@@ -367,10 +390,28 @@ mod tests {
         assert_eq!(w.resume, Resume::Discarded);
         assert!(!wd.join("tile_0_0.res").exists());
         drop(w);
-        // A lock naming a live process that is not tilecurv (pid 1: a recycled pid) is stale.
+        // A lock file left by a run that died (here naming pid 1) holds no lock: taken over.
         std::fs::write(wd.join(LOCK), "1\n").expect("write lock");
         let w = WorkDir::open(&wd, "fp 2\n").expect("open");
         w.remove();
         assert!(!wd.exists());
+    }
+
+    #[test]
+    fn a_held_lock_is_never_taken_even_when_its_file_reads_empty() {
+        // Issue 12 item 14: a second run that read the lock file between the first run's
+        // create and its write saw pid 0 and took the lock too.
+        let dir = tempfile::tempdir().expect("temp dir");
+        let wd = dir.path().join("w");
+        let first = WorkDir::open(&wd, "fp 1\n").expect("open");
+        std::fs::write(wd.join(LOCK), "").expect("empty the lock file");
+        let second = WorkDir::open(&wd, "fp 1\n");
+        assert!(
+            matches!(&second, Err(Error::Usage(m)) if m.contains("another tilecurv run")),
+            "a second open of a held work directory must fail"
+        );
+        drop(first);
+        let again = WorkDir::open(&wd, "fp 1\n").expect("free once the first run is done");
+        drop(again);
     }
 }

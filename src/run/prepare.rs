@@ -172,6 +172,25 @@ fn check_new_names(sources: &[Box<dyn PointSource>], cols: &ColumnSet) -> Result
     Ok(())
 }
 
+/// Refuses, before any work, inputs whose declared bounds (a LAS header's, when finite) reach
+/// past the tile grid: the tile is too small for the extent. Inputs without declared bounds,
+/// and headers whose bounds are wrong, are checked point by point by the scan.
+fn check_extent(sources: &[Box<dyn PointSource>], grid: TileGrid) -> Result<()> {
+    for s in sources {
+        let crate::io::source::SourceLayout::Las(parts) = s.layout() else {
+            continue;
+        };
+        let (min, max) = (parts.header.min, parts.header.max);
+        for (x, y) in [(min[0], min[1]), (max[0], max[1])] {
+            if x.is_finite() && y.is_finite() && !grid.holds(x, y) {
+                let what = format!("{}: the header's bounds say a point", s.path().display());
+                return Err(Error::Usage(grid.outside(&what, x, y)));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Opens and checks the inputs of `cfg`, checks its outputs, and resolves the run. Nothing is
 /// written except the output directory of a multi-input run.
 pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
@@ -206,6 +225,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         None => "file units".to_string(),
     };
     let tile_size = cfg.tile.in_file_units(unit.as_ref());
+    check_extent(&sources, TileGrid { size: tile_size })?;
     let file_normals = use_file_normals(cfg, &sources)?;
     let estimator = cfg.estimator.build(&cfg.params);
     let cols = ColumnSet {

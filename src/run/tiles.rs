@@ -106,9 +106,9 @@ impl TileJob<'_> {
                 None,
                 &self.plan.per_tile,
             )?;
-            let (mut results, again) = exec
-                .pool
-                .install(|| self.compute_verified(spec, &part, t, &mut sidecar, bufs))?;
+            let (mut results, again) = exec.pool.install(|| {
+                self.compute_verified(spec, &part, t, &mut sidecar, bufs, exec.cancel)
+            })?;
             retried += again;
             exec.reporter.advance(results.len() as u64);
             gathered.append(&mut results);
@@ -127,6 +127,7 @@ impl TileJob<'_> {
         tile: TilePoints,
         sidecar: &mut TileSidecar,
         bufs: &mut TileBuffers,
+        cancel: &AtomicBool,
     ) -> Result<(Vec<PointResult>, u64)> {
         // With `--orient propagate` each pass numbers its patches after the tile's earlier ones
         // and reports their anchors and shared normals.
@@ -150,6 +151,10 @@ impl TileJob<'_> {
         let mut halo = spec.halo;
         let mut retried = 0u64;
         while !retry.is_empty() {
+            // Each wider-halo pass loads more of the scene: a signal must not wait for them all.
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
+            }
             retried += retry.len() as u64;
             halo *= 2.0;
             let only: HashSet<u64> = retry.iter().copied().collect();

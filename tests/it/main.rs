@@ -6,6 +6,7 @@ mod cluster;
 mod common;
 mod features;
 mod formats;
+mod hostile;
 mod info;
 mod interop;
 mod invariance;

@@ -49,13 +49,30 @@ pub(super) struct Block {
     slack2: f64,
 }
 
+/// The most cells a grid has along one axis (cell indices stay far from any integer limit).
+const MAX_CELLS_PER_AXIS: usize = 1 << 20;
+
+/// The area the points of a tile spread over: the x/y extent, or for a vertical tile (a facade,
+/// all points with one x or one y) its largest vertical face, so that the cell size follows the
+/// points' spacing rather than a zero area. Never zero.
+fn surface_area(lo: V3, hi: V3) -> f64 {
+    let e = [0, 1, 2].map(|a| hi[a] - lo[a]);
+    let xy = e[0] * e[1];
+    let area = if xy > 0.0 {
+        xy
+    } else {
+        (e[0] * e[2]).max(e[1] * e[2])
+    };
+    area.max(f64::MIN_POSITIVE)
+}
+
 impl Grid {
     /// A grid with cells of about the radius that holds `k` points at the tile's mean x/y
     /// density, or None when the density is too uneven for one cell size (some cell would hold
     /// many neighbourhoods' worth of points).
     pub(super) fn build(xyz: &[V3], ids: &[u64], lo: V3, hi: V3, k: usize) -> Option<Grid> {
         let n = xyz.len();
-        let area = ((hi[0] - lo[0]) * (hi[1] - lo[1])).max(f64::MIN_POSITIVE);
+        let area = surface_area(lo, hi);
         let cell = (k as f64 * area / (std::f64::consts::PI * n as f64)).sqrt() * 1.25;
         let g = Self::with_cell(xyz, ids, lo, hi, k, cell)?;
         // Points spread in z (vegetation, walls) occupy more cells than a surface would: then
@@ -71,15 +88,24 @@ impl Grid {
 
     fn with_cell(xyz: &[V3], ids: &[u64], lo: V3, hi: V3, k: usize, cell: f64) -> Option<Grid> {
         let n = xyz.len();
-        let area = ((hi[0] - lo[0]) * (hi[1] - lo[1])).max(f64::MIN_POSITIVE);
+        let area = surface_area(lo, hi);
         // At most ~4 columns per point, whatever the shape of the tile.
         let cell = cell.max((area / (4.0 * n as f64)).sqrt());
         if !(cell.is_finite() && cell > 0.0) {
             return None;
         }
-        let dim = |a: usize| (((hi[a] - lo[a]) / cell) as usize + 1).min(1 << 20);
-        let dims = [dim(0), dim(1), dim(2)];
-        if dims[0].saturating_mul(dims[1]) > 8 * n + 64 {
+        // Cells per axis, computed in f64: a degenerate extent (all points with one x) or a
+        // tiny cell would overflow an integer cast. A grid that would need more than
+        // MAX_CELLS_PER_AXIS cells on an axis is refused and the k-d tree takes the tile.
+        let dim = |a: usize| {
+            let d = ((hi[a] - lo[a]) / cell).floor();
+            (d >= 0.0 && d < MAX_CELLS_PER_AXIS as f64).then(|| d as usize + 1)
+        };
+        let [Some(dx), Some(dy), Some(dz)] = [dim(0), dim(1), dim(2)] else {
+            return None;
+        };
+        let dims = [dx, dy, dz];
+        if dims[0] * dims[1] > 8 * n + 64 {
             return None;
         }
         let coord = |p: &V3, a: usize| (((p[a] - lo[a]) / cell) as usize).min(dims[a] - 1);

@@ -372,4 +372,30 @@ mod tests {
         ));
         check_both_backends(&xyz, &ids, &[10]);
     }
+
+    #[test]
+    fn degenerate_extents_stay_exact() {
+        // Issue 12 item 1: a zero x/y area (a facade, a vertical line, one spot) and extents
+        // far below any cell size used to give a grid of 0 columns and a panic.
+        let mut rng = crate::core::rng::Rng::new(7);
+        let mut unit = || rng.uniform();
+        let facade: Vec<V3> = (0..900)
+            .map(|_| [5.0, 10.0 * unit(), 10.0 * unit()])
+            .collect();
+        let line: Vec<V3> = (0..300).map(|i| [3.0, 4.0, i as f64 * 0.01]).collect();
+        let spot: Vec<V3> = vec![[1.0, 2.0, 3.0]; 40];
+        let tiny: Vec<V3> = (0..200)
+            .map(|i| [(i % 20) as f64 * 1e-300, (i / 20) as f64 * 1e-300, 0.0])
+            .collect();
+        for (name, xyz) in [
+            ("facade", facade),
+            ("line", line),
+            ("spot", spot),
+            ("tiny", tiny),
+        ] {
+            let ids: Vec<u64> = (0..xyz.len() as u64).collect();
+            assert!(NeighbourIndex::build(&xyz, &ids, 10).is_some(), "{name}");
+            check_both_backends(&xyz, &ids, &[1, 10]);
+        }
+    }
 }

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use super::frames::{bucket_file, spill};
 use super::stats::stats_text;
 use super::{Buckets, TaskDir, DONE};
-use crate::core::plan::{MemoryPlan, ScanStats, TileGrid, TileKey};
+use crate::core::plan::{computable, MemoryPlan, ScanStats, TileGrid, TileKey, MAX_COORDINATE};
 use crate::core::point::{SourcePoint, BUCKET_POINT_BYTES as POINT_BYTES};
 use crate::error::{Error, Result};
 use crate::io::source::PointSource;
@@ -84,6 +84,7 @@ pub fn scan(
                 let n = records.len() / rl;
                 for (i, rec) in records.chunks_exact(rl).enumerate() {
                     let mut p = input.source.decode(first + i as u64, rec);
+                    check_point(input.source, grid, &p)?;
                     p.id += input.first_id;
                     let key = grid.key(p.xyz[0], p.xyz[1]);
                     stats.add(p.xyz, key);
@@ -108,6 +109,23 @@ pub fn scan(
         .map(|(k, v)| (k, Arc::new(v)))
         .collect();
     Ok((Buckets::in_memory(grid, mem), stats))
+}
+
+/// Refuses a decoded point that cannot be computed on: a non-finite or absurdly large
+/// coordinate is bad input (a corrupt scale, offset or record), a point beyond the tile grid a
+/// usage error (the tile is too small for the extent). `p.id` is the source's own index.
+fn check_point(source: &dyn PointSource, grid: TileGrid, p: &SourcePoint) -> Result<()> {
+    let [x, y, z] = p.xyz;
+    if !computable(p.xyz) {
+        return Err(Error::bad_input(source.path(), None, format!(
+            "point {} has coordinates ({x:e}, {y:e}, {z:e}), which are not finite or beyond +-{MAX_COORDINATE:e}; the file's scale, offset or point record is corrupt",
+            p.id)));
+    }
+    if !grid.holds(x, y) {
+        let what = format!("{}: point {}", source.path().display(), p.id);
+        return Err(Error::Usage(grid.outside(&what, x, y)));
+    }
+    Ok(())
 }
 
 /// Spills what is still held, makes the task directory durable with its statistics, and

@@ -4,6 +4,7 @@
 //! Reading points is `io::source`'s job.
 
 pub mod carry;
+pub mod chunks;
 pub mod convert;
 pub mod extra_bytes;
 pub mod fields;

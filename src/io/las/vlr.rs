@@ -96,6 +96,14 @@ impl Vlr {
 pub fn read_vlrs(path: &Path, head: &[u8], header: &LasHeader) -> Result<Vec<Vlr>> {
     let mut pos = header.header_size as usize;
     let end = header.offset_to_point_data as usize;
+    // The count comes from the file: never allocate for more records than the bytes before the
+    // point data can hold (a count of 2^32-1 would abort on allocation).
+    let fit = end.saturating_sub(pos) / 54;
+    if header.num_vlrs as usize > fit {
+        return Err(Error::bad_input(path, Some(100), format!(
+            "the header declares {} VLRs but the {} bytes between the header and the point data (byte {end}) hold at most {fit}; the header's VLR count or point-data offset is wrong",
+            header.num_vlrs, end.saturating_sub(pos))));
+    }
     let mut out = Vec::with_capacity(header.num_vlrs as usize);
     for i in 0..header.num_vlrs {
         if pos + 54 > end || pos + 54 > head.len() {
@@ -128,13 +136,27 @@ pub fn read_vlrs(path: &Path, head: &[u8], header: &LasHeader) -> Result<Vec<Vlr
 /// Reads the EVLRs (LAS 1.4, or the LAS 1.3 waveform record) from the whole-file bytes.
 /// Returns each record with the byte offset it was found at.
 pub fn read_evlrs(path: &Path, file: &[u8], header: &LasHeader) -> Result<Vec<(u64, Vlr)>> {
-    let (mut pos, count) = if header.evlr_count > 0 {
-        (header.evlr_start as usize, header.evlr_count)
+    let (start, count, field) = if header.evlr_count > 0 {
+        (header.evlr_start, header.evlr_count, 235)
     } else if header.version.1 == 3 && header.waveform_start > 0 {
-        (header.waveform_start as usize, 1)
+        (header.waveform_start, 1, 227)
     } else {
         return Ok(Vec::new());
     };
+    // Offsets and counts come from the file: check them against its size, in u64, before any
+    // allocation or addition (a start near 2^64 would overflow, a count of 2^32-1 would abort).
+    let len = file.len() as u64;
+    let fit = len.saturating_sub(start) / 60;
+    if start > len || count as u64 > fit {
+        let what = if field == 235 {
+            "EVLR"
+        } else {
+            "waveform data packet record (EVLR)"
+        };
+        return Err(Error::bad_input(path, Some(field), format!(
+            "the header declares {count} {what}s from byte {start}, but the file has {len} bytes, room for {fit} from there; the file is truncated or its header is corrupt")));
+    }
+    let mut pos = start as usize;
     let mut out = Vec::with_capacity(count as usize);
     for i in 0..count {
         if pos + 60 > file.len() {

@@ -4,21 +4,19 @@
 
 use std::path::{Path, PathBuf};
 
-use memmap2::Mmap;
-
 use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
 
 use super::{
-    no_crs, usable_normal, xyz_and_normals, Bounds, PointSource, Property, SourceLayout,
-    SourcePoint,
+    no_crs, usable_normal, xyz_and_normals, Bounds, InputBytes, PointSource, Property,
+    SourceLayout, SourcePoint,
 };
 
 /// Fixed-size binary point records in a memory-mapped file (binary PLY vertices, binary PCD),
 /// validated against the file size and for finite coordinates when opened.
 pub struct BinarySource {
     path: PathBuf,
-    map: Mmap,
+    map: InputBytes,
     describe: String,
     start: usize,
     count: u64,
@@ -34,7 +32,7 @@ impl BinarySource {
     /// `props` (which must include x, y and z; bytes no property covers are padding).
     pub fn new(
         path: &Path,
-        map: Mmap,
+        map: InputBytes,
         describe: String,
         start: usize,
         count: u64,

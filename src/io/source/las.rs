@@ -7,21 +7,20 @@ use std::fs::File;
 use std::io::{Cursor, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
-use memmap2::Mmap;
-
 use crate::error::{Error, Result};
 use crate::io::crs::{horizontal_unit, UnitSource};
+use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk};
 use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
 use crate::io::las::header::{LasHeader, POINT_FORMAT_SIZES};
 use crate::io::las::parts::LasParts;
 use crate::io::las::vlr::{read_evlrs, read_vlrs, Vlr};
 
-use super::{PointSource, Property, SourceLayout, SourcePoint, Stored};
+use super::{InputBytes, PointSource, Property, SourceLayout, SourcePoint, Stored};
 
 /// An opened LAS or LAZ file.
 pub struct LasSource {
     path: PathBuf,
-    map: Mmap,
+    map: InputBytes,
     /// The parsed header.
     pub header: LasHeader,
     /// The VLRs, in file order.
@@ -32,6 +31,8 @@ pub struct LasSource {
     pub extra: Vec<Descriptor>,
     normal_dims: Option<[Descriptor; 3]>,
     laz: Option<laz::LazVlr>,
+    /// The checked LAZ chunk table (empty for LAS).
+    chunks: Vec<Chunk>,
 }
 
 impl LasSource {
@@ -58,20 +59,35 @@ impl LasSource {
         // SAFETY: the map is read-only and tilecurv never writes its inputs. Another process
         // truncating the file while we run would fault; that is the usual mmap contract, and the
         // CLI documents that inputs must not change during a run.
-        let map = unsafe { Mmap::map(&file) }.map_err(|e| Error::ReadIo {
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::ReadIo {
             path: path.to_path_buf(),
             source: e,
         })?;
+        Self::from_bytes(path, InputBytes::Map(map))
+    }
+
+    /// Validates a LAS/LAZ file already read or mapped; `path` names it in errors.
+    pub fn from_bytes(path: &Path, map: InputBytes) -> Result<Self> {
+        let len = map.len() as u64;
+        if len == 0 {
+            return Err(Error::bad_input(
+                path,
+                None,
+                "the file is empty (0 bytes); expected a LAS or LAZ file",
+            ));
+        }
         let header = LasHeader::parse(path, &map, len)?;
         let vlrs = read_vlrs(path, &map, &header)?;
         let evlrs = read_evlrs(path, &map, &header)?;
         let extra = extra_descriptors(path, &header, &vlrs, &evlrs)?;
         let normal_dims = normal_dims(&extra);
-        let laz = if header.compressed {
-            Some(laz_layout(path, &header, &vlrs)?)
+        let (laz, chunks) = if header.compressed {
+            let lv = laz_layout(path, &header, &vlrs)?;
+            let chunks = read_chunk_table(path, &map, &header, &lv)?;
+            (Some(lv), chunks)
         } else {
             check_size(path, &header, len)?;
-            None
+            (None, Vec::new())
         };
         if header.point_count == 0 {
             return Err(Error::bad_input(
@@ -89,11 +105,43 @@ impl LasSource {
             extra,
             normal_dims,
             laz,
+            chunks,
         })
     }
 }
 
 impl LasSource {
+    /// Refuses decoded LAZ records far outside the header's bounds (by more than the bounds'
+    /// largest extent): a corrupt chunk decodes into garbage spread over the whole coordinate
+    /// range, which would plan millions of tiles. The error names the chunk and its offset.
+    /// Bounds that were never filled (all zero, or min above max) are not checked.
+    fn check_decoded(&self, first: u64, records: &[u8]) -> Result<()> {
+        let h = &self.header;
+        let filled = (0..3)
+            .all(|a| h.min[a] <= h.max[a] && h.min[a].is_finite() && h.max[a].is_finite())
+            && h.min.iter().chain(&h.max).any(|&v| v != 0.0);
+        if !filled {
+            return Ok(());
+        }
+        let extent = (0..3).map(|a| h.max[a] - h.min[a]).fold(0.0, f64::max);
+        let step = h.scale.iter().fold(0.0, |m: f64, s| m.max(s.abs()));
+        let margin = extent.max(1000.0 * step);
+        let rl = h.record_length as usize;
+        for (i, rec) in records.chunks_exact(rl).enumerate() {
+            let p = self.decode(first + i as u64, rec).xyz;
+            if let Some(a) =
+                (0..3).find(|&a| !(p[a] >= h.min[a] - margin && p[a] <= h.max[a] + margin))
+            {
+                let id = first + i as u64;
+                let (c, chunk) = chunk_of(&self.chunks, id).unwrap_or_default();
+                return Err(Error::bad_input(&self.path, Some(chunk.offset), format!(
+                    "LAZ chunk {c} (at the byte offset given) decodes point {id} at {} = {:e}, far outside the header's bounds {:e}..{:e}: the chunk is corrupt",
+                    ["x", "y", "z"][a], p[a], h.min[a], h.max[a])));
+            }
+        }
+        Ok(())
+    }
+
     /// The header, VLRs, EVLRs and extra-bytes descriptors, for a writer that carries them over.
     pub fn parts(&self) -> LasParts<'_> {
         LasParts {
@@ -110,12 +158,14 @@ impl LasSource {
     fn release(&self, from: usize, to: usize) -> usize {
         const PAGE: usize = 4096;
         let to = to / PAGE * PAGE;
+        let Some(map) = self.map.mapped() else {
+            return from;
+        };
         if to > from {
             // SAFETY: the map is a private read-only file mapping; MADV_DONTNEED on it only
             // drops cached pages, which the kernel re-reads from the file if touched again.
             let _ = unsafe {
-                self.map
-                    .unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, from, to - from)
+                map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, from, to - from)
             };
             to
         } else {
@@ -272,7 +322,13 @@ impl PointSource for LasSource {
                 } else {
                     vlr.chunk_size().max(1) as usize
                 };
-                let per_call = chunk_points.max(1).div_ceil(laz_chunk) * laz_chunk;
+                // A chunk size from the file far beyond any writer's (LASzip's is 50,000) would
+                // size the buffer from the file: then the caller's chunk size decides.
+                let per_call = if laz_chunk <= 1 << 20 {
+                    chunk_points.max(1).div_ceil(laz_chunk) * laz_chunk
+                } else {
+                    chunk_points.max(1)
+                };
                 let mut cursor = Cursor::new(&self.map[..]);
                 cursor
                     .seek(SeekFrom::Start(start as u64))
@@ -287,8 +343,13 @@ impl PointSource for LasSource {
                 while first < n {
                     let m = (n - first).min(per_call as u64) as usize;
                     let out = &mut buf[..m * rl];
-                    dec.decompress_many(out).map_err(|e| Error::bad_input(&self.path, None, format!(
-                        "LAZ decompression failed in points {first}..{}: {e}; the file is truncated or corrupt (the header says {n} points)", first + m as u64)))?;
+                    dec.decompress_many(out).map_err(|e| {
+                        let (c, chunk) = chunk_of(&self.chunks, first).unwrap_or_default();
+                        let last = chunk_of(&self.chunks, first + m as u64 - 1).map_or(c, |l| l.0);
+                        Error::bad_input(&self.path, Some(chunk.offset), format!(
+                            "LAZ decompression failed in points {first}..{} (chunks {c} to {last}, from the byte offset given): {e}; the file is truncated or corrupt (the header says {n} points)", first + m as u64))
+                    })?;
+                    self.check_decoded(first, out)?;
                     f(first, out)?;
                     let pos = dec.get_mut().position() as usize;
                     released = self.release(released, pos);

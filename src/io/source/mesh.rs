@@ -8,8 +8,8 @@ use std::path::Path;
 use crate::error::{Error, Result};
 
 use super::faces::{integer, Faces, Place};
-use super::map_file;
 use super::text::{first_point_line, tokens, Body, Column, Lines, PointLines, TextSource};
+use super::{map_file, InputBytes};
 
 /// Names for `n` vertex values: x y z, then `then` in order, then `column<i>` (1-based).
 fn vertex_columns(n: usize, then: &[&str]) -> Vec<Column> {
@@ -120,7 +120,11 @@ fn off_header(path: &Path, map: &[u8]) -> Result<OffHeader> {
 /// Opens an OFF file (`OFF`, `NOFF`, `COFF`, `CNOFF`, `STOFF`... in ASCII): the vertex count
 /// from the header, then that many vertex lines `x y z [nx ny nz] [r g b [a]]`.
 pub fn open_off(path: &Path) -> Result<TextSource> {
-    let map = map_file(path)?;
+    off_from_bytes(path, map_file(path)?)
+}
+
+/// [`open_off`] on bytes already read or mapped; `path` names them in errors.
+pub fn off_from_bytes(path: &Path, map: InputBytes) -> Result<TextSource> {
     let h = off_header(path, &map)?;
     let (_, n, _, _) = first_point_line(path, &map, h.body)?;
     let mut then = Vec::new();
@@ -243,7 +247,11 @@ pub fn obj_faces(map: &[u8], faces: &mut Faces) -> Result<bool> {
 
 /// Opens an OBJ file: its `v x y z [w | r g b]` lines are the points.
 pub fn open_obj(path: &Path) -> Result<TextSource> {
-    let map = map_file(path)?;
+    obj_from_bytes(path, map_file(path)?)
+}
+
+/// [`open_obj`] on bytes already read or mapped; `path` names them in errors.
+pub fn obj_from_bytes(path: &Path, map: InputBytes) -> Result<TextSource> {
     let body = Body {
         start: 0,
         first_line: 1,

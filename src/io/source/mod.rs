@@ -6,6 +6,7 @@
 //! carry over or records to convert.
 
 pub mod binary;
+pub mod bytes;
 pub mod faces;
 pub mod las;
 pub mod mesh;
@@ -17,6 +18,8 @@ pub mod text;
 use std::path::Path;
 
 use memmap2::Mmap;
+
+pub use bytes::InputBytes;
 
 use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
@@ -261,7 +264,7 @@ pub fn usable_normal(n: [f64; 3]) -> Option<[f64; 3]> {
 }
 
 /// Memory-maps an input file read-only.
-pub fn map_file(path: &Path) -> Result<Mmap> {
+pub fn map_file(path: &Path) -> Result<InputBytes> {
     let io = |e| Error::ReadIo {
         path: path.to_path_buf(),
         source: e,
@@ -272,7 +275,7 @@ pub fn map_file(path: &Path) -> Result<Mmap> {
     }
     // SAFETY: the map is read-only and tilecurv never writes its inputs; another process
     // truncating the file during the run would fault, the usual mmap contract (see LasSource).
-    unsafe { Mmap::map(&file) }.map_err(io)
+    unsafe { Mmap::map(&file) }.map(InputBytes::Map).map_err(io)
 }
 
 /// The unit of every format without a CRS.
@@ -347,13 +350,23 @@ pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
 
 /// Opens a file with the reader of `format`.
 pub fn open_format(path: &Path, format: Format) -> Result<Box<dyn PointSource>> {
+    open_bytes(path, format, map_file(path)?)
+}
+
+/// Opens `bytes` as a file of `format`; `path` only names it in errors. The one
+/// implementation behind [`open_format`] (bytes of a memory-mapped file) and the fuzz targets
+/// (bytes in memory, no file written).
+pub fn open_bytes(path: &Path, format: Format, bytes: InputBytes) -> Result<Box<dyn PointSource>> {
+    if bytes.is_empty() {
+        return Err(Error::bad_input(path, None, "the file is empty (0 bytes)"));
+    }
     Ok(match format {
-        Format::Las => Box::new(LasSource::open(path)?),
-        Format::Ply => ply::open(path)?,
-        Format::Pcd => pcd::open(path)?,
-        Format::Xyz => Box::new(text::TextSource::open_xyz(path)?),
-        Format::Off => Box::new(mesh::open_off(path)?),
-        Format::Obj => Box::new(mesh::open_obj(path)?),
+        Format::Las => Box::new(LasSource::from_bytes(path, bytes)?),
+        Format::Ply => ply::from_bytes(path, bytes)?,
+        Format::Pcd => pcd::from_bytes(path, bytes)?,
+        Format::Xyz => Box::new(text::TextSource::xyz_from_bytes(path, bytes)?),
+        Format::Off => Box::new(mesh::off_from_bytes(path, bytes)?),
+        Format::Obj => Box::new(mesh::obj_from_bytes(path, bytes)?),
     })
 }
 

@@ -10,7 +10,7 @@ use crate::io::las::extra_bytes::ScalarType;
 
 use super::binary::BinarySource;
 use super::text::{Body, Column, Lines, TextSource};
-use super::{map_file, PointSource, Property, Stored};
+use super::{map_file, InputBytes, PointSource, Property, Stored};
 
 /// The type of a PCD field from its TYPE letter and SIZE.
 fn pcd_type(kind: &str, size: &str) -> Option<ScalarType> {
@@ -187,7 +187,11 @@ fn bad_line(path: &Path, line: u64, what: String) -> Error {
 
 /// Opens a PCD file.
 pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
-    let map = map_file(path)?;
+    from_bytes(path, map_file(path)?)
+}
+
+/// [`open`] on bytes already read or mapped; `path` names them in errors.
+pub fn from_bytes(path: &Path, map: InputBytes) -> Result<Box<dyn PointSource>> {
     let h = Header::read(path, &map)?;
     let scalars = h.scalars(path)?;
     let points = h.points(path)?;

@@ -12,7 +12,7 @@ use crate::io::las::extra_bytes::ScalarType;
 use super::binary::BinarySource;
 use super::faces::{integer, Faces, Place};
 use super::text::{tokens, Body, Column, Lines, PointLines, TextSource};
-use super::{map_file, PointSource, Property, Stored};
+use super::{map_file, InputBytes, PointSource, Property, Stored};
 
 /// The PLY scalar type names with their types: the classic names first (the ones the writer
 /// uses), then the sized aliases.
@@ -182,7 +182,11 @@ fn unknown_type(path: &Path, line: u64, ty: &str) -> Error {
 
 /// Opens a PLY file (any of the three encodings).
 pub fn open(path: &Path) -> Result<Box<dyn PointSource>> {
-    let map = map_file(path)?;
+    from_bytes(path, map_file(path)?)
+}
+
+/// [`open`] on bytes already read or mapped; `path` names them in errors.
+pub fn from_bytes(path: &Path, map: InputBytes) -> Result<Box<dyn PointSource>> {
     let h = parse_header(path, &map)?;
     let Some(vi) = h.elements.iter().position(|e| e.name == "vertex") else {
         return Err(Error::bad_input(

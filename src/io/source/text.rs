@@ -6,15 +6,13 @@
 
 use std::path::{Path, PathBuf};
 
-use memmap2::Mmap;
-
 use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
 use crate::io::las::extra_bytes::ScalarType;
 
 use super::{
-    map_file, no_crs, usable_normal, xyz_and_normals, Bounds, PointSource, Property, SourceLayout,
-    SourcePoint, Stored,
+    map_file, no_crs, usable_normal, xyz_and_normals, Bounds, InputBytes, PointSource, Property,
+    SourceLayout, SourcePoint, Stored,
 };
 
 /// Which lines of a text body hold points.
@@ -174,7 +172,7 @@ fn no_points(path: &Path) -> Error {
 /// A memory-mapped text point cloud, validated in full when opened.
 pub struct TextSource {
     path: PathBuf,
-    map: Mmap,
+    map: InputBytes,
     describe: String,
     body: Body,
     columns: Vec<Column>,
@@ -189,7 +187,11 @@ impl TextSource {
     /// more columns (named `column7`, ...), whitespace or comma separated, `#` comments. A first
     /// line holding a single number (the point count of Leica `.pts`) is skipped.
     pub fn open_xyz(path: &Path) -> Result<Self> {
-        let map = map_file(path)?;
+        Self::xyz_from_bytes(path, map_file(path)?)
+    }
+
+    /// [`TextSource::open_xyz`] on bytes already read or mapped; `path` names them in errors.
+    pub fn xyz_from_bytes(path: &Path, map: InputBytes) -> Result<Self> {
         let mut body = Body {
             start: 0,
             first_line: 1,
@@ -223,7 +225,7 @@ impl TextSource {
     /// their bounds.
     pub fn new(
         path: &Path,
-        map: Mmap,
+        map: InputBytes,
         describe: String,
         body: Body,
         columns: Vec<Column>,

@@ -1,0 +1,10 @@
+//! Fuzz target: the LAS/LAZ reader (header, VLRs, EVLRs, LAZ chunk table, record decoding)
+//! on bytes in memory (see common.rs).
+#![no_main]
+
+#[path = "common.rs"]
+mod common;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    common::run(tilecurv::io::source::Format::Las, data);
+});

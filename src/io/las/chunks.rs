@@ -1,0 +1,114 @@
+//! The LAZ chunk table, read and checked before the decompressor sees it: its offset, its chunk
+//! count and every chunk's size against the point count and the file size. A corrupt table is
+//! then an error naming the byte offset, never an allocation abort or a panic in the codec
+//! (which allocates its buffers from these numbers). The table also gives each chunk's byte
+//! offset, so decode errors can name where the bad chunk lies.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use super::header::LasHeader;
+use crate::error::{Error, Result};
+
+/// One LAZ chunk: the points it holds and where its bytes lie.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Chunk {
+    /// Index of its first point in the file.
+    pub first_point: u64,
+    /// Byte offset of its compressed data in the file.
+    pub offset: u64,
+}
+
+fn u32_at(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
+}
+
+fn i64_at(b: &[u8], o: usize) -> i64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[o..o + 8]);
+    i64::from_le_bytes(a)
+}
+
+/// Reads and checks the chunk table of the LAZ file `file` (all its bytes) with layout `vlr`.
+pub fn read_chunk_table(
+    path: &Path,
+    file: &[u8],
+    header: &LasHeader,
+    vlr: &laz::LazVlr,
+) -> Result<Vec<Chunk>> {
+    let bad = |off: u64, what: String| Error::bad_input(path, Some(off), what);
+    let len = file.len() as u64;
+    let start = header.offset_to_point_data as u64;
+    let n = header.point_count;
+    if start + 8 > len {
+        return Err(bad(start, format!("the LAZ point data at byte {start} is too short to hold the 8-byte offset of its chunk table; the file ({len} bytes) is truncated")));
+    }
+    // As LASzip does: an offset not written (a writer that could not seek back) is looked
+    // for in the last 8 bytes of the file.
+    let mut table_at = i64_at(file, start as usize);
+    if table_at <= start as i64 {
+        table_at = i64_at(file, file.len() - 8);
+    }
+    if table_at < (start + 8) as i64 || (table_at as u64).checked_add(8).is_none_or(|e| e > len) {
+        return Err(bad(start, format!("the LAZ chunk table offset {table_at} is outside the file's compressed data ({}..{len}); the file is truncated or corrupt", start + 8)));
+    }
+    let table_at = table_at as u64;
+    let data_bytes = table_at - (start + 8);
+    let count = u32_at(file, table_at as usize + 4) as u64;
+    let variable = vlr.uses_variable_size_chunks();
+    let chunk_points = vlr.chunk_size() as u64;
+    let needed = if variable || chunk_points == 0 {
+        1
+    } else {
+        n.div_ceil(chunk_points)
+    };
+    // Every chunk holds at least one point and one byte: bounds the table before it is read.
+    let most = if variable { n } else { needed + 1 };
+    if count < needed || count > most.min(data_bytes) {
+        return Err(bad(table_at + 4, format!(
+            "the LAZ chunk table declares {count} chunks, but {n} points in {} {} and {data_bytes} bytes of compressed data allow {needed} to {}; the chunk table is corrupt",
+            if variable { "variable-size" } else { "fixed chunks of" },
+            if variable { "chunks".to_string() } else { format!("{chunk_points} points") },
+            most.min(data_bytes))));
+    }
+    let mut cursor = Cursor::new(&file[table_at as usize..]);
+    let table = laz::laszip::ChunkTable::read(&mut cursor, variable).map_err(|e| {
+        bad(
+            table_at,
+            format!("the LAZ chunk table cannot be read: {e}; the file is truncated or corrupt"),
+        )
+    })?;
+    let mut chunks = Vec::with_capacity(table.len());
+    let (mut offset, mut first_point) = (start + 8, 0u64);
+    for (i, e) in table.as_ref().iter().enumerate() {
+        let points = if variable {
+            e.point_count
+        } else {
+            chunk_points
+        };
+        if e.byte_count == 0 || points == 0 || e.byte_count > data_bytes {
+            return Err(bad(table_at, format!("LAZ chunk {i} of {count} is declared with {points} points in {} bytes; the chunk table is corrupt", e.byte_count)));
+        }
+        chunks.push(Chunk {
+            first_point,
+            offset,
+        });
+        offset += e.byte_count;
+        first_point = first_point.saturating_add(points);
+        if offset > table_at {
+            return Err(bad(table_at, format!("LAZ chunk {i} of {count} ends at byte {offset}, past the chunk table at byte {table_at}: the chunk sizes are corrupt")));
+        }
+    }
+    if first_point < n {
+        return Err(bad(table_at, format!("the LAZ chunk table holds {first_point} points but the header says {n}; the file is truncated or its point count is wrong")));
+    }
+    Ok(chunks)
+}
+
+/// The chunk holding point `point`: its index and the chunk.
+pub fn chunk_of(chunks: &[Chunk], point: u64) -> Option<(usize, Chunk)> {
+    let i = chunks
+        .partition_point(|c| c.first_point <= point)
+        .checked_sub(1)?;
+    Some((i, chunks[i]))
+}
