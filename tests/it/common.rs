@@ -32,6 +32,21 @@ pub fn shared(rel: &str) -> Option<PathBuf> {
     None
 }
 
+/// laspy with lazrs is available; a failure under CI=true, else a loud skip.
+pub fn laspy_available() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import laspy, lazrs"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        if std::env::var("CI").is_ok_and(|v| v == "true") {
+            panic!("python3 with laspy and lazrs is required under CI=true");
+        }
+        eprintln!("SKIPPED: laspy check (python3 -c 'import laspy, lazrs' failed)");
+    }
+    ok
+}
+
 /// Runs `tilecurv` with `args`.
 pub fn tilecurv(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_tilecurv"))

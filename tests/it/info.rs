@@ -1,8 +1,9 @@
 //! `tilecurv info` (issue 13 item 8) on a shared file and on a tilecurv output, text and JSON,
 //! checked against laspy's view of the same files.
 
+use crate::common::laspy_available;
 use crate::common::{process, shared, tilecurv};
-use crate::interop::{laspy, laspy_available};
+use crate::interop::laspy;
 
 #[test]
 fn info_describes_a_shared_file_and_a_tilecurv_output() {

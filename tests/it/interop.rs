@@ -5,22 +5,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::{process, records, shared};
-
-/// laspy with lazrs is available; a failure under CI=true, else a loud skip.
-pub fn laspy_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import laspy, lazrs"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("python3 with laspy and lazrs is required under CI=true");
-        }
-        eprintln!("SKIPPED: laspy check (python3 -c 'import laspy, lazrs' failed)");
-    }
-    ok
-}
+use crate::common::{laspy_available, process, records, shared};
 
 /// Runs a Python snippet with laspy on `args`, asserting it exits 0; returns its stdout.
 pub fn laspy(code: &str, args: &[&Path]) -> String {

@@ -7,7 +7,7 @@ use std::process::Command;
 
 use tilecurv::io::source::PointSource;
 
-use crate::common::{process, records, shared, COLUMNS};
+use crate::common::{laspy_available, process, records, shared, COLUMNS};
 
 const FILES: [&str; 15] = [
     "32-1-472-150-76.laz",
@@ -26,21 +26,6 @@ const FILES: [&str; 15] = [
     "las14_pdrf6.laz",
     "test1_4.las",
 ];
-
-/// laspy is available, or None with a loud message (a failure under CI=true).
-fn laspy_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import laspy, lazrs"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("python3 with laspy and lazrs is required under CI=true (pip install 'laspy[lazrs]')");
-        }
-        eprintln!("SKIPPED: laspy cross-read (python3 -c 'import laspy, lazrs' failed)");
-    }
-    ok
-}
 
 fn check_preserved(input: &Path, output: &Path) {
     let (a, ra) = records(input);
