@@ -9,6 +9,26 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
+/// `eprintln!` that never panics: a closed or broken stderr (`2>&1 | head -1`) drops the line
+/// instead of killing the run (messages never stop a run).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($arg)*);
+    }};
+}
+pub(crate) use say;
+
+/// `println!` that never panics: a command's result on a closed stdout is dropped, and the
+/// command still exits with its own code.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+pub(crate) use out;
+
 /// Receives progress and messages from a run. Implementations must be cheap to call often.
 pub trait Reporter: Sync {
     /// A new phase starts, with `total` units of work (points).
@@ -108,7 +128,7 @@ impl TermReporter {
     fn line(&self, msg: &str) {
         match &self.bar {
             Some(b) => b.println(msg),
-            None => eprintln!("{msg}"),
+            None => say!("{msg}"),
         }
     }
 }
@@ -157,7 +177,7 @@ impl Reporter for TermReporter {
         } else {
             f64::NAN
         };
-        eprintln!(
+        say!(
             "{}: {done}/{} points ({:.1}%), {r:.0} points/s, ETA {eta:.0} s",
             p.name,
             p.total,

@@ -6,6 +6,7 @@ use super::args::InfoArgs;
 use super::{exit, fail};
 use crate::io::crs::UnitSource;
 use crate::io::info::{file_info, FileInfo};
+use crate::progress::out;
 
 /// `tilecurv info`: every file's info; the first unreadable file fails the command (exit 3).
 pub fn info(a: InfoArgs) -> Result<i32, i32> {
@@ -17,11 +18,11 @@ pub fn info(a: InfoArgs) -> Result<i32, i32> {
         .map_err(|e| fail(&e))?;
     if a.json {
         let items: Vec<String> = infos.iter().map(json).collect();
-        println!("[{}]", items.join(",\n"));
+        out!("[{}]", items.join(",\n"));
     } else {
         for (i, f) in infos.iter().enumerate() {
             if i > 0 {
-                println!();
+                out!();
             }
             print!("{}", text(f));
         }

@@ -4,6 +4,7 @@
 mod args;
 mod info;
 
+use crate::progress::say;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
@@ -121,9 +122,9 @@ fn reporter(quiet: bool, cfg: &Config) -> Result<TermReporter, i32> {
 
 /// Prints an error (and what to do after an interruption) and returns its exit code.
 fn fail(e: &Error) -> i32 {
-    eprintln!("tilecurv: error: {e}");
+    say!("tilecurv: error: {e}");
     if e.exit_class() == ExitClass::Interrupted {
-        eprintln!("tilecurv: run the same command again to resume from the finished tiles");
+        say!("tilecurv: run the same command again to resume from the finished tiles");
     }
     exit_code(e)
 }
@@ -168,7 +169,7 @@ fn generate(args: TerrainArgs) -> Result<i32, i32> {
     let s = crate::tools::generate::generate_terrain(&opts, &args.output, &CANCEL)
         .map_err(|e| fail(&e))?;
     if !args.quiet {
-        eprintln!(
+        say!(
             "done: {} points over {:.0} m x {:.0} m ({} strips, {} bumps, z {:.1}..{:.1} m) in {:.1} s ({:.0} points/s) -> {}",
             s.points,
             s.side_m,
@@ -192,7 +193,7 @@ fn process(args: ProcessArgs) -> Result<i32, i32> {
     let reporter = reporter(quiet, &cfg)?;
     let s = crate::run::process(&cfg, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !quiet && !cfg.dry_run {
-        eprintln!(
+        say!(
             "done: {} points in {:.1} s ({:.0} points/s), {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
             s.points,
             s.seconds,

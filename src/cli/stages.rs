@@ -4,6 +4,7 @@
 use super::args::{AssembleArgs, BucketArgs, PlanArgs, RunTileArgs, StatusArgs};
 use super::{exit, fail, reporter, CANCEL};
 use crate::config::Config;
+use crate::progress::{out, say};
 use crate::run::cluster;
 
 /// `tilecurv plan`: prints `bucket tasks: B`, `tiles per task: K`, then `tasks: N` (the last
@@ -13,7 +14,7 @@ pub fn plan(a: PlanArgs) -> Result<i32, i32> {
     let reporter = reporter(a.quiet, &cfg)?;
     let p = cluster::plan(&cfg, &a.work, a.tiles_per_task, &reporter).map_err(|e| fail(&e))?;
     if !a.quiet {
-        eprintln!(
+        say!(
             "planned {}: {} bucket tasks, {} tile tasks of {} tiles of the grid each",
             a.work.display(),
             p.bucket_tasks,
@@ -21,9 +22,9 @@ pub fn plan(a: PlanArgs) -> Result<i32, i32> {
             p.tiles_per_task
         );
     }
-    println!("bucket tasks: {}", p.bucket_tasks);
-    println!("tiles per task: {}", p.tiles_per_task);
-    println!("tasks: {}", p.tile_tasks);
+    out!("bucket tasks: {}", p.bucket_tasks);
+    out!("tiles per task: {}", p.tiles_per_task);
+    out!("tasks: {}", p.tile_tasks);
     Ok(exit::OK)
 }
 
@@ -38,7 +39,7 @@ pub fn bucket(a: BucketArgs) -> Result<i32, i32> {
         .map_err(|e| fail(&e))?;
     let ran = cluster::bucket(&a.work, &cfg, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !a.exec.quiet() {
-        eprintln!("done: {ran} bucket tasks run (the others were done)");
+        say!("done: {ran} bucket tasks run (the others were done)");
     }
     Ok(exit::OK)
 }
@@ -50,7 +51,7 @@ pub fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
     let task = a.task.resolve().map_err(|e| fail(&e))?;
     let d = cluster::run_tile(&a.work, &cfg, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !a.exec.quiet() {
-        eprintln!(
+        say!(
             "done: task {task}: {} tiles already done, {} undefined points, {} recomputed with a wider halo",
             d.resumed, d.undefined, d.retried
         );
@@ -65,10 +66,10 @@ pub fn status(a: StatusArgs) -> Result<i32, i32> {
     let s = cluster::status(&a.work, &cfg, &reporter).map_err(|e| fail(&e))?;
     if a.missing {
         if !s.missing.is_empty() {
-            println!("{}", crate::core::tasks::array_syntax(&s.missing));
+            out!("{}", crate::core::tasks::array_syntax(&s.missing));
         }
     } else {
-        println!("done {} of {} tasks", s.done, s.total);
+        out!("done {} of {} tasks", s.done, s.total);
     }
     Ok(exit::OK)
 }
@@ -82,7 +83,7 @@ pub fn assemble(a: AssembleArgs) -> Result<i32, i32> {
     let reporter = reporter(a.exec.quiet(), &cfg)?;
     let s = cluster::assemble(&a.work, &cfg, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !a.exec.quiet() {
-        eprintln!(
+        say!(
             "done: {} points of {} tiles in {:.1} s -> {} (the work directory {} is kept; remove it when done)",
             s.points,
             s.tiles,

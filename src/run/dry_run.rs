@@ -3,6 +3,7 @@
 //! code as a run, and prints the plan with its estimates of memory, disk and time; then removes
 //! the scratch directory. Nothing is written beside the output.
 
+use crate::progress::out;
 use std::path::Path;
 use std::time::Instant;
 
@@ -88,17 +89,17 @@ fn estimate(scratch: &WorkDir, spec: &RunSpec, exec: &Exec<'_>, work_path: &Path
     let result_bytes = crate::io::results::record_size(&spec.cols) + 8;
     let disk = if in_memory { 0.0 } else { n * 45.0 } + n * result_bytes as f64;
     let est = 2.0 * scan_s + n * us_per_point * 1e-6;
-    println!("plan: {} points in {} tiles of {:.3} (file units); points per tile: min {}, median {median}, max {}", scan.stats.count, tplan.tiles.len(), spec.grid.size, counts[0], counts[counts.len() - 1]);
-    println!(
+    out!("plan: {} points in {} tiles of {:.3} (file units); points per tile: min {}, median {median}, max {}", scan.stats.count, tplan.tiles.len(), spec.grid.size, counts[0], counts[counts.len() - 1]);
+    out!(
         "halo: {:.1}% extra points loaded on the median tile",
         100.0 * (halo_factor - 1.0)
     );
-    println!("memory: budget {} MiB; buckets {}; expected peak about {} MiB plus ~60 MiB for the program", m.budget_bytes >> 20, if in_memory { "in memory" } else { "spilled to disk" }, peak.min(m.budget_bytes) >> 20);
-    println!(
+    out!("memory: budget {} MiB; buckets {}; expected peak about {} MiB plus ~60 MiB for the program", m.budget_bytes >> 20, if in_memory { "in memory" } else { "spilled to disk" }, peak.min(m.budget_bytes) >> 20);
+    out!(
         "work directory: {} (about {:.0} MiB at the peak)",
         work_path.display(),
         disk / (1 << 20) as f64
     );
-    println!("time: scan {scan_s:.1} s; curvature {us_per_point:.2} us/point on the median tile with {} threads; estimated total {est:.0} s", exec.pool.current_num_threads());
+    out!("time: scan {scan_s:.1} s; curvature {us_per_point:.2} us/point on the median tile with {} threads; estimated total {est:.0} s", exec.pool.current_num_threads());
     Ok(())
 }

@@ -154,3 +154,28 @@ fn refuses_to_overwrite_the_input_and_bad_usage() {
     assert_eq!(missing.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&missing.stderr).contains("/nonexistent/in.las"));
 }
+
+/// A closed stderr (`tilecurv ... 2>&1 | head -1`) never kills a run: messages are dropped, the
+/// output is written and the exit code is 0 (it was 101, "failed printing to stderr").
+#[test]
+fn a_closed_stderr_does_not_stop_the_run() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("t.las");
+    crate::common::generate_terrain(&input, "20k", 3, 10.0);
+    let output = dir.path().join("out.las");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_tilecurv"))
+        .args(["process", input.to_str().expect("utf-8"), "-o"])
+        .arg(&output)
+        .arg("--tile")
+        .arg("10m")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("tilecurv starts");
+    // Close the reading end at once: every write to stderr fails with EPIPE.
+    drop(child.stderr.take());
+    let status = child.wait().expect("tilecurv ends");
+    assert_eq!(status.code(), Some(0), "exit {status:?}");
+    let bytes = std::fs::metadata(&output).expect("the output exists").len();
+    assert!(bytes > 20_000 * 20, "output of {bytes} bytes");
+}
