@@ -318,10 +318,16 @@ fn estimate_points(
                     0
                 };
                 let Some(n0) = normals[i] else {
+                    // Fewer than 3 points in the whole neighbourhood: both reasons hold.
+                    let few = if bufs.list(i, p.k).len() < 3 {
+                        flags::FEW_NEIGHBOURS
+                    } else {
+                        0
+                    };
                     return PointResult {
                         id: t.ids[i],
                         normal: [f64::NAN; 3],
-                        curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | file_flag),
+                        curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | few | file_flag),
                         extra: [f64::NAN; MAX_EXTRA],
                         patch: NO_PATCH,
                     };

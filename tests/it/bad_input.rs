@@ -179,3 +179,39 @@ fn a_closed_stderr_does_not_stop_the_run() {
     let bytes = std::fs::metadata(&output).expect("the output exists").len();
     assert!(bytes > 20_000 * 20, "output of {bytes} bytes");
 }
+
+/// A directory given as an input is bad input (exit 3) that says it is a directory (it said
+/// "No such device", the mmap error).
+#[test]
+fn a_directory_as_input_is_named_as_such() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("scans.las");
+    std::fs::create_dir(&input).expect("a directory with a LAS name");
+    let out = tilecurv(&[
+        "process",
+        input.to_str().expect("utf-8"),
+        "-o",
+        dir.path().join("out.las").to_str().expect("utf-8"),
+    ]);
+    let msg = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{msg}");
+    assert!(msg.contains("is a directory"), "{msg}");
+    assert!(!dir.path().join("out.las").exists());
+}
+
+/// A cloud of one or two points: every point has fewer than 3 neighbours, so flag 1 (and flag
+/// 2: no PCA normal) is set and H is NaN (only flag 2 was set).
+#[test]
+fn points_with_fewer_than_three_neighbours_get_flag_one() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    for n in [1usize, 2] {
+        let input = dir.path().join(format!("p{n}.las"));
+        let pts: Vec<[f64; 3]> = (0..n).map(|i| [i as f64, 0.5 * i as f64, 1.0]).collect();
+        crate::common::write_las(&input, &pts, None, 0.001);
+        let out = dir.path().join(format!("o{n}.las"));
+        crate::common::process(&input, &out, &[]);
+        let f = crate::common::column(&out, "CurvatureFlags");
+        assert_eq!(f, vec![3.0; n], "{n} points");
+        assert!(crate::common::column(&out, "H").iter().all(|h| h.is_nan()));
+    }
+}

@@ -270,7 +270,15 @@ pub fn map_file(path: &Path) -> Result<InputBytes> {
         source: e,
     };
     let file = std::fs::File::open(path).map_err(io)?;
-    if file.metadata().map_err(io)?.len() == 0 {
+    let meta = file.metadata().map_err(io)?;
+    if meta.is_dir() {
+        return Err(Error::bad_input(
+            path,
+            None,
+            "is a directory, not a point cloud file; give the files in it (e.g. dir/*.laz)",
+        ));
+    }
+    if meta.len() == 0 {
         return Err(Error::bad_input(path, None, "the file is empty (0 bytes)"));
     }
     // SAFETY: the map is read-only and tilecurv never writes its inputs; another process
