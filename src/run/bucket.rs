@@ -132,30 +132,21 @@ pub fn open_buckets(work: &WorkDir, spec: &RunSpec, layout: &TaskLayout) -> Resu
     }
 }
 
-/// The bucket stage of `process`: its one bucket task, in memory while the buckets fit, or the
-/// buckets an interrupted run of the same manifest left complete.
+/// The bucket stage of `process` (its layout has one bucket task over every input): the scan,
+/// in memory while the buckets fit, or the buckets an interrupted run of the same manifest left
+/// complete.
 pub fn bucket_all(
     work: &WorkDir,
     spec: &RunSpec,
     layout: &TaskLayout,
     exec: &Exec<'_>,
 ) -> Result<Bucketed> {
-    for task in 0..layout.bucket_tasks.len() {
-        if let Some(b) = bucket_task(
-            work,
-            spec,
-            layout,
-            task,
-            layout.bucket_tasks.len() == 1,
-            exec,
-        )? {
-            if !b.buckets.spilled() {
-                return Ok(b);
-            }
-        } else {
+    match bucket_task(work, spec, layout, 0, true, exec)? {
+        Some(b) => Ok(b),
+        None => {
             exec.reporter
                 .info("reusing the buckets of the interrupted run");
+            open_buckets(work, spec, layout)
         }
     }
-    open_buckets(work, spec, layout)
 }

@@ -15,7 +15,7 @@ use crate::config::Config;
 use crate::core::plan::{plan as plan_tiles, TileKey};
 use crate::core::tasks::{array_syntax, TaskLayout};
 use crate::error::{Error, Result};
-use crate::io::source::SourceLayout;
+use crate::io::source::declared_bounds;
 use crate::io::workdir::{WorkDir, TASKS};
 use crate::progress::Reporter;
 use crate::run::bucket::{bucket_task, open_buckets};
@@ -41,18 +41,9 @@ pub struct Planned {
 fn grid_bounds(spec: &RunSpec) -> Result<(TileKey, TileKey)> {
     let (mut lo, mut hi) = ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN));
     for s in &spec.sources {
-        let [min, max] = match s.layout() {
-            SourceLayout::Las(parts)
-                if parts
-                    .header
-                    .min
-                    .iter()
-                    .chain(&parts.header.max)
-                    .all(|v| v.is_finite()) =>
-            {
-                [parts.header.min, parts.header.max]
-            }
-            _ => s.bounds()?,
+        let [min, max] = match declared_bounds(s.as_ref()) {
+            Some(b) => b,
+            None => s.bounds()?,
         };
         let (a, b) = (spec.grid.key(min[0], min[1]), spec.grid.key(max[0], max[1]));
         lo = (lo.0.min(a.0), lo.1.min(a.1));

@@ -177,12 +177,11 @@ fn check_new_names(sources: &[Box<dyn PointSource>], cols: &ColumnSet) -> Result
 /// and headers whose bounds are wrong, are checked point by point by the scan.
 fn check_extent(sources: &[Box<dyn PointSource>], grid: TileGrid) -> Result<()> {
     for s in sources {
-        let crate::io::source::SourceLayout::Las(parts) = s.layout() else {
+        let Some([min, max]) = crate::io::source::declared_bounds(s.as_ref()) else {
             continue;
         };
-        let (min, max) = (parts.header.min, parts.header.max);
         for (x, y) in [(min[0], min[1]), (max[0], max[1])] {
-            if x.is_finite() && y.is_finite() && !grid.holds(x, y) {
+            if !grid.holds(x, y) {
                 let what = format!("{}: the header's bounds say a point", s.path().display());
                 return Err(Error::Usage(grid.outside(&what, x, y)));
             }

@@ -286,6 +286,21 @@ pub fn map_file(path: &Path) -> Result<InputBytes> {
     unsafe { Mmap::map(&file) }.map(InputBytes::Map).map_err(io)
 }
 
+/// The bounds a source declares without reading its points: a LAS header's, when all six are
+/// finite (they can still be wrong: callers treat them as a hint); None for other formats.
+pub fn declared_bounds(s: &dyn PointSource) -> Option<[[f64; 3]; 2]> {
+    match s.layout() {
+        SourceLayout::Las(parts) => {
+            let (min, max) = (parts.header.min, parts.header.max);
+            min.iter()
+                .chain(&max)
+                .all(|v| v.is_finite())
+                .then_some([min, max])
+        }
+        SourceLayout::Converted => None,
+    }
+}
+
 /// The unit of every format without a CRS.
 pub fn no_crs(format: &str) -> UnitSource {
     UnitSource::Unknown(format!("{format} has no CRS"))
