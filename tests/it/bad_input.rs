@@ -215,3 +215,31 @@ fn points_with_fewer_than_three_neighbours_get_flag_one() {
         assert!(crate::common::column(&out, "H").iter().all(|h| h.is_nan()));
     }
 }
+
+/// An OFF header whose face or edge count is negative or not a number, and a PLY element that
+/// declares a property twice, are bad input naming the line (both were accepted: the OFF count
+/// was ignored, the PLY property's second copy shadowed the first).
+#[test]
+fn malformed_off_counts_and_duplicated_ply_properties_are_refused() {
+    let off = |counts: &str| format!("OFF\n{counts}\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expect_failure(
+        "neg.off",
+        off("3 -1 0").as_bytes(),
+        3,
+        &["line 2", "face count is \"-1\""],
+    );
+    expect_failure(
+        "edge.off",
+        off("3 1 x").as_bytes(),
+        3,
+        &["edge count is \"x\""],
+    );
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+               property float z\nproperty float x\nend_header\n0 0 0 5\n1 0 0 5\n0 1 0 5\n";
+    expect_failure(
+        "dup.ply",
+        ply.as_bytes(),
+        3,
+        &["header line 7", "property \"x\" twice"],
+    );
+}

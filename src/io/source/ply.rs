@@ -151,6 +151,12 @@ fn parse_header(path: &Path, map: &[u8]) -> Result<Header> {
                     }
                 };
                 let ty = ply_type(ty).ok_or_else(|| unknown_type(path, line, ty))?;
+                if el.props.iter().any(|p| p.name == name) {
+                    return Err(bad(line, format!(
+                        "element {} declares property {name:?} twice; the values would be ambiguous, rename one of them",
+                        el.name
+                    )));
+                }
                 el.props.push(PlyProperty {
                     name: name.to_string(),
                     ty,
