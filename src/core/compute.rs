@@ -94,6 +94,12 @@ impl PointResult {
     }
 }
 
+/// A pass stopped because its cancel flag was set (SIGINT/SIGTERM): its results are incomplete
+/// and dropped. Every step checks the flag per point, so a signal never waits for a whole pass
+/// over a large tile (issue 12 item 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cancelled;
+
 /// The patch of a point outside any propagation patch.
 pub const NO_PATCH: u32 = u32::MAX;
 
@@ -225,6 +231,7 @@ fn neighbour_lists(
     scene: &Rect,
     k: usize,
     bufs: &mut TileBuffers,
+    cancel: &AtomicBool,
 ) {
     let n = t.xyz.len();
     let n_core = t.n_core;
@@ -239,7 +246,9 @@ fn neighbour_lists(
         .zip(info[..n_core].par_iter_mut())
         .enumerate()
         .for_each_init(scratch, |(s, list), (i, (slot, li))| {
-            *li = knn_into(t, index, scene, k, i, s, list, slot);
+            if !cancel.load(Ordering::Relaxed) {
+                *li = knn_into(t, index, scene, k, i, s, list, slot);
+            }
         });
     let needed: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
     lists[..n_core * k]
@@ -256,7 +265,7 @@ fn neighbour_lists(
         .enumerate()
         .for_each_init(scratch, |(s, list), (h, (slot, li))| {
             let j = n_core + h;
-            if needed[j].load(Ordering::Relaxed) {
+            if needed[j].load(Ordering::Relaxed) && !cancel.load(Ordering::Relaxed) {
                 *li = knn_into(t, index, scene, k, j, s, list, slot);
             }
         });
@@ -280,11 +289,16 @@ impl TileBuffers {
 }
 
 /// Step 3: the normal of every point with a neighbour list: the file's, or PCA oriented.
-fn tile_normals(t: &TilePoints, p: &ComputeParams<'_>, bufs: &TileBuffers) -> Vec<Option<V3>> {
+fn tile_normals(
+    t: &TilePoints,
+    p: &ComputeParams<'_>,
+    bufs: &TileBuffers,
+    cancel: &AtomicBool,
+) -> Vec<Option<V3>> {
     (0..t.xyz.len())
         .into_par_iter()
         .map(|i| {
-            if bufs.info[i].len == 0 {
+            if bufs.info[i].len == 0 || cancel.load(Ordering::Relaxed) {
                 return None;
             }
             if p.use_file_normals {
@@ -306,6 +320,7 @@ fn estimate_points(
     normals: &[Option<V3>],
     todo: &[usize],
     patch_of: &(dyn Fn(usize) -> u32 + Sync),
+    cancel: &AtomicBool,
 ) -> Vec<PointResult> {
     let mut done: Vec<PointResult> = Vec::with_capacity(todo.len());
     todo.par_iter()
@@ -317,7 +332,7 @@ fn estimate_points(
                 } else {
                     0
                 };
-                let Some(n0) = normals[i] else {
+                let Some(n0) = normals[i].filter(|_| !cancel.load(Ordering::Relaxed)) else {
                     // Fewer than 3 points in the whole neighbourhood: both reasons hold.
                     let few = if bufs.list(i, p.k).len() < 3 {
                         flags::FEW_NEIGHBOURS
@@ -353,7 +368,8 @@ fn estimate_points(
 /// Computes the core points of `t`. `scene` is the x/y extent of the whole cloud.
 /// With `--orient propagate`, the pass's patches are numbered from `first_patch` and `shared`
 /// says which of its points other passes also orient. `bufs` are the caller's reusable buffers
-/// (fresh ones cost a zeroed page per 4 KiB every tile).
+/// (fresh ones cost a zeroed page per 4 KiB every tile). Stops with [`Cancelled`] soon after
+/// `cancel` is set.
 pub fn compute_tile(
     t: &TilePoints,
     scene: &Rect,
@@ -361,14 +377,22 @@ pub fn compute_tile(
     first_patch: u32,
     shared: Shared,
     bufs: &mut TileBuffers,
-) -> TileOutcome {
+    cancel: &AtomicBool,
+) -> Result<TileOutcome, Cancelled> {
+    let stop = || match cancel.load(Ordering::Relaxed) {
+        true => Err(Cancelled),
+        false => Ok(()),
+    };
     let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids, p.k) else {
-        return TileOutcome::default();
+        return Ok(TileOutcome::default());
     };
     let (n, k, n_core) = (t.xyz.len(), p.k, t.n_core);
-    neighbour_lists(t, &index, scene, k, bufs);
+    stop()?;
+    neighbour_lists(t, &index, scene, k, bufs, cancel);
+    stop()?;
     let bufs = &*bufs;
-    let mut normals = tile_normals(t, p, bufs);
+    let mut normals = tile_normals(t, p, bufs, cancel);
+    stop()?;
     // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.
     let orientation = p.propagate.filter(|_| !p.use_file_normals).map(|centre| {
         let lists: Vec<&[u32]> = (0..n).map(|i| bufs.list(i, k)).collect();
@@ -397,8 +421,10 @@ pub fn compute_tile(
         .filter(|&i| !verified[i])
         .map(|i| t.ids[i])
         .collect();
-    let done = estimate_points(t, p, bufs, &normals, &todo, &patch_of);
-    TileOutcome {
+    stop()?;
+    let done = estimate_points(t, p, bufs, &normals, &todo, &patch_of, cancel);
+    stop()?;
+    Ok(TileOutcome {
         done,
         retry,
         // Each result carries its patch; the per-point components are not needed any more.
@@ -406,5 +432,74 @@ pub fn compute_tile(
             component: Vec::new(),
             ..o
         }),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 40 x 40 patch of the paraboloid z = (x^2 + y^2) / 2 (|H| = 1 at the apex), loaded as a
+    /// whole scene.
+    fn paraboloid() -> (TilePoints, Rect) {
+        let mut t = TilePoints {
+            xyz: Vec::new(),
+            ids: Vec::new(),
+            file_normals: Vec::new(),
+            n_core: 0,
+            region: Rect {
+                min: [f64::NEG_INFINITY; 2],
+                max: [f64::INFINITY; 2],
+            },
+        };
+        for i in 0..1600u64 {
+            let (x, y) = ((i % 40) as f64 * 0.01 - 0.2, (i / 40) as f64 * 0.01 - 0.2);
+            t.xyz.push([x, y, 0.5 * (x * x + y * y)]);
+            t.ids.push(i);
+            t.file_normals.push(None);
+        }
+        t.n_core = t.xyz.len();
+        let scene = Rect {
+            min: [-0.2; 2],
+            max: [0.2; 2],
+        };
+        (t, scene)
+    }
+
+    /// A set cancel flag stops the pass with `Cancelled` (no partial results); a clear one
+    /// computes every point, H near -1 at the apex (normals up point into the bowl, like inward
+    /// normals on a sphere, so H = -1/r by the convention of algorithms.md §5.2).
+    #[test]
+    fn a_set_cancel_flag_stops_the_pass() {
+        let (t, scene) = paraboloid();
+        let est = crate::core::estimate::EstimatorKind::CncAvgHexagram.build(&Default::default());
+        let p = ComputeParams {
+            k: 30,
+            orientation: Orientation::Up,
+            use_file_normals: false,
+            estimator: est.as_ref(),
+            extra: 0,
+            propagate: None,
+        };
+        let mut bufs = TileBuffers::default();
+        let all = Shared::All;
+        let stop = AtomicBool::new(true);
+        assert_eq!(
+            compute_tile(&t, &scene, &p, 0, all, &mut bufs, &stop).err(),
+            Some(Cancelled)
+        );
+        let go = AtomicBool::new(false);
+        let out = compute_tile(&t, &scene, &p, 0, all, &mut bufs, &go).expect("not cancelled");
+        assert_eq!(out.done.len(), t.xyz.len());
+        let apex = out
+            .done
+            .iter()
+            .find(|r| r.id == 20 * 40 + 20)
+            .expect("apex");
+        assert!(
+            (apex.curvature.h + 1.0).abs() < 0.05,
+            "H {}",
+            apex.curvature.h
+        );
     }
 }

@@ -143,7 +143,8 @@ impl TileJob<'_> {
             width: spec.halo,
         };
         let first = sidecar.anchors.len() as u32;
-        let mut outcome = compute_tile(&tile, scene, self.params, first, band, bufs);
+        let mut outcome = compute_tile(&tile, scene, self.params, first, band, bufs, cancel)
+            .map_err(|_| Error::Interrupted)?;
         keep(&mut outcome, sidecar);
         drop(tile);
         let mut results = std::mem::take(&mut outcome.done);
@@ -168,7 +169,8 @@ impl TileJob<'_> {
             )?;
             let covers = t.region.covers(scene);
             let first = sidecar.anchors.len() as u32;
-            let mut o = compute_tile(&t, scene, self.params, first, Shared::All, bufs);
+            let mut o = compute_tile(&t, scene, self.params, first, Shared::All, bufs, cancel)
+                .map_err(|_| Error::Interrupted)?;
             keep(&mut o, sidecar);
             results.append(&mut o.done);
             retry = o.retry;
