@@ -68,11 +68,18 @@ pub struct Exec<'a> {
     pub cancel: &'a AtomicBool,
 }
 
+/// Stack of each worker thread, which decodes LAZ chunks (the laz crate's decompressors keep
+/// their models on the stack) and runs the estimators: 8x rayon's 2 MiB default, so that a
+/// malformed chunk cannot overflow it (issue 12 item 2 reported an abort there). Address space
+/// only: pages are touched as used.
+const WORKER_STACK: usize = 16 << 20;
+
 impl<'a> Exec<'a> {
     /// The execution settings of `cfg`.
     pub fn new(cfg: &Config, reporter: &'a dyn Reporter, cancel: &'a AtomicBool) -> Result<Self> {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(cfg.threads)
+            .stack_size(WORKER_STACK)
             .build()
             .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
         Ok(Exec {
