@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use crate::core::estimate::{flags, Curvature, Estimator, Neighbourhood, Scratch, MAX_EXTRA};
-use crate::core::geometry::{sub, V3};
+use crate::core::geometry::{dot, sub, V3};
 use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::{orient, pca_normal, Orientation};
 use crate::core::plan::Rect;
@@ -163,7 +163,7 @@ impl NeighbourhoodBuf {
         if self.pos.len() < 3 {
             return Curvature::undefined(flags::FEW_NEIGHBOURS);
         }
-        estimator.estimate_extra(
+        let mut c = estimator.estimate_extra(
             &Neighbourhood {
                 positions: &self.pos,
                 normals: &self.nrm,
@@ -171,8 +171,25 @@ impl NeighbourhoodBuf {
             },
             &mut self.scratch,
             extra,
-        )
+        );
+        let r2 = self.pos.iter().map(|p| dot(*p, *p)).fold(0.0, f64::max);
+        if sharper_than(&c, r2.sqrt()) {
+            c.flags |= flags::SHARPER_THAN_NEIGHBOURHOOD;
+        }
+        c
     }
+}
+
+/// Whether the curvature's largest magnitude times the neighbourhood radius `r` exceeds 2
+/// (radius of curvature below r / 2: [`flags::SHARPER_THAN_NEIGHBOURHOOD`]). No sphere of
+/// radius R holds points farther than 2R from one of its points, so such a value fits no
+/// sphere through the neighbourhood. NaN parts (an estimator without k1, k2) are skipped.
+fn sharper_than(c: &Curvature, r: f64) -> bool {
+    let kappa = [c.k1.abs(), c.k2.abs(), c.h.abs(), c.k.abs().sqrt()]
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    kappa * r > 2.0
 }
 
 /// What the k-NN of one point left in its slot of the tile's flat list array.
@@ -464,6 +481,53 @@ mod tests {
             max: [0.2; 2],
         };
         (t, scene)
+    }
+
+    /// Flag 64 follows the geometric bound on a unit sphere (exact outward normals): up to
+    /// reach 1.4 the estimate is within 11% and never flagged; at reach 1.9 (most of the
+    /// sphere) CNC's H is 25% high, H r > 2, and the flag catches it. The rule itself on set
+    /// values: radius of curvature 0.4 is flagged exactly when r > 0.8.
+    #[test]
+    fn sharper_than_the_neighbourhood_is_the_sphere_bound() {
+        let est = crate::core::estimate::EstimatorKind::CncAvgHexagram.build(&Default::default());
+        let mut buf = NeighbourhoodBuf::with_capacity(400);
+        let q = [0.0, 0.0, 1.0];
+        let mut xyz = vec![q];
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        for i in 1..400 {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / 400.0;
+            let (s, a) = ((1.0 - z * z).sqrt(), golden * i as f64);
+            xyz.push([s * a.cos(), s * a.sin(), z]);
+        }
+        let ids: Vec<u64> = (0..xyz.len() as u64).collect();
+        let outward: Vec<Option<V3>> = xyz.iter().map(|p| Some(*p)).collect();
+        let dist = |j: u32| crate::core::geometry::norm(sub(xyz[j as usize], q));
+        for reach in [0.3, 1.0, 1.4, 1.9] {
+            let list: Vec<u32> = (0..xyz.len() as u32)
+                .filter(|&j| dist(j) <= reach)
+                .collect();
+            let r = list.iter().map(|&j| dist(j)).fold(0.0, f64::max);
+            let c = buf.estimate(est.as_ref(), &xyz, &ids, &outward, 0, &list, &mut []);
+            let flagged = c.flags & flags::SHARPER_THAN_NEIGHBOURHOOD != 0;
+            if reach < 1.5 {
+                assert!((c.h - 1.0).abs() < 0.11, "reach {reach}: H {}", c.h);
+                assert!(!flagged, "reach {reach}");
+            } else {
+                assert!(c.h * r > 2.0 && flagged, "reach {reach}: H {} r {r}", c.h);
+            }
+            let tight = Curvature {
+                h: 2.5,
+                k1: 2.5,
+                k2: 2.5,
+                k: 6.25,
+                ..c
+            };
+            assert_eq!(sharper_than(&tight, r), r > 0.8, "reach {reach}");
+        }
+        assert!(
+            !sharper_than(&Curvature::undefined(0), 10.0),
+            "NaN values are never flagged"
+        );
     }
 
     /// A set cancel flag stops the pass with `Cancelled` (no partial results); a clear one

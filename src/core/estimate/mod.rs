@@ -30,6 +30,11 @@ pub mod flags {
     pub const UMBILIC: u8 = 16;
     /// The normal came from the file, not from PCA.
     pub const FILE_NORMAL: u8 = 32;
+    /// The radius of curvature is below half the neighbourhood's radius (max(|k1|, |k2|, |H|,
+    /// sqrt|K|) times the distance r to the farthest neighbour exceeds 2): no sphere of that
+    /// radius can hold points r away, so the value says more about noise or the sampling than
+    /// about the surface (e.g. |H| > 100 /m from a 0.17 m neighbourhood). The value is kept.
+    pub const SHARPER_THAN_NEIGHBOURHOOD: u8 = 64;
     /// Flags under which H, K, k1, k2 are NaN.
     pub const UNDEFINED: u8 = FEW_NEIGHBOURS | DEGENERATE_NORMAL | DEGENERATE;
 }
