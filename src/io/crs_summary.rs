@@ -66,6 +66,50 @@ fn wkt_name(wkt: &str) -> Option<String> {
     Some(wkt[a + 1..b].to_string())
 }
 
+/// What a file says about its vertical unit, read from the record the horizontal unit came
+/// from ([`horizontal_unit`]'s choice: the WKT, else the GeoTIFF keys).
+#[derive(Debug, Clone, PartialEq)]
+pub enum VerticalUnit {
+    /// A vertical CRS with a unit tilecurv reads.
+    Declared(LengthUnit),
+    /// No vertical CRS at all (the common case): z is taken in the horizontal unit.
+    Undeclared(String),
+    /// A vertical CRS is declared but its unit cannot be read: z is taken in the horizontal
+    /// unit, with a warning.
+    Unreadable(String),
+}
+
+/// The vertical unit of a file whose VLRs and EVLRs are `records` (issue 13 item 3).
+pub fn vertical_unit<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> VerticalUnit {
+    let records: Vec<&Vlr> = records.into_iter().collect();
+    let wkt = records
+        .iter()
+        .find(|v| v.is("LASF_Projection", 2112))
+        .map(|v| String::from_utf8_lossy(&v.data).into_owned());
+    let from_wkt = matches!(horizontal_unit(records.iter().copied()), UnitSource::Wkt(_));
+    if let Some(w) = wkt.filter(|_| from_wkt) {
+        return match wkt_vertical_unit(&w) {
+            Ok(u) => VerticalUnit::Declared(u),
+            Err(why) if why.contains("no vertical CRS") => VerticalUnit::Undeclared(why),
+            Err(why) => VerticalUnit::Unreadable(why),
+        };
+    }
+    let Some(v) = records.iter().find(|v| v.is("LASF_Projection", 34735)) else {
+        return VerticalUnit::Undeclared("the file has no CRS".into());
+    };
+    let keys = geo_keys(&v.data);
+    match geotiff_vertical_unit(&keys) {
+        Ok(u) => VerticalUnit::Declared(u),
+        Err(why) if key(&keys, 4099).is_some() => VerticalUnit::Unreadable(why),
+        Err(_) => match key(&keys, 4096) {
+            Some(code) => VerticalUnit::Unreadable(format!(
+                "the GeoTIFF keys name the vertical CRS EPSG:{code} but no VerticalUnitsGeoKey"
+            )),
+            None => VerticalUnit::Undeclared("the GeoTIFF keys declare no vertical CRS".into()),
+        },
+    }
+}
+
 /// The unit of the vertical CRS of a (compound) WKT.
 pub fn wkt_vertical_unit(wkt: &str) -> Result<LengthUnit, String> {
     let wkt = without_spaces(wkt);

@@ -46,7 +46,8 @@ pub struct FileInfo {
     pub crs: CrsSummary,
     /// The extra dimensions, in record order.
     pub extra: Vec<ExtraDim>,
-    /// The text of tilecurv's provenance record, for a tilecurv output.
+    /// The text of tilecurv's provenance record, for a tilecurv output (the newest, when the
+    /// file also carries its input's).
     pub provenance: Option<String>,
 }
 
@@ -112,8 +113,11 @@ pub fn file_info(path: &Path) -> Result<FileInfo> {
                         offset: d.value_offset,
                     })
                     .collect(),
+                // The writer appends its record after the carried ones: a tilecurv output of a
+                // generated terrain carries `generate`'s record first.
                 provenance: records
                     .iter()
+                    .rev()
                     .find(|v| v.is(PROVENANCE.0, PROVENANCE.1))
                     .map(|v| String::from_utf8_lossy(&v.data).into_owned()),
             }

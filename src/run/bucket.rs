@@ -71,6 +71,7 @@ pub fn bucket_task(
         .map(|i| ScanInput {
             source: spec.sources[i].as_ref(),
             first_id: spec.first_ids[i],
+            z_scale: spec.z_scale,
         })
         .collect();
     let points = scan_inputs.iter().map(|s| s.source.len()).sum();

@@ -109,6 +109,65 @@ fn common_unit(
     })
 }
 
+/// The factor from the inputs' z unit to their horizontal unit, and its words for the
+/// provenance when it is not 1 (issue 13 item 3: a compound CRS in metres with heights in US
+/// survey feet made H 2.5x and K 5.1x too large). Without a horizontal unit there is nothing to
+/// convert to; a vertical CRS whose unit cannot be read is warned about; inputs whose factors
+/// differ are refused, as for the horizontal unit.
+fn vertical_scale(
+    sources: &[Box<dyn PointSource>],
+    horizontal: Option<&crate::io::crs::LengthUnit>,
+    reporter: &dyn Reporter,
+) -> Result<(f64, Option<String>)> {
+    use crate::io::crs_summary::VerticalUnit;
+    let Some(h) = horizontal else {
+        return Ok((1.0, None));
+    };
+    let mut found: Option<(f64, String)> = None;
+    for s in sources {
+        let (scale, words) = match s.vertical_unit() {
+            VerticalUnit::Declared(v) => (
+                v.metres / h.metres,
+                format!("z in {} converted to {}", v.name, h.name),
+            ),
+            VerticalUnit::Undeclared(_) => (1.0, String::new()),
+            VerticalUnit::Unreadable(why) => {
+                reporter.warn(&format!(
+                    "{}: {why}; z is taken in {}, like x and y: if the heights are in another unit, H and K are wrong",
+                    s.path().display(),
+                    h.symbol()
+                ));
+                (1.0, String::new())
+            }
+        };
+        // Units within a part in 1e12 of each other (ftUS written two ways) are the same.
+        let scale = if (scale - 1.0).abs() < 1e-12 {
+            1.0
+        } else {
+            scale
+        };
+        match &found {
+            Some((f, _)) if *f != scale => {
+                return Err(Error::Usage(format!(
+                    "{}: its heights need the factor {scale} to {}, the first input's {f}; process them separately",
+                    s.path().display(),
+                    h.symbol()
+                )))
+            }
+            Some(_) => {}
+            None => found = Some((scale, words)),
+        }
+    }
+    Ok(match found {
+        Some((f, words)) if f != 1.0 => {
+            let words = format!("{f} ({words})");
+            reporter.info(&format!("{}: z x {words}", sources[0].path().display()));
+            (f, Some(words))
+        }
+        _ => (1.0, None),
+    })
+}
+
 /// Whether an input already has columns named NormalX/Y/Z (a LAS file's normals).
 fn named_normals(s: &dyn PointSource) -> bool {
     s.properties()
@@ -224,6 +283,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         None => "file units".to_string(),
     };
     let tile_size = cfg.tile.in_file_units(unit.as_ref());
+    let (z_scale, z_words) = vertical_scale(&sources, unit.as_ref(), reporter)?;
     check_extent(&sources, TileGrid { size: tile_size })?;
     let file_normals = use_file_normals(cfg, &sources)?;
     let estimator = cfg.estimator.build(&cfg.params);
@@ -266,7 +326,15 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         first_ids,
         outputs: Vec::new(),
         grid: TileGrid { size: tile_size },
-        params: parameters(cfg, tile_size, &unit_name, file_normals),
+        params: {
+            let mut p = parameters(cfg, tile_size, &unit_name, file_normals);
+            p.extend(z_words.map(|value| crate::run::spec::Param {
+                key: "z_scale",
+                value,
+            }));
+            p
+        },
+        z_scale,
         config: cfg.params(),
         output_options: OutputOptions {
             keep_las_version: cfg.keep_version,

@@ -36,6 +36,9 @@ pub struct RunSpec {
     pub grid: TileGrid,
     /// The horizontal unit's symbol ("m", "ft", or "unit" without a CRS).
     pub unit_name: String,
+    /// Factor from the inputs' z unit to their horizontal unit (1 unless the CRS declares
+    /// another vertical unit): applied to z when the points are read, before any geometry.
+    pub z_scale: f64,
     /// Whether the inputs' normals are used instead of PCA.
     pub file_normals: bool,
     /// The columns written.

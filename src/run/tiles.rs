@@ -17,6 +17,7 @@ use crate::core::compute::{
     compute_tile, ComputeParams, PointResult, Shared, TileBuffers, TileOutcome,
 };
 use crate::core::estimate::flags;
+use crate::core::normals::Orientation;
 use crate::core::plan::{plan, ScanStats, TilePlan, TileSpec};
 use crate::core::point::BUCKET_POINT_BYTES;
 use crate::core::tasks::TaskLayout;
@@ -47,7 +48,11 @@ pub struct TilesDone {
 pub fn compute_params<'s>(spec: &'s RunSpec, stats: &ScanStats) -> ComputeParams<'s> {
     ComputeParams {
         k: spec.k,
-        orientation: spec.orientation.resolve(stats.centroid()),
+        // A viewpoint is given in file coordinates: its z converts like the points'.
+        orientation: match spec.orientation.resolve(stats.centroid()) {
+            Orientation::Viewpoint([x, y, z]) => Orientation::Viewpoint([x, y, z * spec.z_scale]),
+            o => o,
+        },
         use_file_normals: spec.file_normals,
         estimator: spec.estimator.as_ref(),
         extra: spec.cols.extra.len(),

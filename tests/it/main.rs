@@ -20,3 +20,4 @@ mod real_files;
 mod reference;
 mod sample;
 mod sampled;
+mod units;

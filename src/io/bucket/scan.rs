@@ -23,6 +23,19 @@ pub struct ScanInput<'a> {
     pub source: &'a dyn PointSource,
     /// Global id of its point 0 (the sum of the earlier inputs' counts).
     pub first_id: u64,
+    /// Factor from the file's z unit to its horizontal unit (1 unless the CRS says the
+    /// vertical unit differs): applied to every decoded z, and to file normals, before any
+    /// geometry.
+    pub z_scale: f64,
+}
+
+/// Converts a decoded point's z to the horizontal unit. A normal transforms by the inverse
+/// transpose of the scaling: its z is divided by the factor, then it is renormalised.
+fn rescale_z(p: &mut SourcePoint, s: f64) {
+    p.xyz[2] *= s;
+    if let Some(n) = p.normal {
+        p.normal = crate::core::geometry::normalize([n[0], n[1], n[2] / s]).or(p.normal);
+    }
 }
 
 /// Buckets held in memory during a scan, and where they spill.
@@ -84,6 +97,9 @@ pub fn scan(
                 let n = records.len() / rl;
                 for (i, rec) in records.chunks_exact(rl).enumerate() {
                     let mut p = input.source.decode(first + i as u64, rec);
+                    if input.z_scale != 1.0 {
+                        rescale_z(&mut p, input.z_scale);
+                    }
                     check_point(input.source, grid, &p)?;
                     p.id += input.first_id;
                     let key = grid.key(p.xyz[0], p.xyz[1]);

@@ -272,6 +272,13 @@ impl PointSource for LasSource {
         horizontal_unit(self.vlrs.iter().chain(self.evlrs.iter().map(|(_, v)| v)))
     }
 
+    /// The vertical unit of the file's CRS, from the record that gives the horizontal one.
+    fn vertical_unit(&self) -> crate::io::crs_summary::VerticalUnit {
+        crate::io::crs_summary::vertical_unit(
+            self.vlrs.iter().chain(self.evlrs.iter().map(|(_, v)| v)),
+        )
+    }
+
     /// Decodes one raw record into a [`SourcePoint`].
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
         let h = &self.header;

@@ -44,6 +44,10 @@ pub trait PointSource: Send + Sync {
     fn has_normals(&self) -> bool;
     /// The horizontal unit of the file's CRS.
     fn unit(&self) -> UnitSource;
+    /// The vertical unit of the file's CRS (only LAS files carry one).
+    fn vertical_unit(&self) -> crate::io::crs_summary::VerticalUnit {
+        crate::io::crs_summary::VerticalUnit::Undeclared(format!("{} has no CRS", self.describe()))
+    }
     /// Bytes per raw record in the chunks passed to `for_each_chunk`.
     fn record_length(&self) -> usize;
     /// Streams the raw records in file order, about `chunk_points` at a time, calling
