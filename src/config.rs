@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use crate::core::estimate::{EstimatorKind, EstimatorParams};
 use crate::core::geometry::V3;
 use crate::core::normals::Orientation;
+use crate::core::select::{parse_classes, ClassFilter, Classes};
 use crate::error::{Error, Result};
 use crate::io::crs::LengthUnit;
 
@@ -250,6 +251,8 @@ pub struct Config {
     /// Name a PLY output's new columns as in LAS (`NormalX`, `H`) instead of CloudCompare's
     /// `nx`, `scalar_H`.
     pub ply_las_names: bool,
+    /// Which points are computed (`--classes`, `--skip-classes`, `--skip-withheld`).
+    pub select: ClassFilter,
 }
 
 impl Default for Config {
@@ -278,6 +281,7 @@ impl Default for Config {
             sample_faces: None,
             keep_version: false,
             ply_las_names: false,
+            select: ClassFilter::default(),
         }
     }
 }
@@ -323,6 +327,16 @@ impl Config {
             ),
             p("keep_version", self.keep_version.to_string()),
             p("ply_las_names", self.ply_las_names.to_string()),
+            p(
+                "classes",
+                self.select
+                    .only
+                    .as_deref()
+                    .map(|c| Classes(c).to_string())
+                    .unwrap_or_default(),
+            ),
+            p("skip_classes", Classes(&self.select.skip).to_string()),
+            p("skip_withheld", self.select.skip_withheld.to_string()),
         ]);
         v
     }
@@ -361,6 +375,13 @@ impl Config {
             "tile" => self.tile = Length::parse(value)?,
             "keep_version" => self.keep_version = flag(value)?,
             "ply_las_names" => self.ply_las_names = flag(value)?,
+            "classes" => {
+                self.select.only = (!value.is_empty())
+                    .then(|| parse_classes(value))
+                    .transpose()?
+            }
+            "skip_classes" => self.select.skip = parse_classes(value)?,
+            "skip_withheld" => self.select.skip_withheld = flag(value)?,
             "sample_faces" => {
                 self.sample_faces = (!value.is_empty()).then(|| num(value)).transpose()?
             }

@@ -155,6 +155,33 @@ pub struct ResultArgs {
     /// ignores other names) and shows without the scalar_ prefix.
     #[arg(long)]
     ply_las_names: bool,
+
+    /// Compute only on points of these LAS classes, e.g. 2,9 (ground and water). Neighbourhoods
+    /// are formed among the selected points only; every point stays in the output, the others
+    /// with NaN values and flag 128 (not computed). Inputs without classes (PLY, XYZ, ...)
+    /// cannot be filtered. Default: every class but --skip-classes
+    #[arg(long, value_name = "LIST", value_parser = ClassList::parse)]
+    classes: Option<ClassList>,
+
+    /// Never compute on points of these LAS classes (they are written with flag 128). The
+    /// default skips the noise classes, 7 (low point) and 18 (high noise), whose isolated
+    /// points would bend their neighbours' curvature; `none` computes on every class
+    #[arg(long, value_name = "LIST", default_value = "7,18", value_parser = ClassList::parse)]
+    skip_classes: ClassList,
+
+    /// Never compute on points with the LAS withheld flag (written with flag 128)
+    #[arg(long)]
+    skip_withheld: bool,
+}
+
+/// A list of LAS classes on the command line (`2,9` or `none`).
+#[derive(Debug, Clone)]
+pub struct ClassList(Vec<u8>);
+
+impl ClassList {
+    fn parse(s: &str) -> std::result::Result<Self, String> {
+        crate::core::select::parse_classes(s).map(ClassList)
+    }
 }
 
 /// The options that change how a run executes, never its output.
@@ -281,6 +308,11 @@ impl ResultArgs {
         cfg.sample_faces = self.sample_faces;
         cfg.keep_version = self.keep_version;
         cfg.ply_las_names = self.ply_las_names;
+        cfg.select = crate::core::select::ClassFilter {
+            only: self.classes.as_ref().map(|c| c.0.clone()),
+            skip: self.skip_classes.0.clone(),
+            skip_withheld: self.skip_withheld,
+        };
     }
 }
 

@@ -74,6 +74,18 @@ pub struct PointResult {
 }
 
 impl PointResult {
+    /// The result of a point that was not computed (its class is not selected): NaN values,
+    /// flag [`flags::NOT_COMPUTED`].
+    pub fn not_computed(id: u64) -> PointResult {
+        PointResult {
+            id,
+            normal: [f64::NAN; 3],
+            curvature: Curvature::undefined(flags::NOT_COMPUTED),
+            extra: [f64::NAN; MAX_EXTRA],
+            patch: NO_PATCH,
+        }
+    }
+
     /// The result as it reads with the opposite normal: the normal negated, the curvature
     /// [`Curvature::flipped`], and the extra values marked `flips` in `extra` (the estimator's
     /// [`Estimator::extra_columns`]) negated; NaN stays NaN bit for bit. The one flip of

@@ -11,6 +11,7 @@ pub mod orient;
 pub mod plan;
 pub mod point;
 pub mod rng;
+pub mod select;
 pub mod surface;
 pub mod tasks;
 pub mod tile;

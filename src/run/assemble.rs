@@ -7,8 +7,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::config::OrientMode;
+use crate::core::compute::PointResult;
 use crate::core::orient::GlobalPatch;
 use crate::core::plan::TilePlan;
+use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::results::{tile_path, Merger};
@@ -50,6 +52,7 @@ pub fn assemble_outputs(
             &mut merger,
             flips.as_deref(),
             &spec.cols,
+            &spec.select,
             output,
             &provenance,
             &spec.output_options,
@@ -73,6 +76,7 @@ pub fn assemble(
     merger: &mut Merger,
     flips: Option<&[Vec<bool>]>,
     cols: &ColumnSet,
+    select: &ClassFilter,
     output: &Path,
     provenance: &str,
     options: &OutputOptions,
@@ -88,6 +92,7 @@ pub fn assemble(
         merger,
         flips,
         cols,
+        select,
         chunk_points,
         reporter,
         cancel,
@@ -108,6 +113,7 @@ fn merge_into(
     merger: &mut Merger,
     flips: Option<&[Vec<bool>]>,
     cols: &ColumnSet,
+    select: &ClassFilter,
     chunk_points: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
@@ -122,6 +128,12 @@ fn merge_into(
         out.clear();
         for (j, r) in records.chunks_exact(rl).enumerate() {
             let id = first_id + first + j as u64;
+            if !select.selects(source.class_of(r)) {
+                // Left out of the buckets by the scan: no result, NaN and flag 128.
+                out.extend_from_slice(r);
+                cols.encode(&PointResult::not_computed(id), &mut out);
+                continue;
+            }
             match merger.next(&mut rec)? {
                 Some(rid) if rid == id => {}
                 Some(rid) => {

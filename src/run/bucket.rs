@@ -72,6 +72,7 @@ pub fn bucket_task(
             source: spec.sources[i].as_ref(),
             first_id: spec.first_ids[i],
             z_scale: spec.z_scale,
+            select: &spec.select,
         })
         .collect();
     let points = scan_inputs.iter().map(|s| s.source.len()).sum();

@@ -168,6 +168,25 @@ fn vertical_scale(
     })
 }
 
+/// Refuses a class filter beyond the default on an input without LAS classes (PLY, XYZ, ...):
+/// it would silently compute on every point.
+fn check_classes(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<()> {
+    if !cfg.select.needs_classes() {
+        return Ok(());
+    }
+    match sources
+        .iter()
+        .find(|s| !matches!(s.layout(), SourceLayout::Las(_)))
+    {
+        Some(s) => Err(Error::Usage(format!(
+            "{}: {} has no LAS classes or withheld flags, so --classes, --skip-classes and --skip-withheld cannot select its points; drop them or convert the file to LAS with a classification",
+            s.path().display(),
+            s.describe()
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// Whether an input already has columns named NormalX/Y/Z (a LAS file's normals).
 fn named_normals(s: &dyn PointSource) -> bool {
     s.properties()
@@ -285,6 +304,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     let tile_size = cfg.tile.in_file_units(unit.as_ref());
     let (z_scale, z_words) = vertical_scale(&sources, unit.as_ref(), reporter)?;
     check_extent(&sources, TileGrid { size: tile_size })?;
+    check_classes(cfg, &sources)?;
     let file_normals = use_file_normals(cfg, &sources)?;
     let estimator = cfg.estimator.build(&cfg.params);
     let cols = ColumnSet {
@@ -335,6 +355,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
             p
         },
         z_scale,
+        select: cfg.select.clone(),
         config: cfg.params(),
         output_options: OutputOptions {
             keep_las_version: cfg.keep_version,

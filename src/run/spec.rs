@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use crate::config::{ColumnType, Config, OrientMode};
 use crate::core::estimate::Estimator;
 use crate::core::plan::TileGrid;
+use crate::core::select::{ClassFilter, Classes};
 use crate::io::columns::ColumnSet;
 use crate::io::sink::OutputOptions;
 use crate::io::source::PointSource;
@@ -53,6 +54,8 @@ pub struct RunSpec {
     pub params: Vec<Param>,
     /// Every output-changing option as given ([`Config::params`]): the manifest stores them.
     pub config: Vec<crate::config::Param>,
+    /// Which points are computed.
+    pub select: ClassFilter,
     /// How the outputs are written besides their columns.
     pub output_options: OutputOptions,
 }
@@ -81,6 +84,16 @@ pub fn parameters(cfg: &Config, tile_size: f64, unit: &str, file_normals: bool) 
         p("features", cfg.features.to_string()),
         p("keep_version", cfg.keep_version.to_string()),
         p("ply_las_names", cfg.ply_las_names.to_string()),
+        p(
+            "classes",
+            cfg.select
+                .only
+                .as_deref()
+                .map(|c| Classes(c).to_string())
+                .unwrap_or_else(|| "all".into()),
+        ),
+        p("skip_classes", Classes(&cfg.select.skip).to_string()),
+        p("skip_withheld", cfg.select.skip_withheld.to_string()),
     ];
     if let Some(n) = cfg.sample_faces {
         v.push(p(

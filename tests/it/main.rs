@@ -1,6 +1,7 @@
 //! Integration tests: the `tilecurv` binary on real and synthetic files.
 
 mod bad_input;
+mod classes;
 mod closed_form;
 mod cluster;
 mod common;

@@ -35,8 +35,11 @@ pub mod flags {
     /// radius can hold points r away, so the value says more about noise or the sampling than
     /// about the surface (e.g. |H| > 100 /m from a 0.17 m neighbourhood). The value is kept.
     pub const SHARPER_THAN_NEIGHBOURHOOD: u8 = 64;
+    /// Not computed: the point's class is not selected (`--classes`, `--skip-classes`,
+    /// `--skip-withheld`); every value is NaN.
+    pub const NOT_COMPUTED: u8 = 128;
     /// Flags under which H, K, k1, k2 are NaN.
-    pub const UNDEFINED: u8 = FEW_NEIGHBOURS | DEGENERATE_NORMAL | DEGENERATE;
+    pub const UNDEFINED: u8 = FEW_NEIGHBOURS | DEGENERATE_NORMAL | DEGENERATE | NOT_COMPUTED;
 }
 
 /// What an estimator sees for one query point. Index 0 is the query point itself.

@@ -13,6 +13,7 @@ use super::stats::stats_text;
 use super::{Buckets, TaskDir, DONE};
 use crate::core::plan::{computable, MemoryPlan, ScanStats, TileGrid, TileKey, MAX_COORDINATE};
 use crate::core::point::{SourcePoint, BUCKET_POINT_BYTES as POINT_BYTES};
+use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::source::PointSource;
 use crate::io::workdir::{sync_dir, sync_files, tmp_name, write_durably};
@@ -27,6 +28,9 @@ pub struct ScanInput<'a> {
     /// vertical unit differs): applied to every decoded z, and to file normals, before any
     /// geometry.
     pub z_scale: f64,
+    /// Which points are computed: the others are left out of the buckets (their neighbours
+    /// never see them) and written as not computed.
+    pub select: &'a ClassFilter,
 }
 
 /// Converts a decoded point's z to the horizontal unit. A normal transforms by the inverse
@@ -95,7 +99,11 @@ pub fn scan(
             .source
             .for_each_chunk(chunk_points, &mut |first, records| {
                 let n = records.len() / rl;
+                let mut kept = 0;
                 for (i, rec) in records.chunks_exact(rl).enumerate() {
+                    if !input.select.selects(input.source.class_of(rec)) {
+                        continue;
+                    }
                     let mut p = input.source.decode(first + i as u64, rec);
                     if input.z_scale != 1.0 {
                         rescale_z(&mut p, input.z_scale);
@@ -105,8 +113,9 @@ pub fn scan(
                     let key = grid.key(p.xyz[0], p.xyz[1]);
                     stats.add(p.xyz, key);
                     held.mem.entry(key).or_default().push(p);
+                    kept += 1;
                 }
-                held.bytes += n * POINT_BYTES;
+                held.bytes += kept * POINT_BYTES;
                 if held.bytes > memory.buckets_bytes {
                     held.spill_largest(memory.buckets_after_spill_bytes)?;
                 }

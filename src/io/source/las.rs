@@ -279,6 +279,19 @@ impl PointSource for LasSource {
         )
     }
 
+    /// The classification and withheld flag of a record: point formats 0-5 keep both in byte
+    /// 15 (class in bits 0-4, withheld bit 7), formats 6-10 the class in byte 16 and withheld
+    /// as bit 2 of byte 15.
+    fn class_of(&self, rec: &[u8]) -> Option<crate::core::select::PointClass> {
+        let (class, withheld) = if self.header.point_format < 6 {
+            let b = *rec.get(15)?;
+            (b & 0x1f, b & 0x80 != 0)
+        } else {
+            (*rec.get(16)?, rec.get(15)? & 0x04 != 0)
+        };
+        Some(crate::core::select::PointClass { class, withheld })
+    }
+
     /// Decodes one raw record into a [`SourcePoint`].
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
         let h = &self.header;

@@ -59,6 +59,11 @@ pub trait PointSource: Send + Sync {
     ) -> Result<()>;
     /// Decodes one raw record.
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
+    /// The LAS classification and withheld flag of one raw record (None: the format has
+    /// none, only LAS records do).
+    fn class_of(&self, _rec: &[u8]) -> Option<crate::core::select::PointClass> {
+        None
+    }
     /// A short description of the format for the log, e.g. "LAS 1.4 format 6 (LAZ)".
     fn describe(&self) -> String;
     /// How the raw records are laid out: LAS records with the file's header, VLRs, EVLRs and
