@@ -311,3 +311,45 @@ fn fuzz_findings_fail_cleanly() {
     }
     assert!(n > 0, "no findings read");
 }
+
+/// A fuzz finding: a LASzip VLR whose fixed chunk size is 2^32-2 made the laz codec reserve a
+/// 4 GiB buffer (libFuzzer's out-of-memory, an abort wherever address space is limited). The
+/// chunk size is now clamped to the point count, which decodes the same points: under
+/// `ulimit -v` of 1.5 GiB the corrupt file is bad input (exit 3), the valid file it was cut
+/// from (chunk size 50000, 5658 points) is computed.
+#[test]
+fn a_huge_laz_chunk_size_reserves_nothing() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let limited = |input: &Path, out: &Path| {
+        let script = format!(
+            "ulimit -v 1500000; exec {} process {} -o {} -q --memory 256M --threads 1",
+            env!("CARGO_BIN_EXE_tilecurv"),
+            input.display(),
+            out.display()
+        );
+        let r = std::process::Command::new("sh")
+            .args(["-c", &script])
+            .output()
+            .expect("sh");
+        (
+            r.status.code(),
+            String::from_utf8_lossy(&r.stderr).into_owned(),
+        )
+    };
+    let out = dir.path().join("o.las");
+    let finding = root().join("tests/fuzz_findings/las-oom-85453f38.laz");
+    let (code, err) = limited(&finding, &out);
+    assert_eq!(code, Some(3), "{err}");
+    assert!(
+        err.contains("LAZ") && !err.contains("memory allocation"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    if let Some(valid) = crate::common::shared("las/32-1-472-150-76.laz") {
+        let (code, err) = limited(&valid, &out);
+        assert_eq!(code, Some(0), "{err}");
+        let h = crate::common::column(&out, "H");
+        assert_eq!(h.len(), 5658);
+        assert!(h.iter().filter(|v| v.is_finite()).count() > 5000);
+    }
+}

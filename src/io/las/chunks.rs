@@ -89,6 +89,12 @@ pub fn read_chunk_table(
         if e.byte_count == 0 || points == 0 || e.byte_count > data_bytes {
             return Err(bad(table_at, format!("LAZ chunk {i} of {count} is declared with {points} points in {} bytes; the chunk table is corrupt", e.byte_count)));
         }
+        // Variable-size chunks hold the file's points between them: one declaring more than
+        // are left would size the codec's buffer from garbage (a fuzz finding: 2^32-2 points,
+        // a 4 GiB allocation).
+        if variable && points > n - first_point.min(n) {
+            return Err(bad(table_at, format!("LAZ chunk {i} of {count} is declared with {points} points, but only {} of the header's {n} points are left for it; the chunk table is corrupt", n - first_point.min(n))));
+        }
         chunks.push(Chunk {
             first_point,
             offset,

@@ -219,8 +219,21 @@ fn normal_dims(extra: &[Descriptor]) -> Option<[Descriptor; 3]> {
 fn laz_layout(path: &Path, header: &LasHeader, vlrs: &[Vlr]) -> Result<laz::LazVlr> {
     let v = vlrs.iter().find(|v| v.is("laszip encoded", 22204)).ok_or_else(|| Error::bad_input(path, Some(104),
         "the point format says LAZ-compressed but there is no LASzip VLR (\"laszip encoded\", 22204)"))?;
-    let lv = laz::LazVlr::from_buffer(&v.data)
-        .map_err(|e| Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}")))?;
+    let read = |data: &[u8]| {
+        laz::LazVlr::from_buffer(data).map_err(|e| {
+            Error::bad_input(path, None, format!("the LASzip VLR cannot be read: {e}"))
+        })
+    };
+    let mut lv = read(&v.data)?;
+    // A fixed chunk size beyond the point count means one chunk of all the points. The codec
+    // reserves a buffer of the chunk size (a fuzz finding: 2^32-2, a 4 GiB allocation), so it
+    // is given the point count instead, which decodes the same points.
+    let n = header.point_count.max(1);
+    if !lv.uses_variable_size_chunks() && lv.chunk_size() as u64 > n && v.data.len() >= 16 {
+        let mut data = v.data.clone();
+        data[12..16].copy_from_slice(&(n.min(u32::MAX as u64 - 1) as u32).to_le_bytes());
+        lv = read(&data)?;
+    }
     if lv.items_size() != header.record_length as u64 {
         return Err(Error::bad_input(
             path,
