@@ -201,8 +201,10 @@ pub struct ExecArgs {
     #[arg(long = "chunk-size", default_value_t = 1_000_000)]
     chunk_points: usize,
 
-    /// Append one JSON line per tile and per phase to FILE (phase, done and total points,
-    /// points/s, ETA in seconds), for a scheduler or a dashboard.
+    /// Append one JSON line per tile and per phase to FILE, `-` for standard output (event,
+    /// phase, done and total points, points/s, the phase's and the whole run's ETA in seconds),
+    /// for a scheduler or a dashboard; the last line is a `summary` event (points, undefined,
+    /// tiles, tiles_resumed, retried, outputs, wall_s).
     #[arg(long, value_name = "FILE")]
     progress_json: Option<PathBuf>,
 

@@ -94,18 +94,7 @@ fn text(f: &FileInfo) -> String {
 
 /// A JSON string literal.
 fn s(v: &str) -> String {
-    let mut o = String::from("\"");
-    for c in v.chars() {
-        match c {
-            '"' => o.push_str("\\\""),
-            '\\' => o.push_str("\\\\"),
-            '\n' => o.push_str("\\n"),
-            c if (c as u32) < 0x20 => o.push_str(&format!("\\u{:04x}", c as u32)),
-            c => o.push(c),
-        }
-    }
-    o.push('"');
-    o
+    crate::progress::json_str(v)
 }
 
 /// A JSON number (null when not finite, which JSON cannot hold).

@@ -186,18 +186,41 @@ fn generate(args: TerrainArgs) -> Result<i32, i32> {
     Ok(exit::OK)
 }
 
+/// The `summary` event of `--progress-json`: the run's counts and outputs.
+pub(crate) fn summary_event(reporter: &TermReporter, s: &crate::run::Summary) {
+    let outputs: Vec<String> = s
+        .outputs
+        .iter()
+        .map(|o| crate::progress::json_str(&o.to_string_lossy()))
+        .collect();
+    reporter.summary(
+        &[
+            ("points", s.points.to_string()),
+            ("undefined", s.undefined.to_string()),
+            ("tiles", s.tiles.to_string()),
+            ("tiles_resumed", s.tiles_resumed.to_string()),
+            ("retried", s.retried.to_string()),
+            ("outputs", format!("[{}]", outputs.join(","))),
+        ],
+        s.seconds,
+    );
+}
+
 /// `tilecurv process`.
 fn process(args: ProcessArgs) -> Result<i32, i32> {
     let quiet = args.quiet();
     let cfg = args.into_config();
     let reporter = reporter(quiet, &cfg)?;
     let s = crate::run::process(&cfg, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    if !cfg.dry_run {
+        summary_event(&reporter, &s);
+    }
     if !quiet && !cfg.dry_run {
         say!(
-            "done: {} points in {:.1} s ({:.0} points/s), {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
+            "done: {} points in {:.1} s ({}), {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
             s.points,
             s.seconds,
-            s.points as f64 / s.seconds.max(1e-9),
+            crate::progress::human_rate(s.points as f64 / s.seconds.max(1e-9)),
             s.tiles,
             s.tiles_resumed,
             s.undefined,

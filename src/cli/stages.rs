@@ -82,6 +82,7 @@ pub fn assemble(a: AssembleArgs) -> Result<i32, i32> {
     };
     let reporter = reporter(a.exec.quiet(), &cfg)?;
     let s = cluster::assemble(&a.work, &cfg, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    super::summary_event(&reporter, &s);
     if !a.exec.quiet() {
         say!(
             "done: {} points of {} tiles in {:.1} s -> {} (the work directory {} is kept; remove it when done)",

@@ -248,5 +248,6 @@ pub fn assemble(
         tiles_resumed: tplan.tiles.len(),
         retried: 0,
         seconds: started.elapsed().as_secs_f64(),
+        outputs: a.spec.outputs.clone(),
     })
 }

@@ -52,6 +52,8 @@ pub struct Summary {
     pub retried: u64,
     /// Wall time in seconds.
     pub seconds: f64,
+    /// The outputs written.
+    pub outputs: Vec<PathBuf>,
 }
 
 /// How the stages execute: none of this changes the output.
@@ -145,6 +147,7 @@ pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Re
         tiles_resumed: resumed,
         retried,
         seconds: started.elapsed().as_secs_f64(),
+        outputs: spec.outputs.clone(),
     };
     if cfg.dry_run {
         dry_run::dry_run(&spec, &exec, &path)?;
