@@ -42,7 +42,7 @@ def main() -> int:
         problems.append("CurvatureFlags missing or not uint8")
     else:
         flags_col = np.asarray(b["CurvatureFlags"])
-        undefined = (flags_col & 7) != 0
+        undefined = (flags_col & (1 | 2 | 4 | 128)) != 0  # few, normal, estimator, not computed
         h = np.asarray(b["H"])
         if np.isnan(h[~undefined]).any():
             problems.append("NaN in H on a point without an undefined flag")

@@ -33,7 +33,7 @@ pub enum GenerateKind {
     ///
     /// Units: coordinates in metres (WGS 84 / UTM zone 10N, EPSG:32610, declared by GeoTIFF
     /// keys with metre units; scale 0.001 m) around easting 500000, northing 4100000. Points
-    /// are LAS 1.2 point format 1 (GPS time), ordered by flight strip (north-south, 250 m wide)
+    /// are LAS 1.4 point format 1 (GPS time), ordered by flight strip (north-south, 250 m wide)
     /// and scan row, classified as ground. Extra-bytes columns (f64): TrueH (mean curvature,
     /// 1/m), TrueK (Gaussian curvature, 1/m^2), Truek1 <= Truek2 (principal curvatures, 1/m),
     /// with the upward normal: positive on hilltops, the sign of `process`'s H, K, k1, k2.
@@ -49,7 +49,7 @@ pub struct TerrainArgs {
     pub output: PathBuf,
 
     /// Number of points: 2000000, 2M, 500k, 1e6 (k, M, G = powers of ten). At most 4294967295
-    /// (LAS 1.2).
+    /// (point format 1's 32-bit legacy count).
     #[arg(long, value_parser = crate::tools::generate::parse_count)]
     pub points: u64,
 

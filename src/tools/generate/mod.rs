@@ -1,5 +1,5 @@
 //! `tilecurv generate terrain`: synthetic aerial-LIDAR-like terrain of any size with closed-form
-//! curvature, written as LAS 1.2 / LAZ (point format 1) with the true H, K, k1, k2 of every point
+//! curvature, written as LAS 1.4 / LAZ (point format 1) with the true H, K, k1, k2 of every point
 //! as f64 extra bytes `TrueH`, `TrueK`, `Truek1`, `Truek2`, so that the accuracy of `process` can
 //! be checked on clouds as large as the engine must handle.
 //!
@@ -70,7 +70,7 @@ impl TerrainOptions {
         }
         if self.points > u64::from(u32::MAX) {
             return Err(Error::Usage(format!(
-                "--points {}: a LAS 1.2 file holds at most {} points; generate several files with different --seed",
+                "--points {}: a point format 1 file holds at most {} points (its legacy 32-bit count); generate several files with different --seed",
                 self.points,
                 u32::MAX
             )));
@@ -178,12 +178,13 @@ fn truth_descriptors() -> Vec<u8> {
         .collect()
 }
 
-/// The LAS 1.2 header of the output (227 bytes; the layout fields are the writer's). The
+/// The LAS 1.4 header of the output (375 bytes, so that PDAL shows the truth columns from the
+/// extra-bytes VLR as it does for `process` outputs; the layout fields are the writer's). The
 /// bounds are known only once every point is written: until [`LasFileWriter::set_bounds`] they
 /// are those of the origin.
 fn new_header(points: u64, software: &str) -> NewHeader<'_> {
     NewHeader {
-        minor: 2,
+        minor: 4,
         system: "SYNTHETIC TERRAIN",
         software,
         point_format: POINT_FORMAT,
