@@ -190,8 +190,9 @@ fn seeds_tied_in_distance_go_by_position_not_by_index() {
 
 #[test]
 fn anchors_tied_in_distance_go_by_position() {
-    // Two groups of patches, each with two anchors equally far from the centre that disagree:
-    // the anchor at the smaller position decides, whatever the ids and the order.
+    // Two patches whose votes agree, with anchors equally far from the centre that disagree
+    // (one says inward, one outward): the anchor at the smaller position decides, whatever
+    // the ids.
     let vote = PatchVote {
         a: 0,
         b: 1,
