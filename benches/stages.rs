@@ -157,7 +157,6 @@ fn main() {
             let c = buf.estimate(
                 estimator.as_ref(),
                 &t.xyz,
-                &t.ids,
                 &normals,
                 i,
                 &lists[i * k..(i + 1) * k],

@@ -274,7 +274,7 @@ fn us_per(d: Duration, items: usize) -> f64 {
 }
 
 /// Replays stored results, so that [`evaluate`] scores exactly the values that were timed
-/// (`estimate_point` passes the point's index as `ids[0]`).
+/// (`run_timed` passes the point's index as the key).
 struct Replay<'a> {
     results: &'a [Curvature],
 }
@@ -285,7 +285,7 @@ impl Estimator for Replay<'_> {
     }
 
     fn estimate(&self, nb: &Neighbourhood<'_>, _: &mut Scratch) -> Curvature {
-        self.results[nb.ids[0] as usize]
+        self.results[nb.key as usize]
     }
 }
 
@@ -299,20 +299,18 @@ fn run_timed(
     selected: &[usize],
 ) -> (Vec<Curvature>, Times) {
     let mut results = vec![Curvature::undefined(0); cloud.len()];
-    let (mut pos, mut nrm, mut ids, mut ends) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut pos, mut nrm, mut ends) = (Vec::new(), Vec::new(), Vec::new());
     let mut total = Times::default();
     let mut scratch = Scratch::default();
     for batch in selected.chunks(BATCH) {
         pos.clear();
         nrm.clear();
-        ids.clear();
         ends.clear();
         for &i in batch {
             let q = cloud.positions[i];
             for &j in &knn[i] {
                 pos.push(sub(cloud.positions[j], q));
                 nrm.push(cloud.normals[j]);
-                ids.push(j as u64);
             }
             ends.push(pos.len());
         }
@@ -323,7 +321,7 @@ fn run_timed(
                 &Neighbourhood {
                     positions: &pos[start..end],
                     normals: &nrm[start..end],
-                    ids: &ids[start..end],
+                    key: i as u64,
                 },
                 &mut scratch,
             );

@@ -126,7 +126,8 @@ pub struct ResultArgs {
     #[arg(long = "f64")]
     f64_columns: bool,
 
-    /// Seed of randomised estimators (each point's stream comes from the seed and its index).
+    /// Seed of randomised estimators (each point's stream comes from the seed and the point's
+    /// coordinates, so that it does not depend on the order of the records).
     #[arg(long, default_value_t = 0)]
     seed: u64,
 

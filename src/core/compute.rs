@@ -11,6 +11,7 @@ use crate::core::geometry::{dot, sub, V3};
 use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::{orient, pca_normal, Orientation};
 use crate::core::plan::Rect;
+use crate::core::rng::position_key;
 use crate::core::tile::TilePoints;
 
 /// What to compute per point.
@@ -132,7 +133,6 @@ pub struct TileOutcome {
 pub struct NeighbourhoodBuf {
     pos: Vec<V3>,
     nrm: Vec<V3>,
-    ids: Vec<u64>,
     scratch: Scratch,
 }
 
@@ -142,7 +142,6 @@ impl NeighbourhoodBuf {
         NeighbourhoodBuf {
             pos: Vec::with_capacity(k),
             nrm: Vec::with_capacity(k),
-            ids: Vec::with_capacity(k),
             scratch: Scratch::default(),
         }
     }
@@ -150,13 +149,13 @@ impl NeighbourhoodBuf {
     /// Runs `estimator` on point `i` with its neighbour list `list` (local indices, `i` first):
     /// positions relative to point `i`, and only the neighbours that have a normal (the others
     /// cannot contribute to a measure); fewer than 3 such points give FEW_NEIGHBOURS. The
-    /// estimator's first `extra.len()` extra values go to `extra`.
-    #[allow(clippy::too_many_arguments)]
+    /// random key is the point's [`position_key`], so that a randomised estimator's result
+    /// depends on where the point is, not on its id. The estimator's first `extra.len()` extra
+    /// values go to `extra`.
     pub fn estimate(
         &mut self,
         estimator: &dyn Estimator,
         xyz: &[V3],
-        ids: &[u64],
         normals: &[Option<V3>],
         i: usize,
         list: &[u32],
@@ -164,12 +163,10 @@ impl NeighbourhoodBuf {
     ) -> Curvature {
         self.pos.clear();
         self.nrm.clear();
-        self.ids.clear();
         for &j in list {
             if let Some(nj) = normals[j as usize] {
                 self.pos.push(sub(xyz[j as usize], xyz[i]));
                 self.nrm.push(nj);
-                self.ids.push(ids[j as usize]);
             }
         }
         if self.pos.len() < 3 {
@@ -179,7 +176,7 @@ impl NeighbourhoodBuf {
             &Neighbourhood {
                 positions: &self.pos,
                 normals: &self.nrm,
-                ids: &self.ids,
+                key: position_key(&xyz[i]),
             },
             &mut self.scratch,
             extra,
@@ -379,7 +376,7 @@ fn estimate_points(
                 let list = bufs.list(i, p.k);
                 let mut extra = [f64::NAN; MAX_EXTRA];
                 let out = &mut extra[..p.extra.min(MAX_EXTRA)];
-                let mut curvature = s.estimate(p.estimator, &t.xyz, &t.ids, normals, i, list, out);
+                let mut curvature = s.estimate(p.estimator, &t.xyz, normals, i, list, out);
                 curvature.flags |= file_flag;
                 PointResult {
                     id: t.ids[i],

@@ -1,7 +1,8 @@
 //! A small fixed pseudo-random generator for reproducible per-point streams: splitmix64 derives
-//! a seed from (run seed, original point id), xoshiro256** generates the stream. Both are fixed
-//! here (not the `rand` crate, not `DefaultHasher`) so that a point's random triangles, and the
-//! synthetic test clouds, are identical across Rust and crate releases. Not for cryptography.
+//! a seed from (run seed, a key of the point's position: [`position_key`]), xoshiro256**
+//! generates the stream. Both are fixed here (not the `rand` crate, not `DefaultHasher`) so
+//! that a point's random triangles, and the synthetic test clouds, are identical across Rust and
+//! crate releases. Not for cryptography.
 
 /// One step of splitmix64 (Steele, Lea, Flood 2014): advances `state` and returns a well-mixed
 /// 64-bit value. Also the seeding function of xoshiro256**.
@@ -12,6 +13,20 @@ pub fn splitmix64(state: &mut u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^ (z >> 31)
+}
+
+/// The key of a position for [`Rng::for_point`]: splitmix64 chained over the bits of x, y and z
+/// (each `+ 0.0` first, so that -0 and +0 are one value, as in
+/// [`crate::core::point::cmp_position`]). Points at the same position share it whatever their
+/// ids; exact duplicates, geometrically interchangeable, then get the same stream and the same
+/// result (issue 12 item 15).
+pub fn position_key(p: &[f64; 3]) -> u64 {
+    let mut h = 0x243f_6a88_85a3_08d3; // any fixed start (digits of pi)
+    for c in p {
+        let mut s = h ^ (c + 0.0).to_bits();
+        h = splitmix64(&mut s);
+    }
+    h
 }
 
 /// xoshiro256** (Blackman, Vigna 2018), seeded by splitmix64.
@@ -33,12 +48,14 @@ impl Rng {
         Rng { s }
     }
 
-    /// The stream of one point: a function of the run seed and the point's original id only, so
-    /// that the result does not depend on the tile, the thread or the order of processing.
-    pub fn for_point(seed: u64, id: u64) -> Self {
+    /// The stream of one point: a function of the run seed and the point's `key` only. The
+    /// engine's estimators use [`position_key`], so that the result does not depend on the
+    /// tile, the thread, the order of processing or the order of the records; generators use
+    /// an index of what they generate.
+    pub fn for_point(seed: u64, key: u64) -> Self {
         let mut sm = seed;
         let a = splitmix64(&mut sm);
-        let mut sm = a ^ id;
+        let mut sm = a ^ key;
         Rng::new(splitmix64(&mut sm))
     }
 
@@ -96,6 +113,30 @@ mod tests {
         assert_eq!(first, r2.next_u64());
         assert_ne!(first, Rng::for_point(7, 43).next_u64());
         assert_ne!(first, Rng::for_point(8, 42).next_u64());
+    }
+
+    /// Position keys are fixed values, the same for -0 and +0, and differ between positions
+    /// (also under a swap of coordinates).
+    #[test]
+    fn position_keys_are_fixed_and_follow_the_position() {
+        let p = [500_000.25, 4_100_000.5, 101.03];
+        assert_eq!(
+            position_key(&p),
+            position_key(&[500_000.25, 4_100_000.5, 101.03])
+        );
+        assert_eq!(
+            position_key(&[0.0, 1.0, 2.0]),
+            position_key(&[-0.0, 1.0, 2.0])
+        );
+        assert_ne!(
+            position_key(&p),
+            position_key(&[500_000.25, 4_100_000.5, 101.04])
+        );
+        assert_ne!(
+            position_key(&[1.0, 2.0, 3.0]),
+            position_key(&[2.0, 1.0, 3.0])
+        );
+        assert_eq!(position_key(&[0.0; 3]), 0xea23_4491_28f3_064a);
     }
 
     #[test]

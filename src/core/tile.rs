@@ -4,6 +4,7 @@
 
 use crate::core::geometry::V3;
 use crate::core::plan::Rect;
+use crate::core::point::cmp_point;
 
 /// The points of one tile in memory: `xyz[..n_core]` are the points to compute, the rest are
 /// context (other core points of the tile on a retry, and the halo).
@@ -31,7 +32,12 @@ impl TilePoints {
 
     /// Reorders the points to follow a Z-order (Morton) curve over x/y, core and context
     /// separately, so that consecutive queries touch the same part of the k-d tree (cache
-    /// locality). Results do not depend on the order: neighbours are ranked by (distance, id).
+    /// locality). Points with the same Morton key are ordered by position, and exact duplicates
+    /// by id ([`cmp_point`]), so the order is a function of the tile's point set and region,
+    /// never of the order the points were loaded in (the records' order in the file): the
+    /// neighbour ranking does not depend on it, and what is ordered by local index (the
+    /// propagation's components, seeds and spanning trees) then does not depend on the file
+    /// order either (issue 12 item 15).
     pub fn morton_order(&mut self) {
         let r = self.region;
         let (w, h) = (
@@ -45,7 +51,14 @@ impl TilePoints {
         for range in [0..self.n_core, self.n_core..self.xyz.len()] {
             let mut order: Vec<(u32, usize)> =
                 range.clone().map(|i| (key(&self.xyz[i]), i)).collect();
-            order.sort_unstable();
+            order.sort_unstable_by(|a, b| {
+                a.0.cmp(&b.0).then_with(|| {
+                    cmp_point(
+                        (&self.xyz[a.1], self.ids[a.1]),
+                        (&self.xyz[b.1], self.ids[b.1]),
+                    )
+                })
+            });
             let xyz: Vec<V3> = order.iter().map(|&(_, i)| self.xyz[i]).collect();
             let ids: Vec<u64> = order.iter().map(|&(_, i)| self.ids[i]).collect();
             let nrm: Vec<Option<V3>> = order.iter().map(|&(_, i)| self.file_normals[i]).collect();
@@ -153,6 +166,39 @@ pub fn split_parts(
 mod tests {
     use super::*;
     use crate::core::point::SourcePoint;
+
+    #[test]
+    fn morton_order_follows_the_points_not_their_loading_order() {
+        // Points sharing Morton keys (0.1 mm apart in a 100 m region, and exact duplicates),
+        // loaded in two orders, come out in one order: by key, then position, then id.
+        let pts: Vec<SourcePoint> = (0..60u64)
+            .map(|i| SourcePoint {
+                id: 1000 - 7 * i,
+                xyz: [50.0 + (i % 3) as f64 * 1e-4, 20.0, (i % 5) as f64],
+                normal: None,
+            })
+            .collect();
+        let load = |order: Vec<&SourcePoint>| {
+            let mut t = TilePoints {
+                region: Rect {
+                    min: [0.0, 0.0],
+                    max: [100.0, 100.0],
+                },
+                ..Default::default()
+            };
+            for p in order {
+                t.push(p);
+            }
+            t.n_core = t.xyz.len();
+            t.morton_order();
+            t
+        };
+        let a = load(pts.iter().collect());
+        let b = load(pts.iter().rev().collect());
+        assert_eq!((&a.xyz, &a.ids), (&b.xyz, &b.ids));
+        assert!((1..60)
+            .all(|i| { cmp_point((&a.xyz[i - 1], a.ids[i - 1]), (&a.xyz[i], a.ids[i])).is_lt() }));
+    }
 
     #[test]
     fn parts_partition_a_dense_tile() {

@@ -18,7 +18,7 @@ use crate::io::columns::ColumnSet;
 use crate::io::workdir::tmp_name;
 
 const MAGIC: &[u8; 8] = b"TCRES002";
-const ORIENT_MAGIC: &[u8; 8] = b"TCORI001";
+const ORIENT_MAGIC: &[u8; 8] = b"TCORI002";
 
 /// Bytes of one record after the id: the point's global patch (u64, `--orient propagate`) and
 /// the encoded columns.
@@ -41,15 +41,22 @@ pub struct TileSidecar {
     pub shared: Vec<crate::core::orient::SharedNormal>,
 }
 
+/// Bytes of one anchor in a sidecar: patch (u32), dist2 (f64), position (3 f64), id (u64),
+/// outward (u8), little-endian.
+const ANCHOR_BYTES: usize = 4 + 8 + 24 + 8 + 1;
+
 fn write_sidecar(path: &Path, s: &TileSidecar) -> Result<PathBuf> {
     let tmp = tmp_name(path);
-    let mut b = Vec::with_capacity(24 + 21 * s.anchors.len() + 36 * s.shared.len());
+    let mut b = Vec::with_capacity(24 + ANCHOR_BYTES * s.anchors.len() + 36 * s.shared.len());
     b.extend_from_slice(ORIENT_MAGIC);
     b.extend_from_slice(&(s.anchors.len() as u64).to_le_bytes());
     b.extend_from_slice(&(s.shared.len() as u64).to_le_bytes());
     for a in &s.anchors {
         b.extend_from_slice(&a.patch.to_le_bytes());
         b.extend_from_slice(&a.dist2.to_le_bytes());
+        for c in a.pos {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
         b.extend_from_slice(&a.id.to_le_bytes());
         b.push(a.outward as u8);
     }
@@ -96,14 +103,15 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
     let mut out = TileSidecar::default();
     let mut o = 24;
     for _ in 0..na {
-        let outward = *b.get(o + 20).ok_or_else(bad)? == 1;
+        let outward = *b.get(o + 44).ok_or_else(bad)? == 1;
         out.anchors.push(crate::core::orient::PatchAnchor {
             patch: u32_at(o)?,
             dist2: f64_at(o + 4)?,
-            id: u64_at(o + 12)?,
+            pos: [f64_at(o + 12)?, f64_at(o + 20)?, f64_at(o + 28)?],
+            id: u64_at(o + 36)?,
             outward,
         });
-        o += 21;
+        o += ANCHOR_BYTES;
     }
     for _ in 0..ns {
         out.shared.push(crate::core::orient::SharedNormal {

@@ -15,6 +15,7 @@ mod invariance;
 mod kit;
 mod kit_checks;
 mod layout;
+mod order;
 mod orientation;
 mod outofcore;
 mod real_files;

@@ -448,7 +448,7 @@ pub fn knn_brute(points: &[V3], k: usize) -> Vec<Vec<usize>> {
 }
 
 /// Runs `estimator` at the point `nbrs[0]` of `cloud` with the neighbours `nbrs` (indices into
-/// the cloud, the point itself first), positions relative to the point and ids = indices.
+/// the cloud, the point itself first), positions relative to the point (random key 0).
 /// Allocates: for tests and tools, not for the pipeline.
 pub fn estimate_point(
     estimator: &(impl Estimator + ?Sized),
@@ -461,12 +461,11 @@ pub fn estimate_point(
     let q = cloud.positions[i];
     let positions: Vec<V3> = nbrs.iter().map(|&j| sub(cloud.positions[j], q)).collect();
     let normals: Vec<V3> = nbrs.iter().map(|&j| cloud.normals[j]).collect();
-    let ids: Vec<u64> = nbrs.iter().map(|&j| j as u64).collect();
     estimator.estimate(
         &Neighbourhood {
             positions: &positions,
             normals: &normals,
-            ids: &ids,
+            key: 0,
         },
         &mut Scratch::default(),
     )

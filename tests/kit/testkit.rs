@@ -168,12 +168,11 @@ pub fn assert_valid(c: &Curvature, what: &str) {
 
 /// Runs `est` on one neighbourhood given as slices.
 pub fn run(est: &dyn Estimator, pos: &[V3], nrm: &[V3]) -> Curvature {
-    let ids: Vec<u64> = (0..pos.len() as u64).collect();
     est.estimate(
         &Neighbourhood {
             positions: pos,
             normals: nrm,
-            ids: &ids,
+            key: 0,
         },
         &mut Scratch::default(),
     )

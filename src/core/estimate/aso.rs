@@ -181,7 +181,6 @@ mod tests {
             let nbrs = &c.knn[i];
             let q = c.cloud.positions[i];
             let nrm: Vec<V3> = nbrs.iter().map(|&j| c.cloud.normals[j]).collect();
-            let ids: Vec<u64> = nbrs.iter().map(|&j| j as u64).collect();
             let pos: Vec<V3> = nbrs
                 .iter()
                 .map(|&j| crate::core::geometry::sub(c.cloud.positions[j], q))
@@ -189,7 +188,7 @@ mod tests {
             let nb = Neighbourhood {
                 positions: &pos,
                 normals: &nrm,
-                ids: &ids,
+                key: 0,
             };
             // A radius halfway between the two farthest neighbours, so that no point crosses
             // the support boundary (where the kernel's Hessian jumps) within the steps.
@@ -211,7 +210,7 @@ mod tests {
                 let nb = Neighbourhood {
                     positions: &shifted,
                     normals: &nrm,
-                    ids: &ids,
+                    key: 0,
                 };
                 fit_sphere::<f64>(&nb, r).map(|f| f.uc).unwrap_or(f64::NAN)
             };

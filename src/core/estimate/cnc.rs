@@ -251,8 +251,9 @@ impl Estimator for CncHexagram {
 /// CNC-Uniform (section 1.7): L triangles drawn uniformly among the C(K, 3) triangles of the
 /// neighbourhood (query point included), as the reference code does: index triples drawn with
 /// replacement, triples with a repeated index dropped, so at most L triangles are used. The
-/// random stream of a point depends only on (seed, original id of the query point), so results
-/// do not depend on tiling or threads.
+/// random stream of a point depends only on (seed, [`Neighbourhood::key`]), which the engine
+/// derives from the query point's coordinates, so results do not depend on tiling, threads or
+/// the order of the records.
 #[derive(Debug, Clone, Copy)]
 pub struct CncUniform {
     /// Number of triangles L drawn per point.
@@ -271,7 +272,7 @@ impl Estimator for CncUniform {
             return Curvature::undefined(f);
         }
         let k = nb.positions.len();
-        let mut rng = Rng::for_point(self.seed, nb.ids[0]);
+        let mut rng = Rng::for_point(self.seed, nb.key);
         let mut m = CncMeasures::default();
         for _ in 0..self.triangles {
             let t = [rng.below(k), rng.below(k), rng.below(k)];
@@ -522,16 +523,15 @@ mod tests {
         }
     }
 
-    /// Uniform: the stream depends on (seed, query id) only; another seed gives another
-    /// (equally good) estimate.
+    /// Uniform: the stream depends on (seed, the query's position key) only; another seed or
+    /// another key gives another (equally good) estimate.
     #[test]
     fn uniform_is_reproducible_per_point() {
         let (pos, nrm) = testkit::sphere_cap(1.0, 40);
-        let ids: Vec<u64> = (100..140).collect();
         let nb = Neighbourhood {
             positions: &pos,
             normals: &nrm,
-            ids: &ids,
+            key: 100,
         };
         let a = CncUniform {
             triangles: 50,
@@ -545,5 +545,7 @@ mod tests {
         }
         .estimate(&nb, s);
         assert_ne!(a.estimate(&nb, s).k1, b.k1);
+        let elsewhere = a.estimate(&Neighbourhood { key: 101, ..nb }, s);
+        assert_ne!(a.estimate(&nb, s).k1, elsewhere.k1);
     }
 }

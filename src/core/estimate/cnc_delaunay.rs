@@ -180,11 +180,10 @@ mod tests {
             }
         }
         let nrm = vec![[0.0, 0.0, 1.0]; pos.len()];
-        let ids: Vec<u64> = (0..pos.len() as u64).collect();
         let nb = Neighbourhood {
             positions: &pos,
             normals: &nrm,
-            ids: &ids,
+            key: 0,
         };
         let mut s = Buffers::default();
         umbrella(&nb, 0, &mut s);

@@ -44,7 +44,7 @@ pub fn is_collinear(m: [[f64; 2]; 2]) -> bool {
 /// neighbourhood cannot be used.
 pub fn check(nb: &Neighbourhood<'_>, min_points: usize) -> Result<(), u8> {
     let n = nb.positions.len();
-    if n < min_points.max(1) || nb.normals.len() != n || nb.ids.len() != n {
+    if n < min_points.max(1) || nb.normals.len() != n {
         return Err(flags::FEW_NEIGHBOURS);
     }
     // A loose test: it rejects zero or non-finite normals, not normals rounded to 6 digits

@@ -1,8 +1,9 @@
 //! Curvature estimators: one trait, one file per family. Every estimator is a pure function of a
-//! [`Neighbourhood`] (positions relative to the query point, oriented unit normals, original
-//! ids): no I/O, no globals, no dependence on the tile or the thread. Sign convention and units
-//! as in algorithms.md section 0.1: k1 <= k2, positive where the surface bends away from its
-//! normal (a sphere with outward normals has H = 1/r), in 1/(coordinate unit).
+//! [`Neighbourhood`] (positions relative to the query point, oriented unit normals, a key of
+//! the query's position for random streams): no I/O, no globals, no dependence on the tile,
+//! the thread or the order of the records. Sign convention and units as in algorithms.md
+//! section 0.1: k1 <= k2, positive where the surface bends away from its normal (a sphere with
+//! outward normals has H = 1/r), in 1/(coordinate unit).
 
 pub mod apss;
 pub mod aso;
@@ -49,8 +50,10 @@ pub struct Neighbourhood<'a> {
     pub positions: &'a [V3],
     /// Oriented unit normals, in the same order (`normals[0]` is the query normal).
     pub normals: &'a [V3],
-    /// Original point ids, in the same order (for per-point random seeds).
-    pub ids: &'a [u64],
+    /// The key of the query point's random stream ([`crate::core::rng::Rng::for_point`]): the
+    /// engine passes [`crate::core::rng::position_key`] of its absolute coordinates, so that
+    /// the stream depends on where the point is, not on its id or the order of the records.
+    pub key: u64,
 }
 
 /// An estimator's result for one point.
@@ -199,7 +202,8 @@ pub fn principal_from_tangent(s: [[f64; 2]; 2], e1: V3, e2: V3) -> (f64, f64, V3
 /// Parameters shared by the estimator family constructors (each uses what it needs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct EstimatorParams {
-    /// Seed for randomised estimators; each point's stream is derived from (seed, original id).
+    /// Seed for randomised estimators; each point's stream is derived from (seed, the point's
+    /// [`Neighbourhood::key`], a hash of its position).
     pub seed: u64,
     /// Number of random triangles L for CNC-Uniform.
     pub triangles: usize,

@@ -62,11 +62,10 @@ fn vcm_extra(cloud: &Cloud, nbrs: &[usize]) -> Features {
     let q = cloud.positions[nbrs[0]];
     let pos: Vec<V3> = nbrs.iter().map(|&j| sub(cloud.positions[j], q)).collect();
     let nrm: Vec<V3> = nbrs.iter().map(|&j| cloud.normals[j]).collect();
-    let ids: Vec<u64> = nbrs.iter().map(|&j| j as u64).collect();
     let nb = Neighbourhood {
         positions: &pos,
         normals: &nrm,
-        ids: &ids,
+        key: 0,
     };
     let mut e = [f64::NAN; 4];
     Vcm.estimate_extra(&nb, &mut Scratch::default(), &mut e);
@@ -215,12 +214,11 @@ fn sharp_feature_ratio_separates_face_edge_and_corner() {
         let q = cloud.positions[i];
         let pos: Vec<V3> = knn[i].iter().map(|&j| sub(cloud.positions[j], q)).collect();
         let nrm: Vec<V3> = knn[i].iter().map(|&j| cloud.normals[j]).collect();
-        let ids: Vec<u64> = knn[i].iter().map(|&j| j as u64).collect();
         let v = neighbourhood_vcm(
             &Neighbourhood {
                 positions: &pos,
                 normals: &nrm,
-                ids: &ids,
+                key: 0,
             },
             &mut Scratch::default(),
         )

@@ -18,9 +18,9 @@ pub(super) struct Grid {
     pub(super) zcells: Vec<(u32, u32)>,
     /// Local point indices in cell order.
     pub(super) order: Vec<u32>,
-    /// Coordinates and original ids in cell order (contiguous reads while scanning cells).
+    /// Coordinates and position ranks in cell order (contiguous reads while scanning cells).
     pub(super) xyz: Vec<V3>,
-    pub(super) ids: Vec<u64>,
+    pub(super) ranks: Vec<u32>,
     /// Rounding allowance when comparing a distance with a cell face: cell membership and face
     /// positions are computed in f64 at the coordinates' magnitude (1e6 for UTM).
     face_eps: f64,
@@ -43,8 +43,9 @@ pub(super) struct Block {
     x: Vec<f32>,
     y: Vec<f32>,
     z: Vec<f32>,
-    /// Local point index of each gathered point.
+    /// Local point index and position rank of each gathered point.
     local: Vec<u32>,
+    rank: Vec<u32>,
     /// Bound on |f32 squared distance - f64 squared distance| between any two gathered points.
     slack2: f64,
 }
@@ -70,23 +71,23 @@ impl Grid {
     /// A grid with cells of about the radius that holds `k` points at the tile's mean x/y
     /// density, or None when the density is too uneven for one cell size (some cell would hold
     /// many neighbourhoods' worth of points).
-    pub(super) fn build(xyz: &[V3], ids: &[u64], lo: V3, hi: V3, k: usize) -> Option<Grid> {
+    pub(super) fn build(xyz: &[V3], ranks: &[u32], lo: V3, hi: V3, k: usize) -> Option<Grid> {
         let n = xyz.len();
         let area = surface_area(lo, hi);
         let cell = (k as f64 * area / (std::f64::consts::PI * n as f64)).sqrt() * 1.25;
-        let g = Self::with_cell(xyz, ids, lo, hi, k, cell)?;
+        let g = Self::with_cell(xyz, ranks, lo, hi, k, cell)?;
         // Points spread in z (vegetation, walls) occupy more cells than a surface would: then
         // grow the cells so that occupied cells hold about k/3 points (occupancy of a surface
         // grows like cell^2).
         let per_cell = n as f64 / (g.zcells.len() - 1).max(1) as f64;
         if per_cell < k as f64 / 4.0 {
             let grown = cell * ((k as f64 / 3.0) / per_cell).sqrt().min(3.0);
-            return Self::with_cell(xyz, ids, lo, hi, k, grown).or(Some(g));
+            return Self::with_cell(xyz, ranks, lo, hi, k, grown).or(Some(g));
         }
         Some(g)
     }
 
-    fn with_cell(xyz: &[V3], ids: &[u64], lo: V3, hi: V3, k: usize, cell: f64) -> Option<Grid> {
+    fn with_cell(xyz: &[V3], ranks: &[u32], lo: V3, hi: V3, k: usize, cell: f64) -> Option<Grid> {
         let n = xyz.len();
         let area = surface_area(lo, hi);
         // At most ~4 columns per point, whatever the shape of the tile.
@@ -143,7 +144,7 @@ impl Grid {
         zcells.push((u32::MAX, n as u32));
         let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
         let sorted_xyz = order.iter().map(|&i| xyz[i as usize]).collect();
-        let sorted_ids = order.iter().map(|&i| ids[i as usize]).collect();
+        let sorted_ranks = order.iter().map(|&i| ranks[i as usize]).collect();
         let magnitude = (0..3)
             .map(|a| lo[a].abs().max(hi[a].abs()))
             .fold(cell, f64::max);
@@ -157,7 +158,7 @@ impl Grid {
             zcells,
             order,
             xyz: sorted_xyz,
-            ids: sorted_ids,
+            ranks: sorted_ranks,
         })
     }
 
@@ -191,6 +192,7 @@ impl Grid {
         b.y.clear();
         b.z.clear();
         b.local.clear();
+        b.rank.clear();
         let (z_lo, z_hi) = (c[2].saturating_sub(1) as u32, (c[2] + 1) as u32);
         for x in c[0].saturating_sub(1)..(c[0] + 2).min(self.dims[0]) {
             for y in c[1].saturating_sub(1)..(c[1] + 2).min(self.dims[1]) {
@@ -201,12 +203,13 @@ impl Grid {
                     cells.start + self.zcells[cells.clone()].partition_point(|z| z.0 < z_lo);
                 let last = cells.start + self.zcells[cells].partition_point(|z| z.0 <= z_hi);
                 let run = self.zcells[first].1 as usize..self.zcells[last].1 as usize;
-                for (p, &l) in self.xyz[run.clone()].iter().zip(&self.order[run]) {
+                for (p, &l) in self.xyz[run.clone()].iter().zip(&self.order[run.clone()]) {
                     b.x.push((p[0] - b.centre[0]) as f32);
                     b.y.push((p[1] - b.centre[1]) as f32);
                     b.z.push((p[2] - b.centre[2]) as f32);
                     b.local.push(l);
                 }
+                b.rank.extend_from_slice(&self.ranks[run]);
             }
         }
         // Gathered coordinates are within 1.5 cells of the centre on each axis, so the error of
@@ -222,7 +225,7 @@ impl NeighbourIndex<'_> {
     /// The fast path of the grid: ranks the points of the 3 x 3 x 3 cells around `i`'s cell
     /// (gathered once per cell, see [`Block`]). An f32 pass over them finds a squared radius
     /// holding at least the k nearest (the point itself included); every point within that
-    /// radius plus the f32 rounding bound is ranked exactly by (f64 distance, id) into
+    /// radius plus the f32 rounding bound is ranked exactly (f64 distance, position, id) into
     /// `scratch.exact`. The answer stands when the exact k-th distance is inside the block:
     /// returns its squared distance. Otherwise returns the first shell the shell search must
     /// visit: 2 when `scratch.exact` starts with the exact `others` best of the block (shells 0
@@ -302,7 +305,7 @@ impl NeighbourIndex<'_> {
             let l = b.local[j as usize];
             if l as usize != i {
                 s.exact
-                    .push((self.dist2(q, l as usize), self.ids[l as usize], l));
+                    .push((self.dist2(q, l as usize), b.rank[j as usize], l));
             }
         }
         if s.exact.len() < others {

@@ -7,11 +7,11 @@ use std::num::NonZeroUsize;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use super::{rank, Backend, NeighbourIndex};
+use super::{rank, Backend, Cand, NeighbourIndex};
 use crate::core::geometry::{sub, V3};
 
 impl<'a> NeighbourIndex<'a> {
-    pub(super) fn build_tree(xyz: &'a [V3], ids: &'a [u64], lo: V3, hi: V3) -> Option<Self> {
+    pub(super) fn build_tree(xyz: &'a [V3], ranks: Vec<u32>, lo: V3, hi: V3) -> Option<Self> {
         let origin = [
             0.5 * (lo[0] + hi[0]),
             0.5 * (lo[1] + hi[1]),
@@ -28,7 +28,7 @@ impl<'a> NeighbourIndex<'a> {
         let tree = ImmutableKdTree::new_from_slice(&local).ok()?;
         Some(NeighbourIndex {
             xyz,
-            ids,
+            ranks,
             backend: Backend::Tree {
                 tree,
                 origin,
@@ -46,7 +46,7 @@ impl<'a> NeighbourIndex<'a> {
         slack: f64,
         i: usize,
         others: usize,
-        ranked: &mut Vec<(f64, u64, u32)>,
+        ranked: &mut Vec<Cand>,
     ) {
         let n = self.xyz.len();
         let q = self.xyz[i];
@@ -65,7 +65,7 @@ impl<'a> NeighbourIndex<'a> {
             if c.item as usize != i {
                 ranked.push((
                     self.dist2(q, c.item as usize),
-                    self.ids[c.item as usize],
+                    self.ranks[c.item as usize],
                     c.item,
                 ));
             }
@@ -88,7 +88,7 @@ impl<'a> NeighbourIndex<'a> {
                 if c.item as usize != i {
                     ranked.push((
                         self.dist2(q, c.item as usize),
-                        self.ids[c.item as usize],
+                        self.ranks[c.item as usize],
                         c.item,
                     ));
                 }

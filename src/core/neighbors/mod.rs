@@ -1,6 +1,9 @@
 //! k nearest neighbours within a loaded tile. The answer is exact and ranked by (f64 squared
-//! distance, original id), so the neighbour set and its order never depend on the index, the
-//! tile or the thread. Two interchangeable backends find the candidates:
+//! distance, position, original id): points at exactly the same distance are ordered by their
+//! coordinates (x, then y, then z: [`cmp_position`]), and by original id only between exact
+//! duplicates, which are geometrically interchangeable. So the neighbour set and its order
+//! depend on the point set alone: not on the index, the tile, the thread, nor the order of the
+//! records in the file (issue 12 item 15). Two interchangeable backends find the candidates:
 //!
 //! - a uniform 3D grid with cells of 1.25 times the k-NN radius. A query ranks the 27 cells
 //!   around its own (gathered once per cell in f32, see [`Block`]): an f32 pass finds a radius
@@ -19,7 +22,11 @@
 
 use kiddo::ImmutableKdTree;
 
+use std::cmp::Ordering;
+
 use crate::core::geometry::{sub, V3};
+#[cfg(doc)]
+use crate::core::point::{cmp_point, cmp_position};
 
 mod grid;
 mod kdtree;
@@ -30,7 +37,10 @@ use grid::{Block, Grid};
 /// A k-NN index over the points of one loaded tile.
 pub struct NeighbourIndex<'a> {
     xyz: &'a [V3],
-    ids: &'a [u64],
+    /// Per point, its place among the tile's points in the order of [`cmp_point`] (position,
+    /// then id): what ties in distance are broken by ([`position_ranks`]). Carried in every
+    /// candidate, so that a tie costs one integer comparison (a tile of duplicates is all ties).
+    ranks: Vec<u32>,
     backend: Backend,
 }
 
@@ -44,32 +54,64 @@ enum Backend {
     },
 }
 
+/// A candidate neighbour: its exact f64 squared distance from the query, its rank in position
+/// order ([`NeighbourIndex::ranks`]) and its local index. 16 bytes.
+type Cand = (f64, u32, u32);
+
 /// Per-thread scratch for [`NeighbourIndex::knn`], so queries do not allocate.
 #[derive(Default)]
 pub struct KnnScratch {
-    ranked: Vec<(f64, u64, u32)>,
+    ranked: Vec<Cand>,
     block: Block,
     d2: Vec<f32>,
     keys: Vec<u64>,
-    exact: Vec<(f64, u64, u32)>,
+    exact: Vec<Cand>,
     /// The last query's squared k-th distance, the first guess for the next one.
     hint: f32,
 }
 
+/// Per point of a tile, its place in the order of [`cmp_point`] among the tile's points: x,
+/// then y, then z (exactly, -0 as +0), then the original id. The order two points get does not
+/// depend on the tile they are compared in (a point in several tiles' halos), and ties in
+/// distance then cost one integer comparison. The coordinates are sorted as integers whose
+/// order is `f64::total_cmp`'s.
+fn position_ranks(xyz: &[V3], ids: &[u64]) -> Vec<u32> {
+    let key = |x: f64| {
+        let b = (x + 0.0).to_bits();
+        if b >> 63 == 1 {
+            !b
+        } else {
+            b | 1 << 63
+        }
+    };
+    let mut order: Vec<([u64; 3], u64, u32)> = xyz
+        .iter()
+        .zip(ids)
+        .enumerate()
+        .map(|(i, (p, &id))| (p.map(key), id, i as u32))
+        .collect();
+    order.sort_unstable();
+    let mut ranks = vec![0u32; xyz.len()];
+    for (r, o) in order.iter().enumerate() {
+        ranks[o.2 as usize] = r as u32;
+    }
+    ranks
+}
+
+/// The ranking of candidates: by exact squared distance, then (ties, which are common on
+/// quantized coordinates) by position, and between exact duplicates by original id: the rank
+/// of [`position_ranks`]. A total order that compares two points the same in every tile.
 #[inline]
-fn rank(a: &(f64, u64, u32), b: &(f64, u64, u32)) -> std::cmp::Ordering {
+fn rank(a: &Cand, b: &Cand) -> Ordering {
     a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
 }
 
 /// Sorts `v` by [`rank`]. Up to 64 entries (the usual case) are sorted as integer keys, the
 /// squared distance's bits with the entry's position in the low 6 bits (branch-free and much
 /// faster than comparing tuples), then put in exact order by an insertion pass: the keys only
-/// misorder distances within 64 ulps of each other, so that pass moves almost nothing.
-fn sort_ranked(
-    v: &mut Vec<(f64, u64, u32)>,
-    keys: &mut Vec<u64>,
-    spare: &mut Vec<(f64, u64, u32)>,
-) {
+/// misorder distances within 64 ulps of each other (ties among them), so that pass moves
+/// almost nothing.
+fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
     if v.len() > 64 {
         v.sort_unstable_by(rank);
         return;
@@ -110,14 +152,15 @@ impl<'a> NeighbourIndex<'a> {
                 hi[a] = hi[a].max(p[a]);
             }
         }
-        if let Some(g) = Grid::build(xyz, ids, lo, hi, k) {
+        let ranks = position_ranks(xyz, ids);
+        if let Some(g) = Grid::build(xyz, &ranks, lo, hi, k) {
             return Some(NeighbourIndex {
                 xyz,
-                ids,
+                ranks,
                 backend: Backend::Grid(g),
             });
         }
-        Self::build_tree(xyz, ids, lo, hi)
+        Self::build_tree(xyz, ranks, lo, hi)
     }
 
     /// Number of indexed points.
@@ -132,7 +175,8 @@ impl<'a> NeighbourIndex<'a> {
 
     /// The `k` nearest neighbours of point `i` (local index), written to `out` as local indices:
     /// `i` itself first (as the CNC reference code counts it), then the k - 1 nearest others by
-    /// increasing (exact f64 distance, original id). Fewer when the tile has fewer points.
+    /// increasing (exact f64 distance, position, original id): see the module documentation.
+    /// Fewer when the tile has fewer points.
     /// Returns the exact distance to the farthest neighbour returned.
     pub fn knn(&self, i: usize, k: usize, scratch: &mut KnnScratch, out: &mut Vec<u32>) -> f64 {
         out.clear();
@@ -196,18 +240,26 @@ impl<'a> NeighbourIndex<'a> {
 mod tests {
     use super::*;
 
-    /// Brute force: self first, then by (distance, id).
+    /// Brute force: self first, then by (distance, x, y, z, id).
     fn brute(xyz: &[V3], ids: &[u64], i: usize, k: usize) -> Vec<u32> {
-        let mut v: Vec<(f64, u64, u32)> = (0..xyz.len())
+        let mut v: Vec<(f64, [f64; 3], u64, u32)> = (0..xyz.len())
             .filter(|&j| j != i)
             .map(|j| {
                 let d = sub(xyz[j], xyz[i]);
-                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2], ids[j], j as u32)
+                let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                (d2, xyz[j], ids[j], j as u32)
             })
             .collect();
-        v.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        v.sort_by(|a, b| {
+            let pos = |p: &[f64; 3]| p.map(|c| c + 0.0);
+            a.0.total_cmp(&b.0)
+                .then(pos(&a.1)[0].total_cmp(&pos(&b.1)[0]))
+                .then(pos(&a.1)[1].total_cmp(&pos(&b.1)[1]))
+                .then(pos(&a.1)[2].total_cmp(&pos(&b.1)[2]))
+                .then(a.2.cmp(&b.2))
+        });
         std::iter::once(i as u32)
-            .chain(v.into_iter().take(k - 1).map(|t| t.2))
+            .chain(v.into_iter().take(k - 1).map(|t| t.3))
             .collect()
     }
 
@@ -220,7 +272,7 @@ mod tests {
                 hi[a] = hi[a].max(p[a]);
             }
         }
-        let tree = NeighbourIndex::build_tree(xyz, ids, lo, hi).expect("tree");
+        let tree = NeighbourIndex::build_tree(xyz, position_ranks(xyz, ids), lo, hi).expect("tree");
         let mut scratch = KnnScratch::default();
         let mut out = Vec::new();
         for &k in ks {
@@ -272,9 +324,96 @@ mod tests {
     }
 
     #[test]
+    fn position_ranks_follow_cmp_point() {
+        // Negative and positive coordinates, -0 and +0 (one value), duplicates (by id).
+        let xyz = [
+            [1.0, 2.0, 3.0],
+            [-0.0, 5.0, 1.0],
+            [0.0, 5.0, 1.0],
+            [-1.5, 0.0, 0.0],
+            [1.0, 2.0, 3.0],
+            [1.0, -2.0, 9.0],
+            [1.0, 2.0, -3.0],
+            [-1e-300, 7.0, 7.0],
+        ];
+        let ids = [7, 3, 1, 9, 2, 5, 4, 8];
+        let r = position_ranks(&xyz, &ids);
+        for i in 0..xyz.len() {
+            for j in 0..xyz.len() {
+                let want = crate::core::point::cmp_point((&xyz[i], ids[i]), (&xyz[j], ids[j]));
+                assert_eq!(r[i].cmp(&r[j]), want, "points {i} and {j}");
+            }
+        }
+        assert_eq!(
+            r[2].cmp(&r[1]),
+            Ordering::Less,
+            "-0 and +0 are one value: by id"
+        );
+    }
+
+    #[test]
+    fn ties_are_broken_by_position_whatever_the_order_and_ids() {
+        // Issue 12 item 15: a 1 cm lattice on a plane (every ring of neighbours at exactly
+        // equal distances, so ties at the k-th place are the rule) with exact duplicates, once
+        // in lattice order with ids in that order, once shuffled with other ids. Every point's
+        // neighbours must be the same positions in the same order: ties go by position, and by
+        // id only between duplicates, whose positions are the same.
+        let mut xyz = Vec::new();
+        for gx in 0..24 {
+            for gy in 0..24 {
+                let p = [
+                    600_000.0 + gx as f64 * 0.01,
+                    5_000_000.0 + gy as f64 * 0.01,
+                    10.0,
+                ];
+                xyz.push(p);
+                if (gx * 7 + gy * 3) % 11 == 0 {
+                    xyz.push(p);
+                    if gx % 3 == 0 {
+                        xyz.push(p);
+                    }
+                }
+            }
+        }
+        let n = xyz.len();
+        let ids: Vec<u64> = (0..n as u64).collect();
+        let mut rng = crate::core::rng::Rng::new(31);
+        let mut perm: Vec<usize> = (0..n).collect();
+        for i in (1..n).rev() {
+            perm.swap(i, rng.below(i + 1));
+        }
+        let shuffled: Vec<V3> = perm.iter().map(|&i| xyz[i]).collect();
+        let other_ids: Vec<u64> = (0..n as u64).map(|i| (i * 7919 + 13) % 100_003).collect();
+        let mut s = KnnScratch::default();
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        let mut ties = 0;
+        for k in [5, 9, 13, 21] {
+            let ia = NeighbourIndex::build(&xyz, &ids, k).expect("index");
+            let ib = NeighbourIndex::build(&shuffled, &other_ids, k).expect("index");
+            for (j, &i) in perm.iter().enumerate() {
+                ia.knn(i, k, &mut s, &mut a);
+                ib.knn(j, k, &mut s, &mut b);
+                let pa: Vec<V3> = a.iter().map(|&l| xyz[l as usize]).collect();
+                let pb: Vec<V3> = b.iter().map(|&l| shuffled[l as usize]).collect();
+                assert_eq!(pa, pb, "point {i} k {k}: neighbours depend on the order");
+                // A tie at the k-th place: the first point left out is as near as the last in.
+                let d = |p: V3| sub(p, xyz[i]).map(|c| c * c).iter().sum::<f64>();
+                let last = d(pa[k - 1]);
+                let first_out = brute(&xyz, &ids, i, k + 1)[k];
+                ties += (d(xyz[first_out as usize]) == last) as usize;
+            }
+        }
+        assert!(
+            ties > 1000,
+            "only {ties} ties at the k-th place: the test tests nothing"
+        );
+        check_both_backends(&shuffled, &other_ids, &[5, 13]);
+    }
+
+    #[test]
     fn block_path_is_exact_on_terrain_with_vegetation() {
         // A bumpy surface at UTM offsets with a vegetated patch (points spread in z), snapped to
-        // a 1 cm lattice so that equal distances (ties broken by id) occur.
+        // a 1 cm lattice so that equal distances (ties broken by position) occur.
         let mut rng = crate::core::rng::Rng::new(4242);
         let mut unit = || rng.uniform();
         let mut xyz = Vec::new();

@@ -1,14 +1,14 @@
-//! The grid's shell search, for queries the 27-cell block cannot settle: a bounded max-heap
-//! of exact (f64 distance, id) candidates grown ring by ring of cells until the k-th distance
-//! is provably inside the searched box. Pure: no files, no channels.
+//! The grid's shell search, for queries the 27-cell block cannot settle: a bounded max-heap of
+//! exact candidates, ranked by (f64 distance, position, id), grown ring by ring of cells until
+//! the k-th distance is provably inside the searched box. Pure: no files, no channels.
 
 use super::grid::Grid;
-use super::{rank, NeighbourIndex};
+use super::{rank, Cand, NeighbourIndex};
 use crate::core::geometry::sub;
 
-/// Offers a candidate to a max-heap (by rank) that keeps the `cap` best.
+/// Offers a candidate to a max-heap (by [`rank`]) that keeps the `cap` best.
 #[inline]
-fn heap_offer(heap: &mut Vec<(f64, u64, u32)>, cap: usize, c: (f64, u64, u32)) {
+fn heap_offer(heap: &mut Vec<Cand>, cap: usize, c: Cand) {
     if heap.len() < cap {
         heap.push(c);
         let mut i = heap.len() - 1;
@@ -54,7 +54,7 @@ impl NeighbourIndex<'_> {
         i: usize,
         others: usize,
         first_shell: usize,
-        heap: &mut Vec<(f64, u64, u32)>,
+        heap: &mut Vec<Cand>,
     ) {
         let q = self.xyz[i];
         let cell = g.cell_of(q);
@@ -95,18 +95,15 @@ impl NeighbourIndex<'_> {
                             continue;
                         }
                         let cell = start as usize..g.zcells[w + 1].1 as usize;
-                        for ((&j, p), &id) in g.order[cell.clone()]
+                        for ((&j, p), &r) in g.order[cell.clone()]
                             .iter()
                             .zip(&g.xyz[cell.clone()])
-                            .zip(&g.ids[cell])
+                            .zip(&g.ranks[cell])
                         {
                             if j as usize != i {
                                 let d = sub(*p, q);
-                                heap_offer(
-                                    heap,
-                                    others,
-                                    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2], id, j),
-                                );
+                                let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                                heap_offer(heap, others, (d2, r, j));
                             }
                         }
                     }

@@ -10,6 +10,7 @@ use std::collections::BinaryHeap;
 use super::signs::{PatchAnchor, SharedNormal};
 use super::{orient_outward, Centroid};
 use crate::core::geometry::{dot, scale, sub, V3};
+use crate::core::point::cmp_position;
 
 /// How [`propagate`] seeds each connected component.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,13 +61,14 @@ impl Propagation {
     }
 
     /// The anchor of component `c` as patch `patch`, for [`patch_signs`](super::patch_signs):
-    /// `ids` are the original ids of the points (the same slice the neighbour index was built
-    /// with). The seed was oriented away from the centre, so `outward` is true.
-    pub fn anchor(&self, c: usize, patch: u32, ids: &[u64]) -> PatchAnchor {
+    /// `xyz` and `ids` are the points and their original ids (the slices the neighbour index
+    /// was built with). The seed was oriented away from the centre, so `outward` is true.
+    pub fn anchor(&self, c: usize, patch: u32, xyz: &[V3], ids: &[u64]) -> PatchAnchor {
         let comp = self.components[c];
         PatchAnchor {
             patch,
             dist2: comp.dist2,
+            pos: xyz[comp.seed as usize],
             id: ids[comp.seed as usize],
             outward: true,
         }
@@ -149,7 +151,8 @@ pub fn propagate<L: AsRef<[u32]>>(
     };
     // 1. Components by breadth-first search, in order of their smallest index.
     let (members, spans) = label_components(knn, &rev, &live, &mut out);
-    // 2. Seeds: farthest from the centre (ties: smaller index), oriented away from it.
+    // 2. Seeds: farthest from the centre (ties: smaller position, then smaller index), oriented
+    // away from it.
     for &(a, b) in &spans {
         let comp = seed_component(xyz, normals, &members[a..b], seed, &mut out.flip);
         out.components.push(comp);
@@ -201,7 +204,9 @@ fn label_components<L: AsRef<[u32]>>(
 }
 
 /// Step 2 of [`propagate`] for the component of points `pts`: its seed, the point farthest
-/// from the centre `seed` names, whose normal is flipped in `flip` if it points inward.
+/// from the centre `seed` names (among equally far points the smaller position by
+/// [`cmp_position`], then the smaller index: the choice does not depend on the order of the
+/// points, exact duplicates aside), whose normal is flipped in `flip` if it points inward.
 fn seed_component(
     xyz: &[V3],
     normals: &[Option<V3>],
@@ -223,7 +228,11 @@ fn seed_component(
     for &i in pts {
         let d = sub(xyz[i as usize], centre);
         let d2 = dot(d, d);
-        if d2 > best_d || (d2 == best_d && i < best) {
+        let before = || {
+            let (a, b) = (i as usize, best as usize);
+            cmp_position(&xyz[a], &xyz[b]).then(i.cmp(&best)).is_lt()
+        };
+        if d2 > best_d || (d2 == best_d && before()) {
             (best, best_d) = (i, d2);
         }
     }
@@ -333,7 +342,7 @@ pub fn orient_tile<L: AsRef<[u32]>>(
     let prop = propagate(xyz, knn, normals, Seed::OutwardFrom(centre));
     prop.apply(normals);
     let anchors = (0..prop.components.len())
-        .map(|c| prop.anchor(c, first_patch + c as u32, ids))
+        .map(|c| prop.anchor(c, first_patch + c as u32, xyz, ids))
         .collect();
     let shared = normals
         .iter()

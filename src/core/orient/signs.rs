@@ -7,6 +7,7 @@ use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
 
 use crate::core::geometry::{dot, V3};
+use crate::core::point::cmp_point;
 
 /// Where a patch's orientation is known from its seed: a candidate for the reference of its
 /// connected group of patches in [`patch_signs`].
@@ -16,7 +17,9 @@ pub struct PatchAnchor {
     pub patch: u32,
     /// Squared distance of the anchor point from the common centre (the global centroid).
     pub dist2: f64,
-    /// Original id of the anchor point (breaks ties).
+    /// Position of the anchor point (breaks ties between anchors at the same distance).
+    pub pos: V3,
+    /// Original id of the anchor point (breaks ties between exact duplicates).
     pub id: u64,
     /// Whether the patch's normal at the anchor points away from the centre.
     pub outward: bool,
@@ -93,12 +96,13 @@ pub struct PatchSigns {
 
 /// Solves one sign per patch (`0..n_patches`) from the votes between patches and their anchors.
 /// In each connected group of patches (linked by a non-tied vote margin), the anchor with the
-/// largest `dist2` (ties: smaller id, then smaller patch) fixes its patch's sign (flip it unless
-/// `outward`); the other patches follow a maximum spanning tree of the margins
-/// `|agree - disagree|` from there (ties: smaller patch index), each taking its tree parent's
-/// sign when its votes mostly agree and the opposite otherwise. A group without an anchor keeps
-/// its reference patch (the smallest index) as it is. Votes and anchors naming patches out of
-/// range are ignored. Deterministic, and independent of the order of `votes` and `anchors`.
+/// largest `dist2` (ties: the smaller position, then id, by [`cmp_point`], then the smaller
+/// patch) fixes its patch's sign (flip it unless `outward`); the other patches follow a maximum
+/// spanning tree of the margins `|agree - disagree|` from there (ties: smaller patch index),
+/// each taking its tree parent's sign when its votes mostly agree and the opposite otherwise. A
+/// group without an anchor keeps its reference patch (the smallest index) as it is. Votes and
+/// anchors naming patches out of range are ignored. Deterministic, and independent of the order
+/// of `votes` and `anchors`.
 pub fn patch_signs(n_patches: usize, votes: &[PatchVote], anchors: &[PatchAnchor]) -> PatchSigns {
     let np = n_patches;
     let mut margin: BTreeMap<(u32, u32), (u64, u64)> = BTreeMap::new();
@@ -135,7 +139,7 @@ pub fn patch_signs(n_patches: usize, votes: &[PatchVote], anchors: &[PatchAnchor
             Some(b) => a
                 .dist2
                 .total_cmp(&b.dist2)
-                .then(b.id.cmp(&a.id))
+                .then_with(|| cmp_point((&b.pos, b.id), (&a.pos, a.id)))
                 .then(b.patch.cmp(&a.patch))
                 .is_gt(),
         };

@@ -152,6 +152,72 @@ fn propagation_orients_a_torus_and_each_of_two_objects() {
 }
 
 #[test]
+fn seeds_tied_in_distance_go_by_position_not_by_index() {
+    // The surface of a lattice cube around its centre: its 8 corners are equally far from
+    // it. In any order of the points the seed is the same corner (the smallest position), and
+    // so is the anchor, whatever the ids.
+    let mut p = Vec::new();
+    for i in 0..9 {
+        for j in 0..9 {
+            for k in 0..9 {
+                if [i, j, k].iter().any(|&c| c == 0 || c == 8) {
+                    p.push([i as f64 * 0.25, j as f64 * 0.25, k as f64 * 0.25]);
+                }
+            }
+        }
+    }
+    let centre = [1.0, 1.0, 1.0];
+    let seed_of = |p: &[V3]| {
+        let knn = knn_lists(p, 10);
+        let normals = scrambled_pca(p, &knn, 4);
+        let prop = propagate(p, &knn, &normals, Seed::OutwardFrom(centre));
+        assert_eq!(prop.components.len(), 1);
+        let ids: Vec<u64> = (0..p.len() as u64).rev().collect();
+        let a = prop.anchor(0, 0, p, &ids);
+        assert_eq!(a.pos, p[prop.components[0].seed as usize]);
+        (a.pos, a.dist2)
+    };
+    let first = seed_of(&p);
+    assert_eq!(first, ([0.0; 3], 3.0));
+    p.reverse();
+    assert_eq!(seed_of(&p), first);
+    let mut rng = Rng::new(9);
+    for i in (1..p.len()).rev() {
+        p.swap(i, rng.below(i + 1));
+    }
+    assert_eq!(seed_of(&p), first);
+}
+
+#[test]
+fn anchors_tied_in_distance_go_by_position() {
+    // Two patches whose votes agree, with anchors equally far from the centre that disagree
+    // (one says inward, one outward): the anchor at the smaller position decides, whatever
+    // the ids.
+    let vote = PatchVote {
+        a: 0,
+        b: 1,
+        agree: 10,
+        disagree: 0,
+    };
+    let anchor = |patch, x, id, outward| PatchAnchor {
+        patch,
+        dist2: 4.0,
+        pos: [x, 0.0, 0.0],
+        id,
+        outward,
+    };
+    let anchors = [anchor(0, 2.0, 1, false), anchor(1, -2.0, 9, true)];
+    let s = patch_signs(2, &[vote], &anchors);
+    assert_eq!(
+        s.flip,
+        vec![false, false],
+        "patch 1's anchor (x = -2) decides"
+    );
+    let swapped = [anchor(0, 2.0, 9, false), anchor(1, -2.0, 1, true)];
+    assert_eq!(patch_signs(2, &[vote], &swapped), s);
+}
+
+#[test]
 fn propagation_skips_points_without_normals() {
     let (p, truth) = sphere(1000, 1.0, [0.0; 3]);
     let knn = knn_lists(&p, 10);
@@ -217,7 +283,7 @@ fn tiles_agree_through_their_halos() {
         let base = next_patch;
         next_patch += prop.components.len() as u32;
         for c in 0..prop.components.len() {
-            let mut a = prop.anchor(c, base + c as u32, &lids);
+            let mut a = prop.anchor(c, base + c as u32, &lxyz, &lids);
             let s = prop.components[c].seed as usize;
             a.outward = normals[s].is_some_and(|n| dot(n, sub(lxyz[s], centre)) >= 0.0);
             anchors.push(a);
@@ -272,6 +338,7 @@ fn patch_signs_follow_the_strongest_votes_and_the_farthest_anchor() {
     let anchor = |patch, dist2, outward| PatchAnchor {
         patch,
         dist2,
+        pos: [patch as f64, 0.0, 0.0],
         id: patch as u64,
         outward,
     };

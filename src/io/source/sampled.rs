@@ -28,8 +28,9 @@ use super::{
     map_file, mesh, no_crs, ply, Format, PointSource, Property, SourceLayout, SourcePoint, Stored,
 };
 
-/// Mixed into the run's seed so that the sample's random streams are independent of the
-/// estimators' per-point streams, which use `Rng::for_point(seed, id)` with the same ids.
+/// Mixed into the run's seed so that the sample's random streams (`Rng::for_point(seed', i)`)
+/// are independent of the estimators' per-point streams (`Rng::for_point(seed, key)`, the key
+/// a hash of the point's position).
 const SAMPLE_STREAM: u64 = 0x5a4d_504c_4546_4143; // "ZMPLEFAC"
 
 /// Opens `path` as `n` points sampled on its faces with the run's `seed` (see the module doc).
