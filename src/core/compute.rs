@@ -508,7 +508,6 @@ mod tests {
             let (s, a) = ((1.0 - z * z).sqrt(), golden * i as f64);
             xyz.push([s * a.cos(), s * a.sin(), z]);
         }
-        let ids: Vec<u64> = (0..xyz.len() as u64).collect();
         let outward: Vec<Option<V3>> = xyz.iter().map(|p| Some(*p)).collect();
         let dist = |j: u32| crate::core::geometry::norm(sub(xyz[j as usize], q));
         for reach in [0.3, 1.0, 1.4, 1.9] {
@@ -516,7 +515,7 @@ mod tests {
                 .filter(|&j| dist(j) <= reach)
                 .collect();
             let r = list.iter().map(|&j| dist(j)).fold(0.0, f64::max);
-            let c = buf.estimate(est.as_ref(), &xyz, &ids, &outward, 0, &list, &mut []);
+            let c = buf.estimate(est.as_ref(), &xyz, &outward, 0, &list, &mut []);
             let flagged = c.flags & flags::SHARPER_THAN_NEIGHBOURHOOD != 0;
             if reach < 1.5 {
                 assert!((c.h - 1.0).abs() < 0.11, "reach {reach}: H {}", c.h);

@@ -11,7 +11,13 @@ use super::{rank, Backend, Cand, NeighbourIndex};
 use crate::core::geometry::{sub, V3};
 
 impl<'a> NeighbourIndex<'a> {
-    pub(super) fn build_tree(xyz: &'a [V3], ranks: Vec<u32>, lo: V3, hi: V3) -> Option<Self> {
+    pub(super) fn build_tree(
+        xyz: &'a [V3],
+        ranks: Vec<u32>,
+        duplicates: super::Duplicates,
+        lo: V3,
+        hi: V3,
+    ) -> Option<Self> {
         let origin = [
             0.5 * (lo[0] + hi[0]),
             0.5 * (lo[1] + hi[1]),
@@ -29,6 +35,7 @@ impl<'a> NeighbourIndex<'a> {
         Some(NeighbourIndex {
             xyz,
             ranks,
+            duplicates,
             backend: Backend::Tree {
                 tree,
                 origin,

@@ -28,9 +28,12 @@ use crate::core::geometry::{sub, V3};
 #[cfg(doc)]
 use crate::core::point::{cmp_point, cmp_position};
 
+mod duplicates;
 mod grid;
 mod kdtree;
 mod shell;
+
+use duplicates::Duplicates;
 
 use grid::{Block, Grid};
 
@@ -41,6 +44,8 @@ pub struct NeighbourIndex<'a> {
     /// then id): what ties in distance are broken by ([`position_ranks`]). Carried in every
     /// candidate, so that a tie costs one integer comparison (a tile of duplicates is all ties).
     ranks: Vec<u32>,
+    /// Groups of at least k exact duplicates, answered without a search.
+    duplicates: Duplicates,
     backend: Backend,
 }
 
@@ -153,14 +158,16 @@ impl<'a> NeighbourIndex<'a> {
             }
         }
         let ranks = position_ranks(xyz, ids);
+        let duplicates = Duplicates::find(xyz, &ranks, k);
         if let Some(g) = Grid::build(xyz, &ranks, lo, hi, k) {
             return Some(NeighbourIndex {
                 xyz,
                 ranks,
+                duplicates,
                 backend: Backend::Grid(g),
             });
         }
-        Self::build_tree(xyz, ranks, lo, hi)
+        Self::build_tree(xyz, ranks, duplicates, lo, hi)
     }
 
     /// Number of indexed points.
@@ -185,6 +192,13 @@ impl<'a> NeighbourIndex<'a> {
         let others = k.min(n).max(1) - 1;
         if others == 0 {
             return 0.0;
+        }
+        // At least k - 1 exact duplicates: the first of them in rank order, all at distance 0.
+        if let Some(g) = self.duplicates.group(self.ranks[i]) {
+            if g.len() > others {
+                out.extend(g.iter().filter(|&&j| j as usize != i).take(others));
+                return 0.0;
+            }
         }
         let mut first_shell = 0;
         if let Backend::Grid(g) = &self.backend {
@@ -272,10 +286,12 @@ mod tests {
                 hi[a] = hi[a].max(p[a]);
             }
         }
-        let tree = NeighbourIndex::build_tree(xyz, position_ranks(xyz, ids), lo, hi).expect("tree");
         let mut scratch = KnnScratch::default();
         let mut out = Vec::new();
         for &k in ks {
+            let ranks = position_ranks(xyz, ids);
+            let dups = Duplicates::find(xyz, &ranks, k);
+            let tree = NeighbourIndex::build_tree(xyz, ranks, dups, lo, hi).expect("tree");
             let index = NeighbourIndex::build(xyz, ids, k).expect("index");
             for i in 0..xyz.len() {
                 let want = brute(xyz, ids, i, k);
@@ -321,6 +337,28 @@ mod tests {
             Some(Backend::Grid(_))
         ));
         check_both_backends(&xyz, &ids, &[1, 5, 8, 9, 13, 30]);
+    }
+
+    /// Issue 12 item 13: large groups of exact duplicates are answered without a search, with
+    /// the same neighbours as brute force (the group's first members in position-rank order),
+    /// beside groups too small for the shortcut and a lattice around them.
+    #[test]
+    fn duplicate_groups_match_brute_force() {
+        let mut xyz = Vec::new();
+        for gx in 0..12 {
+            for gy in 0..12 {
+                xyz.push([
+                    500_000.0 + gx as f64 * 0.25,
+                    4_100_000.0 + gy as f64 * 0.25,
+                    50.0,
+                ]);
+            }
+        }
+        xyz.extend(vec![[500_001.0, 4_100_001.0, 50.0]; 200]);
+        xyz.extend(vec![[500_002.0, 4_100_000.5, 50.25]; 40]);
+        xyz.extend(vec![[500_000.5, 4_100_002.0, 50.0]; 3]);
+        let ids: Vec<u64> = (0..xyz.len() as u64).map(|i| (i * 7919) % 10_007).collect();
+        check_both_backends(&xyz, &ids, &[5, 30, 41, 60]);
     }
 
     #[test]
