@@ -107,10 +107,15 @@ impl Error {
         let hint = match source.kind() {
             std::io::ErrorKind::PermissionDenied => " (check the directory's permissions)",
             std::io::ErrorKind::NotFound => " (does the output directory exist?)",
-            _ if source.raw_os_error() == Some(28) => {
-                " (the disk is full: free space or use --work-dir elsewhere)"
-            }
-            _ => "",
+            _ => match source.raw_os_error() {
+                Some(libc::ENOSPC) | Some(libc::EDQUOT) => {
+                    " (no space left there: free space, or put the output or the work directory (--work-dir) elsewhere, then run the same command again: it resumes)"
+                }
+                Some(libc::EFBIG) => {
+                    " (the file outgrew the file-size limit: raise `ulimit -f`, or write to a file system that takes larger files, then run the same command again: it resumes)"
+                }
+                _ => "",
+            },
         };
         Error::WriteIo {
             path: path.to_path_buf(),

@@ -13,7 +13,7 @@
 //! where it stopped and the stages can run as separate processes. `process` runs them in one:
 //! there, buckets that fit the budget are handed from the bucket stage to the tiles stage in
 //! memory instead of being written and read back. The work directory is removed only after
-//! every output is written.
+//! every output is written: every failure keeps it, so that the same command resumes.
 
 pub mod assemble;
 pub mod bucket;
@@ -153,10 +153,18 @@ pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Re
         Ok(done)
     })();
     match &r {
-        // Interrupted or out of disk: keep the work, the same command resumes.
-        Err(Error::Interrupted) | Err(Error::WriteIo { .. }) => drop(work),
-        // Done, or a failure that a rerun would repeat (bad input, a bug): nothing to keep.
-        _ => work.remove(),
+        Ok(_) => work.remove(),
+        // Every failure keeps the work (an interruption says so itself): the same command
+        // resumes from it once the cause is fixed, whether it was a full disk, a limit, or an
+        // input that a rerun finds different (its work is then discarded).
+        Err(Error::Interrupted) => drop(work),
+        Err(_) => {
+            reporter.warn(&format!(
+                "the finished work is kept in {}: the same command resumes from it (delete it to start over)",
+                work.path().display()
+            ));
+            drop(work);
+        }
     }
     r.map(|d| summary(d.plan.tiles.len(), d.resumed, d.undefined, d.retried))
 }

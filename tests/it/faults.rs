@@ -1,0 +1,309 @@
+//! Faults of the machine, made real (issue 12): writes that fail (the file-size limit, a full
+//! file system), temporary files of killed runs, the summary after a resume. Each failing run
+//! must exit with its class, name the file, leave no temporary file beside the output and keep
+//! the work directory, so that the same command resumes to the bytes of a clean run.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use crate::common::{generate_terrain, root, tilecurv};
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+fn under_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true")
+}
+
+/// The shipped sample.
+fn sample() -> PathBuf {
+    root().join("data/Haystack_Rock.las")
+}
+
+/// Runs `tilecurv args` under `sh -c 'ulimit LIMIT; exec tilecurv ...'` (`-f 400`, `-n 12`).
+fn tilecurv_limited(limit: &str, args: &[&str]) -> Output {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit {limit} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_tilecurv"))
+        .args(args)
+        .output()
+        .expect("sh runs")
+}
+
+/// Temporary outputs (`.<name>.tilecurv-<host>-<pid>.tmp`) left in `dir`.
+fn temp_outputs(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .expect("lists the output directory")
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.') && n.contains(".tilecurv-") && n.ends_with(".tmp"))
+        .collect()
+}
+
+/// Checks a run that failed writing `out`: exit 4, the output named with `hint`, no output and
+/// no temporary file beside it, the work directory `work` kept; then the same command without
+/// the fault resumes to `reference`'s bytes.
+fn failed_then_resumed(
+    o: &Output,
+    args: &[&str],
+    out: &Path,
+    work: &Path,
+    hint: &str,
+    ref_: &Path,
+) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(
+        o.status.code(),
+        Some(4),
+        "{}: exit 4 expected: {err}",
+        out.display()
+    );
+    assert!(
+        err.contains(&format!("{}: cannot write", out.display())) && err.contains(hint),
+        "the message names the output and says what to do ({hint}): {err}"
+    );
+    assert!(
+        !out.exists(),
+        "{}: a failed write left an output",
+        out.display()
+    );
+    let dir = out.parent().expect("output directory");
+    assert_eq!(
+        temp_outputs(dir),
+        Vec::<String>::new(),
+        "temporary file left: {err}"
+    );
+    assert!(
+        work.join("manifest.txt").exists(),
+        "the work directory was not kept: {err}"
+    );
+    assert!(
+        err.contains("the finished work is kept in"),
+        "the message says the work is kept: {err}"
+    );
+    let again = tilecurv(args);
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(again.status.success(), "the rerun failed: {err}");
+    assert!(
+        err.contains("resuming the interrupted run"),
+        "the rerun resumes: {err}"
+    );
+    assert!(
+        std::fs::read(out).expect("output") == std::fs::read(ref_).expect("reference"),
+        "{}: the resumed output differs from a clean run's",
+        out.display()
+    );
+    assert!(
+        !work.exists(),
+        "the work directory is removed after success"
+    );
+}
+
+/// Issue 12 items 6 and 7: a write past the file-size limit (`ulimit -f`; SIGXFSZ is ignored, so
+/// the write fails with EFBIG) is an output failure, exit 4, for every writer, both in the final
+/// flush (the sample's outputs fit the writers' 4 MiB buffer) and in the middle of the records
+/// (200k points); no temporary file is left, the work directory is kept, and the same command
+/// then resumes to the bytes of a clean run. The work directory's files stay under the limit
+/// (`--tile 50m`: tile results of at most 1.2 MB), so it is the output that fails.
+#[test]
+fn write_failures_are_output_failures_that_resume() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let terrain = dir.path().join("terrain.las");
+    generate_terrain(&terrain, "200k", 2, 10.0);
+    // `ulimit -f` counts 512-byte blocks in dash, 1024-byte ones in bash: either way the
+    // limit lies between the largest work-directory file and the smallest output.
+    let cases = [(sample(), "400"), (terrain, "8000")];
+    for (input, blocks) in &cases {
+        for ext in ["las", "laz", "ply"] {
+            let stem = input
+                .file_stem()
+                .expect("stem")
+                .to_string_lossy()
+                .into_owned();
+            let reference = dir.path().join(format!("{stem}_ref.{ext}"));
+            let out = dir.path().join(format!("out/{stem}.{ext}"));
+            std::fs::create_dir_all(out.parent().expect("parent")).expect("output dir");
+            let args = ["process", s(input), "-o", s(&out), "--tile", "50m"];
+            let clean = tilecurv(&[
+                "process",
+                s(input),
+                "-o",
+                s(&reference),
+                "--tile",
+                "50m",
+                "-q",
+            ]);
+            assert!(
+                clean.status.success(),
+                "{}",
+                String::from_utf8_lossy(&clean.stderr)
+            );
+            let failed = tilecurv_limited(&format!("-f {blocks}"), &args);
+            let work = tilecurv::io::workdir::default_path(&out);
+            failed_then_resumed(&failed, &args, &out, &work, "ulimit -f", &reference);
+        }
+    }
+    // The cluster's assemble is the same writer: exit 4, nothing left, the work kept (the
+    // cluster stages never remove it), and assembling again gives the same bytes.
+    let work = dir.path().join("work");
+    let out = dir.path().join("cluster/sample.laz");
+    let run = |args: &[&str]| {
+        let o = tilecurv(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    run(&[
+        "plan",
+        s(&sample()),
+        "--work",
+        s(&work),
+        "--tile",
+        "50m",
+        "-q",
+    ]);
+    run(&["bucket", "--work", s(&work), "-q"]);
+    let tasks = String::from_utf8_lossy(&tilecurv(&["status", "--work", s(&work)]).stdout)
+        .split(" of ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|n| n.parse::<u64>().ok())
+        .expect("status names the tasks");
+    for t in 0..tasks {
+        run(&[
+            "run-tile",
+            "--work",
+            s(&work),
+            "--task",
+            &t.to_string(),
+            "-q",
+        ]);
+    }
+    std::fs::create_dir_all(out.parent().expect("parent")).expect("output dir");
+    let failed = tilecurv_limited("-f 400", &["assemble", "--work", s(&work), "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&failed.stderr);
+    assert_eq!(failed.status.code(), Some(4), "{err}");
+    assert!(err.contains("ulimit -f"), "{err}");
+    assert_eq!(
+        temp_outputs(out.parent().expect("parent")),
+        Vec::<String>::new()
+    );
+    assert!(
+        work.join("manifest.txt").exists(),
+        "assemble removed the work directory"
+    );
+    run(&["assemble", "--work", s(&work), "-o", s(&out), "-q"]);
+    assert!(
+        std::fs::read(&out).expect("output")
+            == std::fs::read(dir.path().join("Haystack_Rock_ref.laz")).expect("reference"),
+        "the cluster's assembled output differs from process's"
+    );
+}
+
+/// A tmpfs mounted for one test, unmounted when dropped.
+struct Tmpfs(PathBuf);
+
+impl Tmpfs {
+    /// Mounts a tmpfs of `size` at `at`; None when that is impossible (not root, no
+    /// CAP_SYS_ADMIN), with the reason.
+    fn mount(at: &Path, size: &str) -> Result<Self, String> {
+        std::fs::create_dir_all(at).map_err(|e| e.to_string())?;
+        let o = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs", s(at)])
+            .output()
+            .map_err(|e| format!("mount: {e}"))?;
+        if !o.status.success() {
+            return Err(String::from_utf8_lossy(&o.stderr).into_owned());
+        }
+        Ok(Tmpfs(at.to_path_buf()))
+    }
+
+    /// Gives the file system `size` (its files stay).
+    fn resize(&self, size: &str) {
+        let o = Command::new("mount")
+            .args(["-o", &format!("remount,size={size}"), s(&self.0)])
+            .output()
+            .expect("mount runs");
+        assert!(
+            o.status.success(),
+            "remount: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+    }
+}
+
+/// Issue 12 item 7: the disk fills while the LAZ output is written (a 256 KiB tmpfs; the
+/// output needs 600 KB). It exited 1 ("internal error ... a bug") and deleted the work
+/// directory; now it is exit 4 naming the output and saying the disk is full, nothing is left
+/// on the full disk, the work directory (elsewhere, `--work-dir`) is kept, and once the file
+/// system has room the same command resumes to the bytes of a clean run. Needs root to mount
+/// the tmpfs: a loud skip otherwise, a failure under CI=true (CI runs as root).
+#[test]
+fn a_full_disk_while_writing_laz_keeps_the_work_and_resumes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mnt = match Tmpfs::mount(&dir.path().join("mnt"), "256k") {
+        Ok(m) => m,
+        Err(why) if under_ci() => {
+            panic!("CI=true: cannot mount a tmpfs for the disk-full test: {why}")
+        }
+        Err(why) => {
+            eprintln!("SKIPPED: the disk-full test needs a tmpfs mount (root): {why}");
+            return;
+        }
+    };
+    let reference = dir.path().join("reference.laz");
+    let clean = tilecurv(&[
+        "process",
+        s(&sample()),
+        "-o",
+        s(&reference),
+        "--tile",
+        "50m",
+        "-q",
+    ]);
+    assert!(
+        clean.status.success(),
+        "{}",
+        String::from_utf8_lossy(&clean.stderr)
+    );
+    let out = mnt.0.join("out.laz");
+    let work = dir.path().join("work");
+    let input = sample();
+    let args = [
+        "process",
+        s(&input),
+        "-o",
+        s(&out),
+        "--tile",
+        "50m",
+        "--work-dir",
+        s(&work),
+    ];
+    let failed = tilecurv(&args);
+    let err = String::from_utf8_lossy(&failed.stderr);
+    assert!(err.contains("No space left on device"), "{err}");
+    assert_eq!(
+        std::fs::read_dir(&mnt.0).expect("lists").count(),
+        0,
+        "the full disk holds files"
+    );
+    mnt.resize("16m");
+    failed_then_resumed(
+        &failed,
+        &args,
+        &out,
+        &work,
+        "no space left there",
+        &reference,
+    );
+}
