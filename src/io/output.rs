@@ -7,6 +7,7 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+use crate::io::workdir::{host_name, is_dead_process};
 
 /// An output being written: records in, a complete file (or nothing) out.
 pub trait PointSink {
@@ -20,13 +21,48 @@ pub trait PointSink {
 }
 
 /// The temporary file an output is written to: hidden, beside the output (the same file
-/// system, so that the final rename is atomic), named after the output and this process.
+/// system, so that the final rename is atomic), named after the output, this host and this
+/// process: `.<name>.tilecurv-<host>-<pid>.tmp` (outputs may be on a file system that other
+/// nodes share, where pids alone would collide and could not be judged dead).
 pub fn temp_path(output: &Path) -> PathBuf {
+    output.with_file_name(format!(
+        "{}{}-{}.tmp",
+        temp_prefix(output),
+        host_name(),
+        std::process::id()
+    ))
+}
+
+/// What every temporary name of `output` starts with: `.<name>.tilecurv-`.
+fn temp_prefix(output: &Path) -> String {
     let file_name = output
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "output".into());
-    output.with_file_name(format!(".{file_name}.tilecurv-{}.tmp", std::process::id()))
+    format!(".{file_name}.tilecurv-")
+}
+
+/// Removes the temporary files of `output` that killed processes of this host left beside it
+/// (a run killed while writing leaves its temporary file). Those of running processes and of
+/// other hosts are left alone; one that cannot be removed is left for the next run.
+pub fn sweep_dead_temps(output: &Path) {
+    let dir = output
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let prefix = format!("{}{}-", temp_prefix(output), host_name());
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let pid = name
+            .strip_prefix(&prefix)
+            .and_then(|rest| rest.strip_suffix(".tmp"));
+        if pid.is_some_and(is_dead_process) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
 }
 
 /// The temporary file of an output while it is written. Dropping it removes the file: a writer
@@ -42,9 +78,11 @@ pub struct TempFile {
 }
 
 impl TempFile {
-    /// Creates the temporary file of `output` ([`temp_path`]), empty; write errors are to name
-    /// the output ([`TempFile::error`]).
+    /// Creates the temporary file of `output` ([`temp_path`]), empty, after removing those of
+    /// killed runs ([`sweep_dead_temps`]); write errors are to name the output
+    /// ([`TempFile::error`]).
     pub fn create(output: &Path) -> Result<(Self, File)> {
+        sweep_dead_temps(output);
         let path = temp_path(output);
         let file = File::create(&path).map_err(|e| Error::write(output, e))?;
         let tmp = TempFile {
@@ -119,6 +157,28 @@ mod tests {
         tmp.commit(f).expect("commits");
         assert_eq!(std::fs::read(&out).expect("output"), b"y");
         assert_eq!(leftovers(dir.path(), &[]), ["o.las"]);
+    }
+
+    #[test]
+    fn temp_files_of_dead_processes_of_this_host_are_swept() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let out = dir.path().join("o.las");
+        let host = host_name();
+        let names = [
+            format!(".o.las.tilecurv-{host}-2147483646.tmp"),
+            format!(".o.las.tilecurv-{host}-{}.tmp", std::process::id()),
+            ".o.las.tilecurv-other-node-2147483646.tmp".to_string(),
+            format!(".o2.las.tilecurv-{host}-2147483646.tmp"),
+        ];
+        for n in &names {
+            std::fs::write(dir.path().join(n), b"x").expect("plants");
+        }
+        sweep_dead_temps(&out);
+        let mut left = leftovers(dir.path(), &[]);
+        left.sort();
+        let mut kept = names[1..].to_vec();
+        kept.sort();
+        assert_eq!(left, kept);
     }
 
     #[test]

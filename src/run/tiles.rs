@@ -25,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::io::bucket::{load_tile, Buckets};
 use crate::io::columns::ColumnSet;
 use crate::io::results::{is_complete, orientation_path, tile_path, Journal, TileSidecar};
-use crate::io::workdir::WorkDir;
+use crate::io::workdir::{sweep_dead_temps, WorkDir};
 use crate::run::bucket::Bucketed;
 use crate::run::spec::RunSpec;
 use crate::run::Exec;
@@ -215,6 +215,8 @@ pub fn tiles(
     let tplan = plan(&scan.stats, spec.grid.size, spec.k);
     let results_dir = work.path().join("results");
     std::fs::create_dir_all(&results_dir).map_err(|e| Error::write(&results_dir, e))?;
+    // Result files and sidecars that killed runs of this host left half-written.
+    sweep_dead_temps(&results_dir);
     let propagate = params.propagate.is_some();
     let mine = |t: &TileSpec| task.is_none_or(|i| layout.task_of(t.key) == i);
     let todo: Vec<TileSpec> = missing_tiles(&results_dir, spec, &tplan, layout)

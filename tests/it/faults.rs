@@ -307,3 +307,132 @@ fn a_full_disk_while_writing_laz_keeps_the_work_and_resumes() {
         &reference,
     );
 }
+
+/// The pid of a process that has finished (and been reaped): dead, and not reused while pids
+/// count up to pid_max.
+fn dead_pid() -> u32 {
+    let mut c = Command::new("true").spawn().expect("true runs");
+    let pid = c.id();
+    c.wait().expect("true ends");
+    pid
+}
+
+/// Issue 12 item 8: the temporary files of killed runs were never removed. A rerun removes
+/// those of dead processes of this host, beside the outputs (`.<name>.tilecurv-<host>-<pid>.tmp`)
+/// and in the work directory (`<name>.tmp.<host>.<pid>`: manifest, result files, bucket task
+/// directories), and keeps those of live processes (this test's) and of other hosts.
+#[test]
+fn reruns_sweep_the_temporary_files_of_dead_processes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let host = tilecurv::io::workdir::host_name();
+    let (dead, live) = (dead_pid(), std::process::id());
+    let work = dir.path().join("work");
+    let input = sample();
+    let run = |args: &[&str]| {
+        let o = tilecurv(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    let plan = ["plan", s(&input), "--work", s(&work), "--tile", "50m", "-q"];
+    run(&plan);
+    let plant = |dir: &Path, name: &str, is_dir: bool| {
+        let p = dir.join(name);
+        if is_dir {
+            std::fs::create_dir_all(p.join("inner")).expect("plants a directory");
+        } else {
+            std::fs::create_dir_all(dir).expect("parent");
+            std::fs::write(&p, b"half-written").expect("plants a file");
+        }
+        p
+    };
+    let mut gone = Vec::new();
+    let mut kept = Vec::new();
+    for (sub, base, is_dir) in [
+        ("", "manifest.txt", false),
+        ("results", "tile_0_0.res", false),
+        ("results", "tile_0_0.ori", false),
+        ("buckets", "t0", true),
+    ] {
+        let d = work.join(sub);
+        gone.push(plant(&d, &format!("{base}.tmp.{host}.{dead}"), is_dir));
+        kept.push(plant(&d, &format!("{base}.tmp.{host}.{live}"), is_dir));
+        kept.push(plant(
+            &d,
+            &format!("{base}.tmp.another-node.{dead}"),
+            is_dir,
+        ));
+    }
+    let outdir = dir.path().join("out");
+    for name in ["a.laz", "b.ply"] {
+        gone.push(plant(
+            &outdir,
+            &format!(".{name}.tilecurv-{host}-{dead}.tmp"),
+            false,
+        ));
+        kept.push(plant(
+            &outdir,
+            &format!(".{name}.tilecurv-{host}-{live}.tmp"),
+            false,
+        ));
+        kept.push(plant(
+            &outdir,
+            &format!(".{name}.tilecurv-another-node-{dead}.tmp"),
+            false,
+        ));
+    }
+    // The cluster stages: plan again (it reopens the work directory), bucket, every tile task,
+    // assemble; then `process`, which writes beside its output too.
+    run(&plan);
+    run(&["bucket", "--work", s(&work), "-q"]);
+    let status = tilecurv(&["status", "--work", s(&work)]);
+    let tasks = String::from_utf8_lossy(&status.stdout)
+        .split(" of ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|n| n.parse::<u64>().ok())
+        .expect("status names the tasks");
+    for t in 0..tasks {
+        run(&[
+            "run-tile",
+            "--work",
+            s(&work),
+            "--task",
+            &t.to_string(),
+            "-q",
+        ]);
+    }
+    run(&[
+        "assemble",
+        "--work",
+        s(&work),
+        "-o",
+        s(&outdir.join("a.laz")),
+        "-q",
+    ]);
+    run(&[
+        "process",
+        s(&input),
+        "-o",
+        s(&outdir.join("b.ply")),
+        "--tile",
+        "50m",
+        "-q",
+    ]);
+    for p in &gone {
+        assert!(
+            !p.exists(),
+            "{}: a dead process's temporary file was kept",
+            p.display()
+        );
+    }
+    for p in &kept {
+        assert!(
+            p.exists(),
+            "{}: a live or foreign temporary file was removed",
+            p.display()
+        );
+    }
+}
