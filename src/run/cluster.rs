@@ -240,10 +240,10 @@ pub fn assemble(
     let outputs = output_paths(&a.cfg)?;
     check_outputs(&a.cfg, &outputs)?;
     a.spec.outputs = outputs;
-    super::assemble::assemble_outputs(&a.work, &a.spec, &tplan, &exec)?;
+    let undefined = super::assemble::assemble_outputs(&a.work, &a.spec, &tplan, &exec)?;
     Ok(Summary {
         points: a.spec.total_points,
-        undefined: 0,
+        undefined,
         tiles: tplan.tiles.len(),
         tiles_resumed: tplan.tiles.len(),
         retried: 0,

@@ -41,8 +41,8 @@ use crate::run::spec::RunSpec;
 pub struct Summary {
     /// Points written.
     pub points: u64,
-    /// Points whose curvature is undefined (flag in `flags::UNDEFINED`), among those computed
-    /// in this run.
+    /// Points written whose curvature is undefined (flag `flags::UNDEFINED`): all of them,
+    /// those of tiles resumed from an earlier run too, as counted in the outputs.
     pub undefined: u64,
     /// Tiles in the plan.
     pub tiles: usize,
@@ -149,8 +149,8 @@ pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Re
         let scan = bucket::bucket_all(&work, &spec, &layout, &exec)?;
         let done = tiles::tiles(&work, &spec, &scan, &layout, None, &exec)?;
         drop(scan);
-        assemble::assemble_outputs(&work, &spec, &done.plan, &exec)?;
-        Ok(done)
+        let undefined = assemble::assemble_outputs(&work, &spec, &done.plan, &exec)?;
+        Ok((done, undefined))
     })();
     match &r {
         Ok(_) => work.remove(),
@@ -166,5 +166,5 @@ pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Re
             drop(work);
         }
     }
-    r.map(|d| summary(d.plan.tiles.len(), d.resumed, d.undefined, d.retried))
+    r.map(|(d, undefined)| summary(d.plan.tiles.len(), d.resumed, undefined, d.retried))
 }

@@ -436,3 +436,110 @@ fn reruns_sweep_the_temporary_files_of_dead_processes() {
         );
     }
 }
+
+/// The `N` of "N undefined" in the final summary line.
+fn summary_undefined(stderr: &str) -> u64 {
+    stderr
+        .rsplit("done: ")
+        .next()
+        .and_then(|line| line.split(" undefined").next())
+        .and_then(|head| head.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no undefined count in the summary: {stderr}"))
+}
+
+/// Points of `out` whose H is NaN, and those whose flags say undefined (the same points).
+fn undefined_in(out: &Path) -> (usize, usize) {
+    let h = crate::common::column(out, "H");
+    let flags = crate::common::column(out, "CurvatureFlags");
+    let nan = h.iter().filter(|v| v.is_nan()).count();
+    let flagged = flags
+        .iter()
+        .filter(|&&f| (f as u8) & tilecurv::core::estimate::flags::UNDEFINED != 0)
+        .count();
+    (nan, flagged)
+}
+
+/// Result files in a work directory.
+fn finished_tiles(work: &Path) -> usize {
+    std::fs::read_dir(work.join("results"))
+        .map(|d| {
+            d.flatten()
+                .filter(|e| e.file_name().to_string_lossy().ends_with(".res"))
+                .count()
+        })
+        .unwrap_or(0)
+}
+
+/// Issue 12 item 11: after a resume the summary said "0 undefined" while the output held
+/// undefined points: it counted only the tiles computed by the last run. It now counts the
+/// points written, whichever run computed their tile. A 1 pt/m2 plane of 320 m x 320 m in
+/// 1024 tiles of 10 m, with a stack of 40 coincident points (no normal: undefined) in every
+/// 8th tile; the run is killed once the first batch of tiles is journalled, then resumed.
+#[test]
+fn the_summary_counts_undefined_points_of_resumed_tiles() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("stacks.las");
+    let mut xyz = Vec::new();
+    for i in 0..320 {
+        for j in 0..320 {
+            let (x, y) = (i as f64 + 0.5, j as f64 + 0.5);
+            xyz.push([x, y, 0.01 * ((x * 0.37).sin() + (y * 0.23).cos())]);
+        }
+    }
+    for t in (0..1024).step_by(8) {
+        let (x, y) = ((t % 32) as f64 * 10.0 + 5.25, (t / 32) as f64 * 10.0 + 5.25);
+        xyz.extend(std::iter::repeat_n([x, y, 3.0], 40));
+    }
+    crate::common::write_las(&input, &xyz, None, 0.001);
+    let out = dir.path().join("out.las");
+    let work = tilecurv::io::workdir::default_path(&out);
+    let args = [
+        "process",
+        s(&input),
+        "-o",
+        s(&out),
+        "--tile",
+        "10m",
+        "--threads",
+        "2",
+    ];
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tilecurv"))
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("tilecurv starts");
+    let killed = loop {
+        if child.try_wait().expect("wait").is_some() {
+            break false;
+        }
+        if finished_tiles(&work) > 0 {
+            child.kill().expect("SIGKILL");
+            child.wait().expect("reaped");
+            break true;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    };
+    assert!(
+        killed,
+        "the run finished before its first tiles were journalled"
+    );
+    let journalled = finished_tiles(&work);
+    assert!(journalled < 1024, "every tile was done before the kill");
+    let resumed = tilecurv(&args);
+    let err = String::from_utf8_lossy(&resumed.stderr);
+    assert!(resumed.status.success(), "{err}");
+    assert!(err.contains("resuming the interrupted run"), "{err}");
+    let (nan, flagged) = undefined_in(&out);
+    assert_eq!(nan, flagged, "NaN H and the undefined flags disagree");
+    assert!(
+        nan >= 40 * 128,
+        "{nan} undefined points: the stacks are undefined"
+    );
+    assert_eq!(
+        summary_undefined(&err),
+        nan as u64,
+        "the summary's undefined count (after {journalled} tiles resumed) is not the output's: {err}"
+    );
+}
