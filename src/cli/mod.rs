@@ -27,7 +27,8 @@ pub mod exit {
     pub const USAGE: i32 = 2;
     /// Bad input: unreadable, malformed or unsupported input file.
     pub const BAD_INPUT: i32 = 3;
-    /// Output failure: the output or work directory could not be written.
+    /// Output failure: the output or the work directory could not be written or read, or a
+    /// limit of the machine (disk space, file size, open files, memory) stopped the run.
     pub const OUTPUT: i32 = 4;
     /// A cluster stage found tasks of an earlier stage not done (`assemble` while tile tasks
     /// are missing); nothing was written.
@@ -42,7 +43,9 @@ Exit codes:
   1    internal error (a bug: please report it with the command line)
   2    usage error: a bad option or value
   3    bad input: the input is unreadable, malformed or unsupported (the message names the file and byte offset)
-  4    output failure: the output or the work directory could not be written
+  4    output failure: the output or the work directory could not be written or read, or a
+       limit of the machine stopped the run (disk space, ulimit -f, ulimit -n, memory); the
+       work is kept: fix the cause and run the same command again to resume
   5    tasks missing: a cluster stage (run-tile, assemble) found tasks of an earlier stage not
        done; nothing was written (the message names them; `tilecurv status --missing` lists them)
   130  interrupted (SIGINT/SIGTERM): no output was written; run the same command again to resume
@@ -146,6 +149,7 @@ pub fn main_with_args() -> i32 {
         }
     };
     install_signal_handlers();
+    crate::io::limits::raise_open_files();
     let r = match cli.command {
         Command::Generate(GenerateArgs {
             kind: GenerateKind::Terrain(args),

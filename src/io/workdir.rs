@@ -281,17 +281,18 @@ impl WorkDir {
         let lock_file = take_lock(path)?;
         sweep_dead_temps(path);
         let mpath = path.join(MANIFEST);
+        // Only a manifest that is not there, or not text, means no work to keep: one that
+        // cannot be read now (too many open files) must not discard the work.
         let resume = match std::fs::read_to_string(&mpath) {
             Ok(old) if old == manifest => Resume::Resumed,
-            Ok(_) => {
-                clear_except_lock(path)?;
-                Resume::Discarded
-            }
-            Err(_) => {
-                clear_except_lock(path)?;
-                Resume::Fresh
-            }
+            Ok(_) => Resume::Discarded,
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Resume::Discarded,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Resume::Fresh,
+            Err(e) => return Err(Error::read_work(&mpath, e)),
         };
+        if resume != Resume::Resumed {
+            clear_except_lock(path)?;
+        }
         if resume != Resume::Resumed {
             write_durably(&mpath, manifest.as_bytes())?;
         }
@@ -307,12 +308,15 @@ impl WorkDir {
     /// stage run at the same time, on any node), and returns it with its manifest.
     pub fn attach(path: &Path) -> Result<(Self, String)> {
         let mpath = path.join(MANIFEST);
-        let manifest = std::fs::read_to_string(&mpath).map_err(|e| {
-            Error::Usage(format!(
-                "{}: not a tilecurv work directory ({e}); run `tilecurv plan INPUTS... --work {}` first",
-                path.display(),
-                path.display()
-            ))
+        let manifest = std::fs::read_to_string(&mpath).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound | std::io::ErrorKind::InvalidData => {
+                Error::Usage(format!(
+                    "{}: not a tilecurv work directory ({e}); run `tilecurv plan INPUTS... --work {}` first",
+                    path.display(),
+                    path.display()
+                ))
+            }
+            _ => Error::read_work(&mpath, e),
         })?;
         Ok((
             WorkDir {

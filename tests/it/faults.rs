@@ -543,3 +543,83 @@ fn the_summary_counts_undefined_points_of_resumed_tiles() {
         "the summary's undefined count (after {journalled} tiles resumed) is not the output's: {err}"
     );
 }
+
+/// `ulimit -n` for `extra` descriptors beyond those the tool starts with (its standard streams
+/// and whatever the test harness lets it inherit: `ls /proc/self/fd` counts those and its own
+/// listing's one).
+fn open_files(extra: i32) -> String {
+    format!("-n $(( $(ls /proc/self/fd | wc -l) - 1 + {extra} ))")
+}
+
+/// Issue 12 item 13 (too many open files): a limit on open files too low to merge the results
+/// gave exit 3, bad input, naming a result file of the work directory. Running out of
+/// descriptors is not bad input, and neither is a work-directory file that cannot be read: exit
+/// 4 naming the file and saying to raise `ulimit -n`, the work kept (a manifest that could not
+/// be read was taken for "no work" and the work discarded). The limit is raised one descriptor
+/// at a time from below what the tool starts with (the dynamic loader fails there, before
+/// tilecurv runs), then the lock, the manifest, the merge: every failure of tilecurv is that
+/// exit 4, naming the manifest, then a result file; at a few descriptors the merge fits itself to the
+/// limit (it merges in runs) and the same command resumes to a clean run's bytes.
+#[test]
+fn too_many_open_files_is_a_resource_error_not_bad_input() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = sample();
+    let reference = dir.path().join("reference.las");
+    let clean = tilecurv(&[
+        "process",
+        s(&input),
+        "-o",
+        s(&reference),
+        "--tile",
+        "20m",
+        "-q",
+    ]);
+    assert!(
+        clean.status.success(),
+        "{}",
+        String::from_utf8_lossy(&clean.stderr)
+    );
+    let out = dir.path().join("out.las");
+    let work = tilecurv::io::workdir::default_path(&out);
+    let args = ["process", s(&input), "-o", s(&out), "--tile", "20m"];
+    let mut named = Vec::new();
+    let mut done = None;
+    for extra in -2..=12 {
+        let o = tilecurv_limited(&open_files(extra), &args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        if o.status.success() {
+            done = Some((extra, err));
+            break;
+        }
+        if err.contains("error while loading shared libraries") {
+            continue; // too few for the dynamic loader, before tilecurv runs
+        }
+        assert_eq!(o.status.code(), Some(4), "ulimit -n start + {extra}: {err}");
+        assert!(
+            err.contains("Too many open files") && err.contains("ulimit -n"),
+            "the message says to raise the limit: {err}"
+        );
+        let line = err
+            .lines()
+            .find(|l| l.contains("error:"))
+            .unwrap_or_default();
+        if line.contains(&format!("{}/", work.display())) {
+            named.push(line.to_string());
+        }
+        assert!(!out.exists());
+        assert_eq!(temp_outputs(dir.path()), Vec::<String>::new());
+    }
+    let (extra, err) = done.expect("no run succeeded with up to 12 descriptors more than at start");
+    eprintln!("open files: start + {extra} suffice; the failures below: {named:?}");
+    for file in ["manifest.txt: cannot read", ".res: cannot read"] {
+        assert!(
+            named.iter().any(|l| l.contains(file)),
+            "no failure named the work directory's {file}: {named:?}"
+        );
+    }
+    assert!(err.contains("resuming the interrupted run"), "{err}");
+    assert!(
+        std::fs::read(&out).expect("output") == std::fs::read(&reference).expect("reference"),
+        "the output merged under a low open-file limit differs from a clean run's"
+    );
+}
