@@ -74,6 +74,10 @@ pub enum Error {
         hint: &'static str,
     },
 
+    /// The machine refused the run something it needs (a thread), not because of any file.
+    #[error("{0}")]
+    Resource(String),
+
     /// Tasks of an earlier stage are not done yet (a cluster run): nothing was written.
     #[error("{stage} tasks not done: {tasks}; {hint}")]
     TasksMissing {
@@ -100,7 +104,9 @@ impl Error {
         match self {
             Error::Usage(_) => ExitClass::Usage,
             Error::BadInput { .. } | Error::ReadIo { .. } => ExitClass::BadInput,
-            Error::WriteIo { .. } | Error::ReadFailed { .. } => ExitClass::Output,
+            Error::WriteIo { .. } | Error::ReadFailed { .. } | Error::Resource(_) => {
+                ExitClass::Output
+            }
             Error::TasksMissing { .. } => ExitClass::Incomplete,
             Error::Interrupted => ExitClass::Interrupted,
             Error::Internal(_) => ExitClass::Internal,

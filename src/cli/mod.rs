@@ -150,6 +150,7 @@ pub fn main_with_args() -> i32 {
     };
     install_signal_handlers();
     crate::io::limits::raise_open_files();
+    crate::io::limits::fit_allocator_to_address_space();
     let r = match cli.command {
         Command::Generate(GenerateArgs {
             kind: GenerateKind::Terrain(args),

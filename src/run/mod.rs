@@ -19,6 +19,7 @@ pub mod assemble;
 pub mod bucket;
 pub mod cluster;
 pub mod dry_run;
+pub mod limits;
 pub mod orientation;
 pub mod prepare;
 pub mod spec;
@@ -69,15 +70,27 @@ pub struct Exec<'a> {
 }
 
 impl<'a> Exec<'a> {
-    /// The execution settings of `cfg`.
-    pub fn new(cfg: &Config, reporter: &'a dyn Reporter, cancel: &'a AtomicBool) -> Result<Self> {
+    /// The execution settings of `cfg` for a run of `spec`: its budget fitted to the machine's
+    /// memory limits ([`limits::fit_memory`]).
+    pub fn new(
+        cfg: &Config,
+        spec: &RunSpec,
+        reporter: &'a dyn Reporter,
+        cancel: &'a AtomicBool,
+    ) -> Result<Self> {
+        let budget = limits::fit_memory(cfg, spec, reporter)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(cfg.threads)
             .build()
-            .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
+            .map_err(|e| {
+                Error::Resource(format!(
+                    "cannot start {} worker threads: {e}; lower --threads, or raise the limits on processes (ulimit -u) or memory (ulimit -v)",
+                    cfg.threads
+                ))
+            })?;
         Ok(Exec {
             pool,
-            memory: MemoryPlan::new(cfg.memory_bytes as usize, cfg.k),
+            memory: MemoryPlan::new(budget as usize, cfg.k),
             chunk_points: cfg.chunk_points,
             reporter,
             cancel,
@@ -129,7 +142,7 @@ pub fn plan(
 pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result<Summary> {
     let started = Instant::now();
     let spec = prepare::prepare(cfg, reporter)?;
-    let exec = Exec::new(cfg, reporter, cancel)?;
+    let exec = Exec::new(cfg, &spec, reporter, cancel)?;
     let path = work_path(cfg, &spec);
     let summary = |tiles: usize, resumed: usize, undefined: u64, retried: u64| Summary {
         points: spec.total_points,

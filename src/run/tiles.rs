@@ -326,10 +326,12 @@ fn drive(
     let propagate = job.params.propagate.is_some();
     std::thread::scope(|s| -> Result<(u64, u64)> {
         let (tx, rx) = bounded::<Result<Finished>>(1);
+        let (mut started, mut refused) = (0, None);
         for _ in 0..exec.memory.tiles_in_flight.max(1) {
             let tx = tx.clone();
             let (next, stop) = (&next, &stop);
-            s.spawn(move || {
+            let driver = std::thread::Builder::new().name("tile driver".into());
+            let spawned = driver.spawn_scoped(s, move || {
                 let mut bufs = TileBuffers::default();
                 while !stop.load(Ordering::Relaxed) {
                     let Some(spec) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
@@ -353,8 +355,26 @@ fn drive(
                     }
                 }
             });
+            match spawned {
+                Ok(_) => started += 1,
+                Err(e) => {
+                    refused = Some(e);
+                    break;
+                }
+            }
         }
         drop(tx);
+        // A machine out of threads or address space: fewer drivers, or none and an error.
+        if let Some(e) = refused {
+            if started == 0 {
+                return Err(Error::Resource(format!(
+                    "cannot start a thread to compute tiles: {e}; lower --threads, or raise the limits on processes (ulimit -u) or memory (ulimit -v), then run the same command again: it resumes"
+                )));
+            }
+            exec.reporter.warn(&format!(
+                "could not start every tile driver ({e}): computing with {started}"
+            ));
+        }
         let written = write_results(rx, results_dir, cols, &stop);
         let (undefined, retried) = written?;
         if exec.cancel.load(Ordering::Relaxed) {

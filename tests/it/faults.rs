@@ -623,3 +623,58 @@ fn too_many_open_files_is_a_resource_error_not_bad_input() {
         "the output merged under a low open-file limit differs from a clean run's"
     );
 }
+
+/// Issue 12 item 9: under `ulimit -v` the process aborted whatever `--memory` said (a 1M-point
+/// terrain, the default 4 GiB budget: exit 134 in the write phase at 341 MiB, whose chunk
+/// buffer is sized from the budget; a panic starting the tile threads at 292 MiB; exit 134 in
+/// the scan below). The budget is now fitted to the limit, against which the mapped inputs
+/// and the threads' stacks count: a limit that cannot hold even the smallest budget is refused
+/// (exit 2, naming it and what to raise it to), and 100 MiB above that the run lowers its
+/// budget with a message and completes, with a clean run's bytes.
+#[test]
+fn an_address_space_limit_lowers_the_budget_or_refuses_cleanly() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("terrain.las");
+    generate_terrain(&input, "500k", 4, 10.0);
+    let reference = dir.path().join("reference.las");
+    let clean = tilecurv(&["process", s(&input), "-o", s(&reference), "-q"]);
+    assert!(
+        clean.status.success(),
+        "{}",
+        String::from_utf8_lossy(&clean.stderr)
+    );
+    let out = dir.path().join("out.las");
+    let args = ["process", s(&input), "-o", s(&out), "--memory", "4G"];
+    // Room for the program and the mapped input, not for a budget.
+    let mapped_kib = std::fs::metadata(&input).expect("input").len() / 1024;
+    let refused = tilecurv_limited(&format!("-v {}", mapped_kib + 40 * 1024), &args);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("the address-space limit (ulimit -v) of") && err.contains("is too small"),
+        "the refusal names the limit: {err}"
+    );
+    let need: u64 = err
+        .split("raise it to `ulimit -v ")
+        .nth(1)
+        .and_then(|t| t.split('`').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("the refusal says what to raise the limit to: {err}"));
+    assert!(!out.exists());
+    let fitted = tilecurv_limited(&format!("-v {}", need + 100 * 1024), &args);
+    let err = String::from_utf8_lossy(&fitted.stderr);
+    assert!(
+        fitted.status.success(),
+        "under ulimit -v {} KiB: {err}",
+        need + 100 * 1024
+    );
+    assert!(
+        err.contains("--memory 4096 MiB does not fit the address-space limit (ulimit -v)")
+            && err.contains("using --memory"),
+        "the lowered budget is said: {err}"
+    );
+    assert!(
+        std::fs::read(&out).expect("output") == std::fs::read(&reference).expect("reference"),
+        "the output under a lowered budget differs from a clean run's"
+    );
+}
