@@ -41,7 +41,8 @@ const EXIT_HELP: &str = "\
 Exit codes:
   0    success: the output is complete
   1    internal error (a bug: please report it with the command line)
-  2    usage error: a bad option or value
+  2    usage error: a bad option or value, or a memory limit (ulimit -v, the cgroup's) too
+       small for even the smallest budget (the message says what to raise it to)
   3    bad input: the input is unreadable, malformed or unsupported (the message names the file and byte offset)
   4    output failure: the output or the work directory could not be written or read, or a
        limit of the machine stopped the run (disk space, ulimit -f, ulimit -n, memory); the
