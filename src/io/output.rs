@@ -1,5 +1,5 @@
 //! What every output writer shares: the [`PointSink`] trait (records in, a complete file or
-//! nothing out) and the atomic-output steps: a [`TempFile`] beside the output ([`temp_path`]),
+//! nothing out) and the atomic-output steps: a [`TempFile`] beside the output (`temp_path`),
 //! removed on every path that does not [`TempFile::commit`] it. It imports no writer, so that
 //! the writers (`las::writer`, `ply`) can use it while `sink` picks among them.
 
@@ -24,7 +24,7 @@ pub trait PointSink {
 /// system, so that the final rename is atomic), named after the output, this host and this
 /// process: `.<name>.tilecurv-<host>-<pid>.tmp` (outputs may be on a file system that other
 /// nodes share, where pids alone would collide and could not be judged dead).
-pub fn temp_path(output: &Path) -> PathBuf {
+fn temp_path(output: &Path) -> PathBuf {
     output.with_file_name(format!(
         "{}{}-{}.tmp",
         temp_prefix(output),
@@ -78,7 +78,7 @@ pub struct TempFile {
 }
 
 impl TempFile {
-    /// Creates the temporary file of `output` ([`temp_path`]), empty, after removing those of
+    /// Creates the temporary file of `output` (`temp_path`), empty, after removing those of
     /// killed runs ([`sweep_dead_temps`]); write errors are to name the output
     /// ([`TempFile::error`]).
     pub fn create(output: &Path) -> Result<(Self, File)> {
@@ -91,11 +91,6 @@ impl TempFile {
             committed: false,
         };
         Ok((tmp, file))
-    }
-
-    /// The temporary file's path.
-    pub fn path(&self) -> &Path {
-        &self.path
     }
 
     /// The output it becomes.
