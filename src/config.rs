@@ -407,7 +407,7 @@ impl Config {
         if self.inputs.is_empty() {
             return Err(Error::Usage("no input file given".into()));
         }
-        if self.memory_bytes < 64 << 20 {
+        if self.memory_bytes < crate::core::plan::MIN_BUDGET_BYTES {
             return Err(Error::Usage(format!(
                 "--memory {} bytes is too small: at least 64M",
                 self.memory_bytes

@@ -11,7 +11,8 @@ pub enum ExitClass {
     Usage,
     /// An input file is unreadable, malformed or unsupported (exit 3).
     BadInput,
-    /// The output or work directory could not be written (exit 4).
+    /// The output or the work directory could not be written or read, or a limit of the
+    /// machine (disk space, file size, open files, memory) stopped the run (exit 4).
     Output,
     /// The run was stopped by a signal (exit 130).
     Interrupted,
@@ -40,13 +41,26 @@ pub enum Error {
         what: String,
     },
 
-    /// Reading an input file failed at the operating-system level.
+    /// Reading an input file failed at the operating-system level (made by
+    /// [`Error::read_input`], which keeps a lack of resources out of it).
     #[error("{path}: cannot read: {source}")]
     ReadIo {
         /// The input file.
         path: PathBuf,
         /// The underlying error.
         source: std::io::Error,
+    },
+
+    /// Reading failed for a reason that is not the input's: a file of the work directory
+    /// (tilecurv's own) is unreadable, or opening any file hit a limit (too many open files).
+    #[error("{path}: cannot read: {source}{hint}")]
+    ReadFailed {
+        /// The file being read.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+        /// What to do.
+        hint: &'static str,
     },
 
     /// Writing the output or the work directory failed.
@@ -59,6 +73,10 @@ pub enum Error {
         /// A hint on what to do (may be empty).
         hint: &'static str,
     },
+
+    /// The machine refused the run something it needs (a thread), not because of any file.
+    #[error("{0}")]
+    Resource(String),
 
     /// Tasks of an earlier stage are not done yet (a cluster run): nothing was written.
     #[error("{stage} tasks not done: {tasks}; {hint}")]
@@ -86,7 +104,9 @@ impl Error {
         match self {
             Error::Usage(_) => ExitClass::Usage,
             Error::BadInput { .. } | Error::ReadIo { .. } => ExitClass::BadInput,
-            Error::WriteIo { .. } => ExitClass::Output,
+            Error::WriteIo { .. } | Error::ReadFailed { .. } | Error::Resource(_) => {
+                ExitClass::Output
+            }
             Error::TasksMissing { .. } => ExitClass::Incomplete,
             Error::Interrupted => ExitClass::Interrupted,
             Error::Internal(_) => ExitClass::Internal,
@@ -107,16 +127,71 @@ impl Error {
         let hint = match source.kind() {
             std::io::ErrorKind::PermissionDenied => " (check the directory's permissions)",
             std::io::ErrorKind::NotFound => " (does the output directory exist?)",
-            _ if source.raw_os_error() == Some(28) => {
-                " (the disk is full: free space or use --work-dir elsewhere)"
-            }
-            _ => "",
+            _ => match source.raw_os_error() {
+                Some(libc::ENOSPC) | Some(libc::EDQUOT) => {
+                    " (no space left there: free space, or put the output or the work directory (--work-dir) elsewhere, then run the same command again: it resumes)"
+                }
+                Some(libc::EFBIG) => {
+                    " (the file outgrew the file-size limit: raise `ulimit -f`, or write to a file system that takes larger files, then run the same command again: it resumes)"
+                }
+                _ => resource_hint(&source).unwrap_or(""),
+            },
         };
         Error::WriteIo {
             path: path.to_path_buf(),
             source,
             hint,
         }
+    }
+
+    /// A read error on the input file `path`: bad input ([`Error::ReadIo`]), unless the
+    /// process lacked a resource to read it (too many open files, memory), which is not the
+    /// input's fault ([`Error::ReadFailed`], exit 4).
+    pub fn read_input(path: &std::path::Path, source: std::io::Error) -> Self {
+        match resource_hint(&source) {
+            Some(hint) => Error::ReadFailed {
+                path: path.to_path_buf(),
+                source,
+                hint,
+            },
+            None => Error::ReadIo {
+                path: path.to_path_buf(),
+                source,
+            },
+        }
+    }
+
+    /// A read error on `path`, a file of the work directory: never bad input (the user's
+    /// files are fine), exit 4 with what to do.
+    pub fn read_work(path: &std::path::Path, source: std::io::Error) -> Self {
+        let hint = resource_hint(&source).unwrap_or(match source.kind() {
+            std::io::ErrorKind::NotFound => {
+                " (a file of the work directory went missing during the run: is another program cleaning it? Run the same command again)"
+            }
+            _ => " (a file of the work directory is unreadable: check the directory, or delete it to start over)",
+        });
+        Error::ReadFailed {
+            path: path.to_path_buf(),
+            source,
+            hint,
+        }
+    }
+}
+
+/// The hint for an error that says the process ran out of a resource, not that a file is bad:
+/// too many open files (EMFILE for the process, ENFILE for the system) or no memory.
+fn resource_hint(e: &std::io::Error) -> Option<&'static str> {
+    match e.raw_os_error() {
+        Some(libc::EMFILE) => Some(
+            " (too many open files: raise the limit, e.g. `ulimit -n 4096`, then run the same command again: it resumes)",
+        ),
+        Some(libc::ENFILE) => Some(
+            " (the system's table of open files is full: close other programs or raise fs.file-max, then run the same command again: it resumes)",
+        ),
+        Some(libc::ENOMEM) => Some(
+            " (out of memory: lower --memory, or raise `ulimit -v` or the memory limit, then run the same command again: it resumes)",
+        ),
+        _ => None,
     }
 }
 

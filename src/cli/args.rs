@@ -190,7 +190,8 @@ impl ClassList {
 pub struct ExecArgs {
     /// Memory budget for buckets and tiles in flight: 2G, 512M, ... (K, M, G = powers of 1024).
     /// Past it, buckets spill to the work directory (zstd). Default: half the machine's memory,
-    /// at most 4G. The program itself adds about 60M.
+    /// at most 4G; lowered (with a message) to what `ulimit -v` leaves beside the mapped inputs
+    /// and what the cgroup's memory limit leaves. The program itself adds about 60M.
     #[arg(long, value_parser = crate::config::parse_bytes)]
     memory: Option<u64>,
 

@@ -27,7 +27,8 @@ pub mod exit {
     pub const USAGE: i32 = 2;
     /// Bad input: unreadable, malformed or unsupported input file.
     pub const BAD_INPUT: i32 = 3;
-    /// Output failure: the output or work directory could not be written.
+    /// Output failure: the output or the work directory could not be written or read, or a
+    /// limit of the machine (disk space, file size, open files, memory) stopped the run.
     pub const OUTPUT: i32 = 4;
     /// A cluster stage found tasks of an earlier stage not done (`assemble` while tile tasks
     /// are missing); nothing was written.
@@ -40,9 +41,12 @@ const EXIT_HELP: &str = "\
 Exit codes:
   0    success: the output is complete
   1    internal error (a bug: please report it with the command line)
-  2    usage error: a bad option or value
+  2    usage error: a bad option or value, or a memory limit (ulimit -v, the cgroup's) too
+       small for even the smallest budget (the message says what to raise it to)
   3    bad input: the input is unreadable, malformed or unsupported (the message names the file and byte offset)
-  4    output failure: the output or the work directory could not be written
+  4    output failure: the output or the work directory could not be written or read, or a
+       limit of the machine stopped the run (disk space, ulimit -f, ulimit -n, memory); the
+       work is kept: fix the cause and run the same command again to resume
   5    tasks missing: a cluster stage (run-tile, assemble) found tasks of an earlier stage not
        done; nothing was written (the message names them; `tilecurv status --missing` lists them)
   130  interrupted (SIGINT/SIGTERM): no output was written; run the same command again to resume
@@ -97,10 +101,13 @@ extern "C" fn on_signal(_: libc::c_int) {
 }
 
 fn install_signal_handlers() {
-    // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+    // SAFETY: the handler only stores to an atomic, which is async-signal-safe. SIGXFSZ is
+    // ignored so that a write past the file-size limit (`ulimit -f`) fails with EFBIG, an
+    // output failure with its message, instead of killing the run with a temporary file left.
     unsafe {
         libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
         libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
     }
 }
 
@@ -143,6 +150,8 @@ pub fn main_with_args() -> i32 {
         }
     };
     install_signal_handlers();
+    crate::io::limits::raise_open_files();
+    crate::io::limits::fit_allocator_to_address_space();
     let r = match cli.command {
         Command::Generate(GenerateArgs {
             kind: GenerateKind::Terrain(args),

@@ -52,7 +52,7 @@ pub fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
     let d = cluster::run_tile(&a.work, &cfg, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !a.exec.quiet() {
         say!(
-            "done: task {task}: {} tiles already done, {} undefined points, {} recomputed with a wider halo",
+            "done: task {task}: {} tiles already done, {} undefined points among those computed now, {} recomputed with a wider halo",
             d.resumed, d.undefined, d.retried
         );
     }
@@ -85,10 +85,12 @@ pub fn assemble(a: AssembleArgs) -> Result<i32, i32> {
     super::summary_event(&reporter, &s);
     if !a.exec.quiet() {
         say!(
-            "done: {} points of {} tiles in {:.1} s -> {} (the work directory {} is kept; remove it when done)",
+            "done: {} points of {} tiles in {:.1} s, {} undefined ({:.2}%) -> {} (the work directory {} is kept; remove it when done)",
             s.points,
             s.tiles,
             s.seconds,
+            s.undefined,
+            100.0 * s.undefined as f64 / s.points.max(1) as f64,
             a.output.display(),
             a.work.display()
         );

@@ -354,9 +354,58 @@ impl MemoryPlan {
     }
 }
 
+/// The smallest memory budget a run accepts (`--memory 64M`).
+pub const MIN_BUDGET_BYTES: u64 = 64 << 20;
+
+/// What fitting a memory budget into a limit decided ([`fit_budget`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BudgetFit {
+    /// The budget fits as it is.
+    Fits,
+    /// The budget must be lowered to this many bytes (whole MiB, at least the minimum).
+    Lowered(u64),
+    /// Not even the smallest budget fits: the limit must be at least this many bytes.
+    TooSmall(u64),
+}
+
+/// Fits `budget` into a memory `limit` of which `besides` bytes are taken by what the run
+/// needs besides its budget (the mapped inputs, the program, thread stacks).
+pub fn fit_budget(budget: u64, limit: u64, besides: u64) -> BudgetFit {
+    let room = limit.saturating_sub(besides);
+    if budget <= room {
+        BudgetFit::Fits
+    } else if room >= MIN_BUDGET_BYTES {
+        BudgetFit::Lowered(room >> 20 << 20)
+    } else {
+        BudgetFit::TooSmall(besides + MIN_BUDGET_BYTES)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn budgets_are_lowered_to_fit_a_limit_or_refused() {
+        const M: u64 = 1 << 20;
+        assert_eq!(fit_budget(256 * M, 1024 * M, 200 * M), BudgetFit::Fits);
+        assert_eq!(
+            fit_budget(4096 * M, 1024 * M, 200 * M + 5),
+            BudgetFit::Lowered(823 * M)
+        );
+        assert_eq!(
+            fit_budget(4096 * M, 264 * M, 200 * M),
+            BudgetFit::Lowered(64 * M)
+        );
+        assert_eq!(
+            fit_budget(4096 * M, 263 * M, 200 * M),
+            BudgetFit::TooSmall(264 * M)
+        );
+        assert_eq!(
+            fit_budget(4096 * M, 10 * M, 200 * M),
+            BudgetFit::TooSmall(264 * M)
+        );
+    }
 
     #[test]
     fn keys_partition_and_open_sides() {

@@ -93,6 +93,12 @@ impl ColumnSet {
         self.float_names().len() * w + 1
     }
 
+    /// The quality flags of one point's encoded columns (their last byte), without decoding
+    /// the rest.
+    pub fn flags(&self, rec: &[u8]) -> u8 {
+        rec.get(self.record_size() - 1).copied().unwrap_or(0)
+    }
+
     /// Decodes one point's columns (as [`ColumnSet::encode`] wrote them) back into a result
     /// with id 0 and no patch; columns this set does not hold are NaN. f32 values widen
     /// exactly, so `encode(decode(rec))` gives `rec` back.
@@ -134,7 +140,7 @@ impl ColumnSet {
         for v in extra.iter_mut().take(self.extra.len()) {
             *v = next();
         }
-        let flags = rec.get(self.record_size() - 1).copied().unwrap_or(0);
+        let flags = self.flags(rec);
         PointResult {
             id: 0,
             normal,

@@ -7,6 +7,7 @@ pub mod crs;
 pub mod crs_summary;
 pub mod info;
 pub mod las;
+pub mod limits;
 pub mod output;
 pub mod ply;
 pub mod results;

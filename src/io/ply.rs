@@ -1,7 +1,7 @@
 //! PLY output: one `vertex` element with every property of the input (names and types as the
 //! input declares them; for LAS input x, y, z as double and the standard fields) followed by
 //! tilecurv's columns, binary little endian or ASCII. Written to a temporary file renamed over
-//! the output by `finish`, like the LAS writer.
+//! the output by `finish` and removed on any failure, like the LAS writer.
 //!
 //! The new columns are named for CloudCompare by default ([`PlyNames`]): its PLY reader (libs/
 //! qCC_io/PlyFilter.cpp) takes a vertex property as a scalar field without asking only when its
@@ -13,19 +13,19 @@
 use std::fmt::Write as _;
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::las::extra_bytes::ScalarType;
-use crate::io::output::{commit, temp_path, PointSink};
+use crate::io::output::{PointSink, TempFile};
 use crate::io::source::ply::ply_type_name;
 use crate::io::source::{encode_le, PointSource, Property};
 
 /// A PLY output being written.
 pub struct PlyWriter {
-    tmp: PathBuf,
-    output: PathBuf,
+    /// Removed on every path but a successful `finish`.
+    tmp: TempFile,
     w: BufWriter<File>,
     ascii: bool,
     /// The input's properties with the type each is written as.
@@ -139,14 +139,11 @@ impl PlyWriter {
             let _ = writeln!(head, "property {ty} {name}");
         }
         head += "end_header\n";
-        let tmp = temp_path(output);
-        let file = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
+        let (tmp, file) = TempFile::create(output)?;
         let mut w = BufWriter::with_capacity(4 << 20, file);
-        w.write_all(head.as_bytes())
-            .map_err(|e| Error::write(&tmp, e))?;
+        w.write_all(head.as_bytes()).map_err(|e| tmp.error(e))?;
         Ok(PlyWriter {
             tmp,
-            output: output.to_path_buf(),
             w,
             ascii,
             props,
@@ -210,22 +207,19 @@ impl PointSink for PlyWriter {
         } else {
             &self.buf
         };
-        self.w
-            .write_all(bytes)
-            .map_err(|e| Error::write(&self.tmp, e))
+        self.w.write_all(bytes).map_err(|e| self.tmp.error(e))
     }
 
     fn finish(self: Box<Self>) -> Result<()> {
-        let file = self
-            .w
-            .into_inner()
-            .map_err(|e| Error::write(&self.tmp, e.into_error()))?;
-        commit(file, &self.tmp, &self.output)
+        let PlyWriter { tmp, w, .. } = *self;
+        let file = w.into_inner().map_err(|e| tmp.error(e.into_error()))?;
+        tmp.commit(file)
     }
 
     fn abandon(self: Box<Self>) {
-        let tmp = self.tmp.clone();
-        drop(self);
-        let _ = std::fs::remove_file(tmp);
+        // The buffered records are discarded, not flushed; dropping `tmp` removes the file.
+        let PlyWriter { tmp, w, .. } = *self;
+        drop(w.into_parts());
+        drop(tmp);
     }
 }

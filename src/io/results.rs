@@ -79,10 +79,7 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
             path.display()
         ))
     };
-    let b = std::fs::read(path).map_err(|e| Error::ReadIo {
-        path: path.to_path_buf(),
-        source: e,
-    })?;
+    let b = std::fs::read(path).map_err(|e| Error::read_work(path, e))?;
     let u64_at = |o: usize| {
         b.get(o..o + 8)
             .and_then(|s| s.try_into().ok())
@@ -129,30 +126,17 @@ pub const MAX_FAN_IN: usize = 1024;
 const READ_BUFFER: usize = 64 << 10;
 
 /// How many result files one merge may open: [`MAX_FAN_IN`], or less when the process's
-/// open-file limit is low (its soft limit is first raised to the hard limit, as a batch tool
-/// may), keeping 64 descriptors for everything else.
+/// open-file limit is low (the CLI raised its soft limit to the hard one at start): what the
+/// limit leaves beside the descriptors open now, less a reserve (64, or a quarter of a small
+/// limit) for the output, a run file and everything else; at least 2. A limit too low even
+/// for that makes the open fail with EMFILE, an error that says to raise `ulimit -n`.
 pub fn fan_in() -> usize {
-    let mut lim = libc::rlimit {
-        rlim_cur: 0,
-        rlim_max: 0,
+    let Some(soft) = crate::io::limits::open_files_limit() else {
+        return 64;
     };
-    // SAFETY: getrlimit/setrlimit only read or write the struct passed.
-    let soft = unsafe {
-        if libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) != 0 {
-            return 64;
-        }
-        if lim.rlim_cur < lim.rlim_max {
-            let raised = libc::rlimit {
-                rlim_cur: lim.rlim_max,
-                rlim_max: lim.rlim_max,
-            };
-            if libc::setrlimit(libc::RLIMIT_NOFILE, &raised) == 0 {
-                lim.rlim_cur = lim.rlim_max;
-            }
-        }
-        lim.rlim_cur
-    };
-    (soft.saturating_sub(64) as usize).clamp(16, MAX_FAN_IN)
+    let in_use = crate::io::limits::open_descriptors().unwrap_or(16);
+    let reserve = (soft / 4).min(64);
+    (soft.saturating_sub(in_use).saturating_sub(reserve)).clamp(2, MAX_FAN_IN as u64) as usize
 }
 
 /// The result file of a tile.
@@ -295,10 +279,7 @@ impl TileResults {
                 path.display()
             ))
         };
-        let file = File::open(path).map_err(|e| Error::ReadIo {
-            path: path.to_path_buf(),
-            source: e,
-        })?;
+        let file = File::open(path).map_err(|e| Error::read_work(path, e))?;
         let mut reader = BufReader::with_capacity(READ_BUFFER, file);
         let mut head = [0u8; 24];
         reader

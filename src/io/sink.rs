@@ -96,3 +96,126 @@ pub fn create_sink(
         )?),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ColumnType;
+    use crate::io::source::{open_bytes, Format, InputBytes};
+
+    /// What is left in `dir` besides `keep`.
+    fn leftovers(dir: &Path, keep: &str) -> Vec<String> {
+        std::fs::read_dir(dir)
+            .expect("lists")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n != keep)
+            .collect()
+    }
+
+    /// A LAS 1.2 file of three point format 0 records.
+    fn tiny_las() -> Vec<u8> {
+        use crate::io::las::header::NewHeader;
+        use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("tiny.las");
+        let spec = LasFileSpec {
+            origin: None,
+            header: HeaderStart::New(NewHeader {
+                minor: 2,
+                system: "TEST",
+                software: "tilecurv test",
+                point_format: 0,
+                record_length: 20,
+                points: 3,
+                scale: [0.01; 3],
+                offset: [0.0; 3],
+                min: [0.0; 3],
+                max: [1.0; 3],
+            }),
+            record_length: 20,
+            vlrs: &[],
+            evlrs: &[],
+            extra_bytes: Vec::new(),
+            provenance: "test",
+        };
+        let mut w = LasFileWriter::create(&path, spec).expect("creates");
+        for xyz in [[0i32, 0, 0], [100, 0, 0], [0, 100, 100]] {
+            let mut r: Vec<u8> = xyz.iter().flat_map(|c| c.to_le_bytes()).collect();
+            r.resize(20, 0);
+            w.write_records(&r).expect("writes");
+        }
+        w.finish().expect("finishes");
+        std::fs::read(&path).expect("reads back")
+    }
+
+    /// Issue 12 item 6: whichever way a writer ends short of a committed output (the final
+    /// rename fails, it is abandoned, it is dropped unfinished), no temporary file is left
+    /// beside the output, for every writer: LAS and LAZ (a LAS input's records carried, and a
+    /// converted one), binary and ASCII PLY. Failed writes and flushes are the integration
+    /// tests' (`faults::write_failures_*`), which make the disk fail for real.
+    #[test]
+    fn every_writer_leaves_no_temp_file_on_any_failure() {
+        let ply = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 1\n";
+        let ply_in = open_bytes(
+            Path::new("in.ply"),
+            Format::Ply,
+            InputBytes::Owned(ply.to_vec()),
+        )
+        .expect("opens the PLY");
+        let las_in = open_bytes(
+            Path::new("in.las"),
+            Format::Las,
+            InputBytes::Owned(tiny_las()),
+        )
+        .expect("opens the LAS");
+        let cols = ColumnSet {
+            ty: ColumnType::F32,
+            normals: true,
+            directions: false,
+            extra: Vec::new(),
+            unit: "m".into(),
+        };
+        let records = |src: &dyn PointSource| {
+            let mut out = Vec::new();
+            src.for_each_chunk(1024, &mut |_, recs| {
+                for r in recs.chunks_exact(src.record_length()) {
+                    out.extend_from_slice(r);
+                    out.resize(out.len() + cols.record_size(), 0);
+                }
+                Ok(())
+            })
+            .expect("reads");
+            out
+        };
+        let dir = tempfile::tempdir().expect("temp dir");
+        for src in [ply_in.as_ref(), las_in.as_ref()] {
+            for name in ["o.las", "o.laz", "o.ply", "o.ascii.ply"] {
+                let out = dir.path().join(name);
+                let what = format!("{} -> {name}", src.path().display());
+                let sink = || {
+                    let mut s = create_sink(src, &out, &cols, "test", &OutputOptions::default())
+                        .expect("creates");
+                    s.write_points(&records(src)).expect("writes");
+                    s
+                };
+                // The rename fails: a non-empty directory stands where the output goes.
+                std::fs::create_dir_all(out.join("x")).expect("blocking directory");
+                let e = sink().finish().expect_err("the rename fails");
+                assert!(
+                    matches!(&e, Error::WriteIo { path, .. } if path == &out),
+                    "{what}: {e}"
+                );
+                assert!(leftovers(dir.path(), name).is_empty(), "{what}");
+                std::fs::remove_dir_all(&out).expect("unblock");
+                sink().abandon();
+                assert!(leftovers(dir.path(), "").is_empty(), "{what}: abandon");
+                drop(sink());
+                assert!(leftovers(dir.path(), "").is_empty(), "{what}: drop");
+                sink().finish().expect("finishes");
+                assert_eq!(leftovers(dir.path(), name), Vec::<String>::new(), "{what}");
+                std::fs::remove_file(&out).expect("clean");
+            }
+        }
+    }
+}

@@ -2,7 +2,9 @@
 //! unit of resumption. Its name is derived from the output, so the same command finds it again
 //! after a crash. It holds a lock file (one run per work directory), a manifest with the
 //! fingerprint of the inputs and of every parameter that changes the result (stale work is
-//! discarded, never mixed in), and the durable-write helper used for everything in it.
+//! discarded, never mixed in), and the durable-write helper used for everything in it, whose
+//! temporary names say which host and process wrote them, so that a rerun can remove those of
+//! killed processes ([`sweep_dead_temps`]).
 
 use std::fs::{File, OpenOptions};
 use std::io::Write;
@@ -74,22 +76,43 @@ pub fn tmp_name(path: &Path) -> PathBuf {
     path.with_file_name(format!("{name}.tmp.{}.{}", host_name(), std::process::id()))
 }
 
-/// Whether `name` is a temporary name ([`tmp_name`]) of `base` left by a process of this host
-/// that is no longer running: its file can go. Another host's temporaries are never judged
-/// (their process may be alive there).
-pub fn is_dead_attempt(name: &str, base: &str) -> bool {
-    let Some(rest) = name
-        .strip_prefix(base)
-        .and_then(|r| r.strip_prefix(".tmp."))
-    else {
+/// Whether `name` is a temporary name ([`tmp_name`]) left by a process of this host that is no
+/// longer running: its file can go. Another host's temporaries are never judged (their process
+/// may be alive there).
+pub fn is_dead_temp(name: &str) -> bool {
+    let Some((rest, pid)) = name.rsplit_once('.') else {
         return false;
     };
-    let Some((host, pid)) = rest.rsplit_once('.') else {
-        return false;
-    };
+    rest.strip_suffix(&format!(".tmp.{}", host_name()))
+        .is_some_and(|base| !base.is_empty() && is_dead_process(pid))
+}
+
+/// Whether `pid` (as written in a temporary name of this host) names a process that no longer
+/// runs; this process, and anything that is not a pid, is never dead.
+pub fn is_dead_process(pid: &str) -> bool {
     match pid.parse::<i32>() {
-        Ok(pid) => host == host_name() && pid != std::process::id() as i32 && !pid_alive(pid),
+        Ok(pid) => pid != std::process::id() as i32 && !pid_alive(pid),
         Err(_) => false,
+    }
+}
+
+/// Removes what killed processes of this host left in `dir` under temporary names
+/// ([`is_dead_temp`]): result files, sidecars, manifests, bucket task directories. Those of
+/// running processes (another task on this node) and of other hosts are left alone; a file
+/// that cannot be removed is left for the next run.
+pub fn sweep_dead_temps(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        if is_dead_temp(&e.file_name().to_string_lossy()) {
+            let p = e.path();
+            let _ = if p.is_dir() {
+                std::fs::remove_dir_all(&p)
+            } else {
+                std::fs::remove_file(&p)
+            };
+        }
     }
 }
 
@@ -256,18 +279,20 @@ impl WorkDir {
     pub fn open(path: &Path, manifest: &str) -> Result<Self> {
         std::fs::create_dir_all(path).map_err(|e| Error::write(path, e))?;
         let lock_file = take_lock(path)?;
+        sweep_dead_temps(path);
         let mpath = path.join(MANIFEST);
+        // Only a manifest that is not there, or not text, means no work to keep: one that
+        // cannot be read now (too many open files) must not discard the work.
         let resume = match std::fs::read_to_string(&mpath) {
             Ok(old) if old == manifest => Resume::Resumed,
-            Ok(_) => {
-                clear_except_lock(path)?;
-                Resume::Discarded
-            }
-            Err(_) => {
-                clear_except_lock(path)?;
-                Resume::Fresh
-            }
+            Ok(_) => Resume::Discarded,
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Resume::Discarded,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Resume::Fresh,
+            Err(e) => return Err(Error::read_work(&mpath, e)),
         };
+        if resume != Resume::Resumed {
+            clear_except_lock(path)?;
+        }
         if resume != Resume::Resumed {
             write_durably(&mpath, manifest.as_bytes())?;
         }
@@ -283,12 +308,15 @@ impl WorkDir {
     /// stage run at the same time, on any node), and returns it with its manifest.
     pub fn attach(path: &Path) -> Result<(Self, String)> {
         let mpath = path.join(MANIFEST);
-        let manifest = std::fs::read_to_string(&mpath).map_err(|e| {
-            Error::Usage(format!(
-                "{}: not a tilecurv work directory ({e}); run `tilecurv plan INPUTS... --work {}` first",
-                path.display(),
-                path.display()
-            ))
+        let manifest = std::fs::read_to_string(&mpath).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound | std::io::ErrorKind::InvalidData => {
+                Error::Usage(format!(
+                    "{}: not a tilecurv work directory ({e}); run `tilecurv plan INPUTS... --work {}` first",
+                    path.display(),
+                    path.display()
+                ))
+            }
+            _ => Error::read_work(&mpath, e),
         })?;
         Ok((
             WorkDir {
@@ -358,20 +386,21 @@ mod tests {
     }
 
     #[test]
-    fn dead_attempts_are_recognised_only_on_this_host() {
+    fn dead_temps_are_recognised_only_on_this_host() {
         let host = host_name();
         // A pid past any pid_max is dead; this process is alive; other hosts are never judged.
-        assert!(is_dead_attempt(&format!("t3.tmp.{host}.2147483646"), "t3"));
-        assert!(!is_dead_attempt(
-            &format!("t3.tmp.{host}.{}", std::process::id()),
-            "t3"
-        ));
-        assert!(!is_dead_attempt("t3.tmp.some-other-node.2147483646", "t3"));
-        assert!(!is_dead_attempt(
-            &format!("t31.tmp.{host}.2147483646"),
-            "t3"
-        ));
-        assert!(!is_dead_attempt("t3", "t3"));
+        assert!(is_dead_temp(&format!("t3.tmp.{host}.2147483646")));
+        assert!(is_dead_temp(&format!(
+            "tile_1_-2.res.tmp.{host}.2147483646"
+        )));
+        assert!(!is_dead_temp(&format!(
+            "t3.tmp.{host}.{}",
+            std::process::id()
+        )));
+        assert!(!is_dead_temp("t3.tmp.some-other-node.2147483646"));
+        assert!(!is_dead_temp(&format!("t3.tmp.{host}.x")));
+        assert!(!is_dead_temp(&format!(".tmp.{host}.2147483646")));
+        assert!(!is_dead_temp("t3"));
     }
 
     #[test]

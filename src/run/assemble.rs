@@ -8,6 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::config::OrientMode;
 use crate::core::compute::PointResult;
+use crate::core::estimate::flags;
 use crate::core::orient::GlobalPatch;
 use crate::core::plan::TilePlan;
 use crate::core::select::ClassFilter;
@@ -24,13 +25,14 @@ use crate::run::spec::RunSpec;
 use crate::run::Exec;
 
 /// Writes every output of `spec` from the tile results in `work` (the tiles of `tiles`, all
-/// finished).
+/// finished). Returns the number of points written whose curvature is undefined (from every
+/// tile's results, whichever run computed them).
 pub fn assemble_outputs(
     work: &WorkDir,
     spec: &RunSpec,
     tiles: &TilePlan,
     exec: &Exec<'_>,
-) -> Result<()> {
+) -> Result<u64> {
     let results_dir = work.path().join("results");
     let files: Vec<PathBuf> = tiles
         .tiles
@@ -45,8 +47,9 @@ pub fn assemble_outputs(
     exec.reporter.phase("write", spec.total_points);
     let provenance = spec.provenance();
     let chunk = chunk_points(spec, exec);
+    let mut undefined = 0;
     for ((source, output), first) in spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids) {
-        assemble(
+        undefined += assemble(
             source.as_ref(),
             *first,
             &mut merger,
@@ -62,13 +65,14 @@ pub fn assemble_outputs(
         )?;
     }
     exec.reporter.finish_phase();
-    Ok(())
+    Ok(undefined)
 }
 
 /// Writes `output` from `source` (whose point 0 has global id `first_id`) and the next results
 /// of `merger`; with `flips` (`--orient propagate`), the results of the patches marked there
 /// (per tile of the plan) are written with the opposite orientation. The output appears only if
-/// every point was matched with its result; otherwise the temporary file is removed.
+/// every point was matched with its result; otherwise the temporary file is removed. Returns
+/// the number of points written whose curvature is undefined.
 #[allow(clippy::too_many_arguments)]
 pub fn assemble(
     source: &dyn PointSource,
@@ -83,7 +87,7 @@ pub fn assemble(
     chunk_points: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
-) -> Result<()> {
+) -> Result<u64> {
     let mut writer = create_sink(source, output, cols, provenance, options)?;
     match merge_into(
         writer.as_mut(),
@@ -97,7 +101,7 @@ pub fn assemble(
         reporter,
         cancel,
     ) {
-        Ok(()) => writer.finish(),
+        Ok(undefined) => writer.finish().map(|_| undefined),
         Err(e) => {
             writer.abandon();
             Err(e)
@@ -117,10 +121,11 @@ fn merge_into(
     chunk_points: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
-) -> Result<()> {
+) -> Result<u64> {
     let rl = source.record_length();
     let mut out = Vec::new();
     let mut rec = Vec::new();
+    let mut undefined = 0u64;
     source.for_each_chunk(chunk_points, &mut |first, records| {
         if cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
@@ -145,6 +150,7 @@ fn merge_into(
             }
             // The record is the point's global patch (u64) then its columns.
             let (patch, columns) = rec.split_at(8);
+            undefined += (cols.flags(columns) & flags::UNDEFINED != 0) as u64;
             let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
             out.extend_from_slice(r);
             let flip = flips
@@ -160,5 +166,6 @@ fn merge_into(
         writer.write_points(&out)?;
         reporter.advance((records.len() / rl) as u64);
         Ok(())
-    })
+    })?;
+    Ok(undefined)
 }

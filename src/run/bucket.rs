@@ -12,7 +12,7 @@ use crate::core::plan::ScanStats;
 use crate::core::tasks::TaskLayout;
 use crate::error::{Error, Result};
 use crate::io::bucket::{scan, task_stats, Buckets, ScanInput};
-use crate::io::workdir::{is_dead_attempt, WorkDir};
+use crate::io::workdir::{sweep_dead_temps, WorkDir};
 use crate::run::spec::RunSpec;
 use crate::run::Exec;
 
@@ -65,7 +65,8 @@ pub fn bucket_task(
     }
     let buckets = work.path().join("buckets");
     std::fs::create_dir_all(&buckets).map_err(|e| Error::write(&buckets, e))?;
-    sweep_dead_attempts(&buckets, &format!("t{task}"));
+    // A scan killed after spilling leaves its attempt's frames; they are never reused.
+    sweep_dead_temps(&buckets);
     let scan_inputs: Vec<ScanInput<'_>> = inputs
         .clone()
         .map(|i| ScanInput {
@@ -98,19 +99,6 @@ pub fn bucket_task(
     })?;
     exec.reporter.finish_phase();
     Ok(Some(Bucketed { buckets, stats }))
-}
-
-/// Removes the temporary directories of task `base` that killed attempts on this host left
-/// (a scan killed after spilling leaves its frames; they are never reused).
-fn sweep_dead_attempts(buckets: &std::path::Path, base: &str) {
-    let Ok(entries) = std::fs::read_dir(buckets) else {
-        return;
-    };
-    for e in entries.flatten() {
-        if is_dead_attempt(&e.file_name().to_string_lossy(), base) {
-            let _ = std::fs::remove_dir_all(e.path());
-        }
-    }
 }
 
 /// The buckets of every bucket task of `layout`, from their directories; an error naming the

@@ -140,7 +140,7 @@ pub fn bucket(
     cancel: &AtomicBool,
 ) -> Result<usize> {
     let a = attach(path, exec_cfg, reporter)?;
-    let exec = Exec::new(exec_cfg, reporter, cancel)?;
+    let exec = Exec::new(exec_cfg, &a.spec, reporter, cancel)?;
     let tasks: Vec<usize> = match task {
         Some(t) => vec![t],
         None => (0..a.layout.bucket_tasks.len()).collect(),
@@ -168,7 +168,7 @@ pub fn run_tile(
             n - 1
         )));
     }
-    let exec = Exec::new(exec_cfg, reporter, cancel)?;
+    let exec = Exec::new(exec_cfg, &a.spec, reporter, cancel)?;
     let scan = open_buckets(&a.work, &a.spec, &a.layout)?;
     tiles(&a.work, &a.spec, &scan, &a.layout, Some(task), &exec)
 }
@@ -220,7 +220,7 @@ pub fn assemble(
 ) -> Result<Summary> {
     let started = Instant::now();
     let mut a = attach(path, exec_cfg, reporter)?;
-    let exec = Exec::new(exec_cfg, reporter, cancel)?;
+    let exec = Exec::new(exec_cfg, &a.spec, reporter, cancel)?;
     let scan = open_buckets(&a.work, &a.spec, &a.layout)?;
     let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k);
     let results = a.work.path().join("results");
@@ -240,10 +240,10 @@ pub fn assemble(
     let outputs = output_paths(&a.cfg)?;
     check_outputs(&a.cfg, &outputs)?;
     a.spec.outputs = outputs;
-    super::assemble::assemble_outputs(&a.work, &a.spec, &tplan, &exec)?;
+    let undefined = super::assemble::assemble_outputs(&a.work, &a.spec, &tplan, &exec)?;
     Ok(Summary {
         points: a.spec.total_points,
-        undefined: 0,
+        undefined,
         tiles: tplan.tiles.len(),
         tiles_resumed: tplan.tiles.len(),
         retried: 0,

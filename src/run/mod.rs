@@ -13,12 +13,13 @@
 //! where it stopped and the stages can run as separate processes. `process` runs them in one:
 //! there, buckets that fit the budget are handed from the bucket stage to the tiles stage in
 //! memory instead of being written and read back. The work directory is removed only after
-//! every output is written.
+//! every output is written: every failure keeps it, so that the same command resumes.
 
 pub mod assemble;
 pub mod bucket;
 pub mod cluster;
 pub mod dry_run;
+pub mod limits;
 pub mod orientation;
 pub mod prepare;
 pub mod spec;
@@ -41,8 +42,8 @@ use crate::run::spec::RunSpec;
 pub struct Summary {
     /// Points written.
     pub points: u64,
-    /// Points whose curvature is undefined (flag in `flags::UNDEFINED`), among those computed
-    /// in this run.
+    /// Points written whose curvature is undefined (flag `flags::UNDEFINED`): all of them,
+    /// those of tiles resumed from an earlier run too, as counted in the outputs.
     pub undefined: u64,
     /// Tiles in the plan.
     pub tiles: usize,
@@ -77,16 +78,28 @@ pub struct Exec<'a> {
 const WORKER_STACK: usize = 16 << 20;
 
 impl<'a> Exec<'a> {
-    /// The execution settings of `cfg`.
-    pub fn new(cfg: &Config, reporter: &'a dyn Reporter, cancel: &'a AtomicBool) -> Result<Self> {
+    /// The execution settings of `cfg` for a run of `spec`: its budget fitted to the machine's
+    /// memory limits ([`limits::fit_memory`]).
+    pub fn new(
+        cfg: &Config,
+        spec: &RunSpec,
+        reporter: &'a dyn Reporter,
+        cancel: &'a AtomicBool,
+    ) -> Result<Self> {
+        let budget = limits::fit_memory(cfg, spec, reporter)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(cfg.threads)
             .stack_size(WORKER_STACK)
             .build()
-            .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
+            .map_err(|e| {
+                Error::Resource(format!(
+                    "cannot start {} worker threads: {e}; lower --threads, or raise the limits on processes (ulimit -u) or memory (ulimit -v)",
+                    cfg.threads
+                ))
+            })?;
         Ok(Exec {
             pool,
-            memory: MemoryPlan::new(cfg.memory_bytes as usize, cfg.k),
+            memory: MemoryPlan::new(budget as usize, cfg.k),
             chunk_points: cfg.chunk_points,
             reporter,
             cancel,
@@ -138,7 +151,7 @@ pub fn plan(
 pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result<Summary> {
     let started = Instant::now();
     let spec = prepare::prepare(cfg, reporter)?;
-    let exec = Exec::new(cfg, reporter, cancel)?;
+    let exec = Exec::new(cfg, &spec, reporter, cancel)?;
     let path = work_path(cfg, &spec);
     let summary = |tiles: usize, resumed: usize, undefined: u64, retried: u64| Summary {
         points: spec.total_points,
@@ -159,14 +172,22 @@ pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Re
         let scan = bucket::bucket_all(&work, &spec, &layout, &exec)?;
         let done = tiles::tiles(&work, &spec, &scan, &layout, None, &exec)?;
         drop(scan);
-        assemble::assemble_outputs(&work, &spec, &done.plan, &exec)?;
-        Ok(done)
+        let undefined = assemble::assemble_outputs(&work, &spec, &done.plan, &exec)?;
+        Ok((done, undefined))
     })();
     match &r {
-        // Interrupted or out of disk: keep the work, the same command resumes.
-        Err(Error::Interrupted) | Err(Error::WriteIo { .. }) => drop(work),
-        // Done, or a failure that a rerun would repeat (bad input, a bug): nothing to keep.
-        _ => work.remove(),
+        Ok(_) => work.remove(),
+        // Every failure keeps the work (an interruption says so itself): the same command
+        // resumes from it once the cause is fixed, whether it was a full disk, a limit, or an
+        // input that a rerun finds different (its work is then discarded).
+        Err(Error::Interrupted) => drop(work),
+        Err(_) => {
+            reporter.warn(&format!(
+                "the finished work is kept in {}: the same command resumes from it (delete it to start over)",
+                work.path().display()
+            ));
+            drop(work);
+        }
     }
-    r.map(|d| summary(d.plan.tiles.len(), d.resumed, d.undefined, d.retried))
+    r.map(|(d, undefined)| summary(d.plan.tiles.len(), d.resumed, undefined, d.retried))
 }

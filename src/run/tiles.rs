@@ -26,7 +26,7 @@ use crate::error::{Error, Result};
 use crate::io::bucket::{load_tile, Buckets};
 use crate::io::columns::ColumnSet;
 use crate::io::results::{is_complete, orientation_path, tile_path, Journal, TileSidecar};
-use crate::io::workdir::WorkDir;
+use crate::io::workdir::{sweep_dead_temps, WorkDir};
 use crate::run::bucket::Bucketed;
 use crate::run::spec::RunSpec;
 use crate::run::Exec;
@@ -222,6 +222,8 @@ pub fn tiles(
     let tplan = plan(&scan.stats, spec.grid.size, spec.k);
     let results_dir = work.path().join("results");
     std::fs::create_dir_all(&results_dir).map_err(|e| Error::write(&results_dir, e))?;
+    // Result files and sidecars that killed runs of this host left half-written.
+    sweep_dead_temps(&results_dir);
     let propagate = params.propagate.is_some();
     let mine = |t: &TileSpec| task.is_none_or(|i| layout.task_of(t.key) == i);
     let todo: Vec<TileSpec> = missing_tiles(&results_dir, spec, &tplan, layout)
@@ -362,10 +364,12 @@ fn drive(
     let propagate = job.params.propagate.is_some();
     std::thread::scope(|s| -> Result<(u64, u64)> {
         let (tx, rx) = bounded::<Result<Finished>>(1);
+        let (mut started, mut refused) = (0, None);
         for _ in 0..exec.memory.tiles_in_flight.max(1) {
             let tx = tx.clone();
             let (next, stop) = (&next, &stop);
-            s.spawn(move || {
+            let driver = std::thread::Builder::new().name("tile driver".into());
+            let spawned = driver.spawn_scoped(s, move || {
                 let mut bufs = TileBuffers::default();
                 while !stop.load(Ordering::Relaxed) {
                     let Some(spec) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
@@ -389,8 +393,26 @@ fn drive(
                     }
                 }
             });
+            match spawned {
+                Ok(_) => started += 1,
+                Err(e) => {
+                    refused = Some(e);
+                    break;
+                }
+            }
         }
         drop(tx);
+        // A machine out of threads or address space: fewer drivers, or none and an error.
+        if let Some(e) = refused {
+            if started == 0 {
+                return Err(Error::Resource(format!(
+                    "cannot start a thread to compute tiles: {e}; lower --threads, or raise the limits on processes (ulimit -u) or memory (ulimit -v), then run the same command again: it resumes"
+                )));
+            }
+            exec.reporter.warn(&format!(
+                "could not start every tile driver ({e}): computing with {started}"
+            ));
+        }
         let written = write_results(rx, results_dir, cols, &stop);
         let (undefined, retried) = written?;
         if exec.cancel.load(Ordering::Relaxed) {

@@ -131,10 +131,7 @@ impl Buckets {
         let mut all = Vec::new();
         for dir in self.dirs.iter().filter(|d| d.tiles.contains(&key)) {
             let path = bucket_file(&dir.path, key);
-            let bytes = std::fs::read(&path).map_err(|e| Error::ReadIo {
-                path: path.clone(),
-                source: e,
-            })?;
+            let bytes = std::fs::read(&path).map_err(|e| Error::read_work(&path, e))?;
             all.extend(decode_frames(&path, &bytes)?);
         }
         let points = Arc::new(all);

@@ -4,18 +4,18 @@
 //! compressor in fixed chunks) and EVLRs to a temporary file beside the output, patches the
 //! header's layout fields (and, if asked, its bounds) at the end, syncs the file and renames it
 //! over the output on `finish` (after checking that as many records were written as the header
-//! counts); `abandon` removes it. It knows the LAS format, not where the records come from:
+//! counts); any failure, `abandon` or a drop removes it ([`TempFile`]). It knows the LAS format, not where the records come from:
 //! `carry` and `convert` build its [`LasFileSpec`] for `process`.
 
 use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::las::extra_bytes;
 use crate::io::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
 use crate::io::las::vlr::{laszip, Vlr};
-use crate::io::output::{commit, temp_path, PointSink};
+use crate::io::output::{PointSink, TempFile};
 
 /// User id and record id of the provenance VLR.
 pub const PROVENANCE: (&str, u16) = ("tilecurv", 1);
@@ -213,8 +213,8 @@ enum Points {
 
 /// A LAS/LAZ file being written (see the module doc).
 pub struct LasFileWriter {
-    tmp: PathBuf,
-    output: PathBuf,
+    /// Removed on every path but a successful `finish`.
+    tmp: TempFile,
     /// The header, patched with `layout` when written.
     header: LasHeader,
     layout: OutputLayout,
@@ -249,29 +249,19 @@ impl LasFileWriter {
             evlr_count: evlrs.len() as u32,
             waveform_start: 0,
         };
-        let tmp = temp_path(output);
-        let file = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
+        let (tmp, file) = TempFile::create(output)?;
         let mut w = BufWriter::with_capacity(4 << 20, file);
-        let points = w
-            .write_all(&header.patched(&layout))
+        w.write_all(&header.patched(&layout))
             .and_then(|_| w.write_all(&head))
-            .map_err(|e| Error::write(&tmp, e))
-            .and_then(|_| match laz_vlr {
-                None => Ok(Points::Plain(w)),
-                Some(lv) => laz::ParLasZipCompressor::new(w, lv)
-                    .map(|c| Points::Laz(Box::new(c)))
-                    .map_err(|e| Error::Internal(format!("LAZ compressor: {e}"))),
-            });
-        let points = match points {
-            Ok(p) => p,
-            Err(e) => {
-                let _ = std::fs::remove_file(&tmp);
-                return Err(e);
-            }
+            .map_err(|e| tmp.error(e))?;
+        let points = match laz_vlr {
+            None => Points::Plain(w),
+            Some(lv) => Points::Laz(Box::new(
+                laz::ParLasZipCompressor::new(w, lv).map_err(|e| laz_error(&tmp, e))?,
+            )),
         };
         Ok(LasFileWriter {
             tmp,
-            output: output.to_path_buf(),
             header,
             layout,
             evlrs,
@@ -285,9 +275,9 @@ impl LasFileWriter {
     pub fn write_records(&mut self, records: &[u8]) -> Result<()> {
         let r = match &mut self.points {
             Points::Plain(w) => w.write_all(records),
-            Points::Laz(c) => c.compress_many(records),
+            Points::Laz(c) => c.compress_many(records).map_err(laz_io),
         };
-        r.map_err(|e| Error::write(&self.tmp, e))?;
+        r.map_err(|e| self.tmp.error(e))?;
         self.written += (records.len() / self.layout.record_length as usize) as u64;
         Ok(())
     }
@@ -299,34 +289,25 @@ impl LasFileWriter {
     }
 
     /// Finishes the points, writes the EVLRs, rewrites the header with the final layout, syncs
-    /// the file and renames it over the output. On failure the temporary file is removed.
-    pub fn finish(self) -> Result<()> {
-        let tmp = self.tmp.clone();
-        let r = self.complete();
-        if r.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        r
-    }
-
-    fn complete(mut self) -> Result<()> {
+    /// the file and renames it over the output. On failure the temporary file is removed (by
+    /// [`TempFile`]'s drop, whichever step failed).
+    pub fn finish(mut self) -> Result<()> {
         // The header's counts are the caller's (an input's are carried over untouched): a file
         // with another number of records would be corrupt.
         if self.written != self.header.point_count {
             return Err(Error::Internal(format!(
                 "{}: {} point records written but the header counts {}",
-                self.output.display(),
+                self.tmp.output().display(),
                 self.written,
                 self.header.point_count
             )));
         }
-        let tmp = self.tmp.clone();
-        let werr = |e: std::io::Error| Error::write(&tmp, e);
+        let tmp = self.tmp;
+        let werr = |e: std::io::Error| tmp.error(e);
         let mut w = match self.points {
             Points::Plain(w) => w,
             Points::Laz(mut c) => {
-                c.done()
-                    .map_err(|e| Error::Internal(format!("LAZ compressor: {e}")))?;
+                c.done().map_err(|e| laz_error(&tmp, e))?;
                 c.into_inner()
             }
         };
@@ -346,14 +327,45 @@ impl LasFileWriter {
         w.write_all(&self.header.patched(&self.layout))
             .map_err(werr)?;
         let file = w.into_inner().map_err(|e| werr(e.into_error()))?;
-        commit(file, &self.tmp, &self.output)
+        tmp.commit(file)
     }
 
-    /// Drops the writer and removes the temporary file.
+    /// Removes the temporary file; the buffered records are discarded, not flushed.
     pub fn abandon(self) {
-        let tmp = self.tmp.clone();
-        drop(self);
-        let _ = std::fs::remove_file(tmp);
+        let w = match self.points {
+            Points::Plain(w) => w,
+            Points::Laz(c) => c.into_inner(),
+        };
+        drop(w.into_parts());
+        drop(self.tmp);
+    }
+}
+
+/// The I/O error inside an error of the laz crate's compressor, which wraps the writer's errors
+/// (disk full, file too large) in its own: so that they are output failures with their hint.
+fn laz_io(e: std::io::Error) -> std::io::Error {
+    if !e.get_ref().is_some_and(|i| i.is::<laz::LasZipError>()) {
+        return e;
+    }
+    match e.into_inner().map(|i| i.downcast::<laz::LasZipError>()) {
+        Some(Ok(z)) => match *z {
+            laz::LasZipError::IoError(io) => laz_io(io),
+            other => std::io::Error::other(other),
+        },
+        Some(Err(other)) => std::io::Error::other(other),
+        None => std::io::Error::other("the LAZ compressor failed"),
+    }
+}
+
+/// An error of the laz crate's compressor: an I/O error is an output failure naming the
+/// output; anything else (a layout it does not support) is a bug of ours.
+fn laz_error(tmp: &TempFile, e: laz::LasZipError) -> Error {
+    match e {
+        laz::LasZipError::IoError(io) => tmp.error(laz_io(io)),
+        other => Error::Internal(format!(
+            "{}: LAZ compressor: {other}",
+            tmp.output().display()
+        )),
     }
 }
 

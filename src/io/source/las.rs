@@ -38,16 +38,10 @@ pub struct LasSource {
 impl LasSource {
     /// Opens, maps and validates a LAS/LAZ file. Nothing is decoded yet.
     pub fn open(path: &Path) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::ReadIo {
-            path: path.to_path_buf(),
-            source: e,
-        })?;
+        let file = File::open(path).map_err(|e| Error::read_input(path, e))?;
         let len = file
             .metadata()
-            .map_err(|e| Error::ReadIo {
-                path: path.to_path_buf(),
-                source: e,
-            })?
+            .map_err(|e| Error::read_input(path, e))?
             .len();
         if len == 0 {
             return Err(Error::bad_input(
@@ -59,10 +53,7 @@ impl LasSource {
         // SAFETY: the map is read-only and tilecurv never writes its inputs. Another process
         // truncating the file while we run would fault; that is the usual mmap contract, and the
         // CLI documents that inputs must not change during a run.
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::ReadIo {
-            path: path.to_path_buf(),
-            source: e,
-        })?;
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::read_input(path, e))?;
         Self::from_bytes(path, InputBytes::Map(map))
     }
 
@@ -365,10 +356,7 @@ impl PointSource for LasSource {
                 let mut cursor = Cursor::new(&self.map[..]);
                 cursor
                     .seek(SeekFrom::Start(start as u64))
-                    .map_err(|e| Error::ReadIo {
-                        path: self.path.clone(),
-                        source: e,
-                    })?;
+                    .map_err(|e| Error::read_input(&self.path, e))?;
                 let mut dec = laz::ParLasZipDecompressor::new(cursor, vlr.clone())
                     .map_err(|e| Error::bad_input(&self.path, Some(start as u64), format!("cannot start LAZ decompression: {e}; the file may be truncated or not a valid LAZ file")))?;
                 let mut buf = vec![0u8; per_call.min(n as usize) * rl];

@@ -274,10 +274,7 @@ pub fn usable_normal(n: [f64; 3]) -> Option<[f64; 3]> {
 
 /// Memory-maps an input file read-only.
 pub fn map_file(path: &Path) -> Result<InputBytes> {
-    let io = |e| Error::ReadIo {
-        path: path.to_path_buf(),
-        source: e,
-    };
+    let io = |e| Error::read_input(path, e);
     let file = std::fs::File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
     if meta.is_dir() {
@@ -358,10 +355,10 @@ pub fn detect(path: &Path) -> Result<Format> {
             } else if &sig[..3] == b"ply" {
                 Format::Ply
             } else if !path.exists() {
-                return Err(Error::ReadIo {
-                    path: path.to_path_buf(),
-                    source: std::io::Error::from(std::io::ErrorKind::NotFound),
-                });
+                return Err(Error::read_input(
+                    path,
+                    std::io::Error::from(std::io::ErrorKind::NotFound),
+                ));
             } else {
                 return Err(Error::bad_input(
                     path,

@@ -1,0 +1,204 @@
+//! The process's resource limits as the operating system states them: open files (raised to
+//! the hard limit at start, as batch tools do, and the descriptors in use) and memory (the
+//! address-space limit and the cgroup's memory limit, which `run::limits` fits the budget to).
+
+/// Raises the soft limit on open files to the hard limit (a run opens up to
+/// [`MAX_FAN_IN`](crate::io::results::MAX_FAN_IN) result files at once when it merges them);
+/// a limit that cannot be raised is left as it is, and the merge fits itself to it.
+pub fn raise_open_files() {
+    let mut lim = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit and setrlimit only read or write the struct passed.
+    unsafe {
+        if libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) == 0 && lim.rlim_cur < lim.rlim_max {
+            let raised = libc::rlimit {
+                rlim_cur: lim.rlim_max,
+                rlim_max: lim.rlim_max,
+            };
+            libc::setrlimit(libc::RLIMIT_NOFILE, &raised);
+        }
+    }
+}
+
+/// The soft limit on open files, if it can be read (`RLIM_INFINITY` is `u64::MAX`).
+pub fn open_files_limit() -> Option<u64> {
+    let mut lim = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit only writes the struct passed.
+    (unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) } == 0).then_some(lim.rlim_cur)
+}
+
+/// The file descriptors this process has open now (Linux: `/proc/self/fd`, less the one the
+/// listing itself holds); None where that cannot be read.
+pub fn open_descriptors() -> Option<u64> {
+    let n = std::fs::read_dir("/proc/self/fd").ok()?.count() as u64;
+    Some(n.saturating_sub(1))
+}
+
+/// The address-space limit (`RLIMIT_AS`, `ulimit -v`) in bytes; None when unlimited. Every
+/// mapping counts against it: the memory-mapped inputs, thread stacks, the allocator's arenas.
+pub fn address_space_limit() -> Option<u64> {
+    let mut lim = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit only writes the struct passed.
+    let ok = unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut lim) } == 0;
+    (ok && lim.rlim_cur != libc::RLIM_INFINITY).then_some(lim.rlim_cur)
+}
+
+/// Keeps the allocator to one arena when the address space is limited: glibc reserves 64 MiB
+/// of address space for each further arena (up to 8 per core), which counts against
+/// `ulimit -v` though it is never used; one arena costs a few percent of speed. Call before any
+/// thread starts. Elsewhere (other C libraries, no limit) nothing changes.
+pub fn fit_allocator_to_address_space() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    if address_space_limit().is_some() {
+        // SAFETY: mallopt only sets an allocator parameter; no thread allocates yet.
+        unsafe {
+            libc::mallopt(libc::M_ARENA_MAX, 1);
+        }
+    }
+}
+
+/// The memory limit of this process's cgroup in bytes and the file that sets it: the lowest
+/// `memory.max` (cgroup v2) or `memory.limit_in_bytes` (v1) from its cgroup up to the root of
+/// the mounted hierarchy; None when there is none (or no cgroup file system).
+pub fn cgroup_memory_limit() -> Option<(u64, std::path::PathBuf)> {
+    let cgroup = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let mountinfo = std::fs::read_to_string("/proc/self/mountinfo").ok()?;
+    cgroup_limit(&cgroup, &mountinfo, &|p| std::fs::read_to_string(p).ok())
+}
+
+/// [`cgroup_memory_limit`] from the text of `/proc/self/cgroup` and `/proc/self/mountinfo`,
+/// reading the limit files with `read`.
+fn cgroup_limit(
+    cgroup: &str,
+    mountinfo: &str,
+    read: &dyn Fn(&std::path::Path) -> Option<String>,
+) -> Option<(u64, std::path::PathBuf)> {
+    use std::path::PathBuf;
+    // Mount points: (fstype is cgroup2, or cgroup with the memory controller) -> (root, point).
+    let mut v2 = None;
+    let mut v1 = None;
+    for line in mountinfo.lines() {
+        let Some((mount, fs)) = line.split_once(" - ") else {
+            continue;
+        };
+        let m: Vec<&str> = mount.split(' ').collect();
+        let f: Vec<&str> = fs.split(' ').collect();
+        let (Some(root), Some(point), Some(ty)) = (m.get(3), m.get(4), f.first()) else {
+            continue;
+        };
+        let at = (root.to_string(), PathBuf::from(point));
+        match *ty {
+            "cgroup2" => v2 = v2.or(Some(at)),
+            "cgroup"
+                if f.get(2)
+                    .is_some_and(|o| o.split(',').any(|o| o == "memory")) =>
+            {
+                v1 = v1.or(Some(at))
+            }
+            _ => {}
+        }
+    }
+    // This process's path in each hierarchy: "0::/path" (v2), "N:...memory...:/path" (v1).
+    let mut lowest: Option<(u64, PathBuf)> = None;
+    for line in cgroup.lines() {
+        let mut parts = line.splitn(3, ':');
+        let (Some(id), Some(ctrl), Some(path)) = (parts.next(), parts.next(), parts.next()) else {
+            continue;
+        };
+        let (mount, file) = if id == "0" && ctrl.is_empty() {
+            (&v2, "memory.max")
+        } else if ctrl.split(',').any(|c| c == "memory") {
+            (&v1, "memory.limit_in_bytes")
+        } else {
+            continue;
+        };
+        let Some((root, point)) = mount else {
+            continue;
+        };
+        // The mount shows the hierarchy from `root` down (a container's namespace).
+        let rel = path.strip_prefix(root.as_str()).unwrap_or(path);
+        let mut dir = point.join(rel.trim_start_matches('/'));
+        loop {
+            let f = dir.join(file);
+            // "max" (v2) or a page-rounded 2^63 (v1) mean no limit.
+            if let Some(v) = read(&f).and_then(|t| t.trim().parse::<u64>().ok()) {
+                if v < 1 << 62 && lowest.as_ref().is_none_or(|(l, _)| v < *l) {
+                    lowest = Some((v, f));
+                }
+            }
+            if dir == *point || !dir.pop() || !dir.starts_with(point) {
+                break;
+            }
+        }
+    }
+    lowest
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashMap;
+    use std::path::{Path, PathBuf};
+
+    fn reader(files: &[(&str, &str)]) -> impl Fn(&Path) -> Option<String> {
+        let m: HashMap<PathBuf, String> = files
+            .iter()
+            .map(|(p, t)| (PathBuf::from(p), t.to_string()))
+            .collect();
+        move |p| m.get(p).cloned()
+    }
+
+    #[test]
+    fn the_lowest_cgroup_limit_along_the_path_is_found() {
+        let mountinfo = "\
+31 23 0:28 / /sys/fs/cgroup rw,relatime - tmpfs tmpfs rw,mode=755
+35 31 0:32 / /sys/fs/cgroup/memory rw,relatime - cgroup cgroup rw,memory
+41 31 0:38 / /sys/fs/cgroup/unified rw,relatime - cgroup2 cgroup2 rw
+";
+        // v1: the job's limit is below its parent's; "unlimited" is 2^63 rounded to pages.
+        let v1 = reader(&[
+            (
+                "/sys/fs/cgroup/memory/slurm/job1/memory.limit_in_bytes",
+                "1073741824\n",
+            ),
+            (
+                "/sys/fs/cgroup/memory/slurm/memory.limit_in_bytes",
+                "4294967296\n",
+            ),
+            (
+                "/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                "9223372036854771712\n",
+            ),
+        ]);
+        assert_eq!(
+            cgroup_limit("4:memory:/slurm/job1\n0::/\n", mountinfo, &v1),
+            Some((
+                1 << 30,
+                PathBuf::from("/sys/fs/cgroup/memory/slurm/job1/memory.limit_in_bytes")
+            ))
+        );
+        // v2 alone (a container with its own namespace: the mount's root is the cgroup).
+        let v2 = "50 40 0:30 / /sys/fs/cgroup rw - cgroup2 cgroup2 rw\n";
+        let files = reader(&[
+            ("/sys/fs/cgroup/user.slice/memory.max", "max\n"),
+            (
+                "/sys/fs/cgroup/user.slice/run.scope/memory.max",
+                "536870912\n",
+            ),
+        ]);
+        assert_eq!(
+            cgroup_limit("0::/user.slice/run.scope\n", v2, &files).map(|l| l.0),
+            Some(512 << 20)
+        );
+        assert_eq!(cgroup_limit("0::/\n", v2, &reader(&[])), None);
+        assert_eq!(cgroup_limit("0::/x\n", "", &files), None);
+    }
+}
