@@ -70,17 +70,13 @@ impl ColumnSet {
         let mut cols: Vec<NewColumn> = self
             .float_names()
             .into_iter()
-            .map(|n| NewColumn {
-                name: n.to_string(),
-                ty,
-                description: describe(n),
-            })
+            .map(|n| NewColumn::plain(n, ty, describe(n)))
             .collect();
-        cols.push(NewColumn {
-            name: FLAGS_NAME.into(),
-            ty: ScalarType::U8,
-            description: "1few 2nrm 4dgn 8bnd 16umb 32file".into(),
-        });
+        cols.push(NewColumn::plain(
+            FLAGS_NAME,
+            ScalarType::U8,
+            "1few 2nrm 4dgn 8bnd 16umb 32file",
+        ));
         cols
     }
 

@@ -25,7 +25,7 @@ fn info_describes_a_shared_file_and_a_tilecurv_output() {
         "points: 37657\n",
         "CRS: GeoTIFF, EPSG:26912\n",
         "horizontal unit: metre (1 m)\n",
-        "    treeID f64\n",
+        "    treeID f64 no_data 1.7976931348623157e308\n",
         "tilecurv provenance: none\n",
         "format: LAS 1.4 format 1 (LAZ)\n",
         "    H f64\n",

@@ -130,11 +130,7 @@ fn descriptors(props: &[Property]) -> Vec<u8> {
         } else {
             p.name.clone()
         };
-        eb.extend_from_slice(&encode(&NewColumn {
-            name,
-            ty: p.ty,
-            description: String::new(),
-        }));
+        eb.extend_from_slice(&encode(&NewColumn::plain(name, p.ty, "")));
     }
     eb
 }
