@@ -4,6 +4,7 @@ mod bad_input;
 mod closed_form;
 mod cluster;
 mod common;
+mod compact;
 mod features;
 mod formats;
 mod hostile;

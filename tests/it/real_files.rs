@@ -35,7 +35,11 @@ fn check_preserved(input: &Path, output: &Path) {
         a.header.record_length as usize,
         b.header.record_length as usize,
     );
-    assert_eq!(lb, la + 29, "7 f32 columns + 1 flag byte are added");
+    assert_eq!(
+        lb,
+        la + 23,
+        "3 i16 normals, 4 i32 curvatures and 1 flag byte are added"
+    );
     for (i, (x, y)) in ra.chunks_exact(la).zip(rb.chunks_exact(lb)).enumerate() {
         assert_eq!(
             x,
