@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
 """Independent read-back of a tilecurv output with laspy (lazrs backend).
 
-usage: laspy_check.py INPUT OUTPUT [--f64] [--directions]
+usage: laspy_check.py INPUT OUTPUT [--f32 | --f64] [--directions]
 
 Checks that OUTPUT has the same point count and the same values in every dimension of INPUT
-(standard fields and existing extra bytes), and the new dimensions by name and type. Exits 0 and
-prints one line "ok ..." on success; prints what differs and exits 1 otherwise.
+(standard fields and existing extra bytes), and the new dimensions by name and type: by default
+scaled integers (i16 unit vectors at 1/32767, i32 curvatures, each with a scale and the type's
+minimum as no-data, held exactly where the flags say undefined), floats with --f32 or --f64.
+Exits 0 and prints one line "ok ..." on success; prints what differs and exits 1 otherwise.
 """
 import sys
 
@@ -28,24 +30,28 @@ def main() -> int:
         x, y = np.asarray(a[name]), np.asarray(b[name])
         if x.shape != y.shape or x.tobytes() != y.tobytes():
             problems.append(f"dimension {name} differs")
-    ftype = np.float64 if "--f64" in flags else np.float32
+    floats = {"--f32": np.float32, "--f64": np.float64}
+    ftype = next((t for f, t in floats.items() if f in flags), None)
     new = ["NormalX", "NormalY", "NormalZ", "H", "K", "k1", "k2"]
     if "--directions" in flags:
         new += ["d1x", "d1y", "d1z", "d2x", "d2y", "d2z"]
     extra = list(b.point_format.extra_dimension_names)
     for name in new:
+        unit = name.startswith("Normal") or name.startswith("d")
+        want = ftype or (np.int16 if unit else np.int32)
         if name not in extra:
             problems.append(f"new dimension {name} missing (have {extra})")
-        elif np.asarray(b[name]).dtype != ftype:
-            problems.append(f"{name} has type {np.asarray(b[name]).dtype}, expected {ftype.__name__}")
+        elif b.points.array[name].dtype != want:
+            problems.append(f"{name} has type {b.points.array[name].dtype}, expected {want.__name__}")
     if "CurvatureFlags" not in extra or np.asarray(b["CurvatureFlags"]).dtype != np.uint8:
         problems.append("CurvatureFlags missing or not uint8")
     else:
         flags_col = np.asarray(b["CurvatureFlags"])
         undefined = (flags_col & (1 | 2 | 4 | 128)) != 0  # few, normal, estimator, not computed
-        h = np.asarray(b["H"])
-        if np.isnan(h[~undefined]).any():
-            problems.append("NaN in H on a point without an undefined flag")
+        raw = b.points.array["H"]
+        missing = np.isnan(raw) if ftype else raw == np.iinfo(np.int32).min
+        if not np.array_equal(missing, undefined):
+            problems.append("H is undefined (NaN or no-data) elsewhere than where the flags say")
     for v in b.header.vlrs:
         if v.user_id == "copc":
             problems.append("a COPC VLR was copied to a non-COPC output")

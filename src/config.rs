@@ -8,6 +8,7 @@ use crate::core::geometry::V3;
 use crate::core::normals::Orientation;
 use crate::core::select::{parse_classes, ClassFilter, Classes};
 use crate::error::{Error, Result};
+use crate::io::columns::{ColumnChoice, ColumnType, Group};
 use crate::io::crs::LengthUnit;
 
 /// A length with its unit as the user wrote it (`50m`, `150ft`, `150usft`, or a bare number in
@@ -195,15 +196,6 @@ impl std::fmt::Display for OrientMode {
     }
 }
 
-/// Storage type of the new columns.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ColumnType {
-    /// 32-bit floats (default).
-    F32,
-    /// 64-bit floats.
-    F64,
-}
-
 /// Everything a `process` run needs.
 #[derive(Debug, Clone)]
 pub struct Config {
@@ -229,11 +221,10 @@ pub struct Config {
     pub orientation: OrientMode,
     /// Ignore NormalX/Y/Z stored in the input and estimate normals.
     pub ignore_file_normals: bool,
-    /// Also write the principal directions.
-    pub directions: bool,
-    /// Also write the VCM's sharp-feature score and normal (only with the `vcm` estimator).
-    pub features: bool,
-    /// Storage type of the new columns.
+    /// The new columns written (`--columns`, with `--directions` and `--features` added; the
+    /// VCM's feature columns only with the `vcm` estimator).
+    pub columns: ColumnChoice,
+    /// How a LAS/LAZ output stores the new columns (scaled integers, f32 or f64).
     pub column_type: ColumnType,
     /// Worker threads.
     pub threads: usize,
@@ -270,9 +261,8 @@ impl Default for Config {
             params: EstimatorParams::default(),
             orientation: OrientMode::Up,
             ignore_file_normals: false,
-            directions: false,
-            features: false,
-            column_type: ColumnType::F32,
+            columns: ColumnChoice::default(),
+            column_type: ColumnType::Scaled,
             threads: std::thread::available_parallelism()
                 .map(|n| n.get())
                 .unwrap_or(1),
@@ -317,9 +307,8 @@ impl Config {
             p("jet_degree", self.params.jet_degree.to_string()),
             p("orient", self.orientation.to_string()),
             p("ignore_file_normals", self.ignore_file_normals.to_string()),
-            p("directions", self.directions.to_string()),
-            p("features", self.features.to_string()),
-            p("f64", (self.column_type == ColumnType::F64).to_string()),
+            p("columns", self.columns.to_string()),
+            p("encoding", self.column_type.name().to_string()),
             p("tile", self.tile.to_string()),
             p(
                 "sample_faces",
@@ -363,14 +352,10 @@ impl Config {
             "jet_degree" => self.params.jet_degree = num(value)? as usize,
             "orient" => self.orientation = OrientMode::parse(value)?,
             "ignore_file_normals" => self.ignore_file_normals = flag(value)?,
-            "directions" => self.directions = flag(value)?,
-            "features" => self.features = flag(value)?,
-            "f64" => {
-                self.column_type = if flag(value)? {
-                    ColumnType::F64
-                } else {
-                    ColumnType::F32
-                }
+            "columns" => self.columns = ColumnChoice::parse(value)?,
+            "encoding" => {
+                self.column_type = ColumnType::from_name(value)
+                    .ok_or_else(|| format!("encoding={value}: unknown"))?
             }
             "tile" => self.tile = Length::parse(value)?,
             "keep_version" => self.keep_version = flag(value)?,
@@ -416,7 +401,7 @@ impl Config {
         if self.chunk_points == 0 {
             return Err(Error::Usage("--chunk-size must be at least 1 point".into()));
         }
-        if self.features
+        if self.columns.has(Group::Features)
             && self
                 .estimator
                 .build(&self.params)
@@ -429,7 +414,7 @@ impl Config {
                 .map(|e| format!("--estimator {e}"))
                 .collect();
             return Err(Error::Usage(format!(
-                "--features writes the values an estimator computes besides the curvature (the VCM's sharp-feature score and normal), which only {} computes (got --estimator {}); add {} or drop --features",
+                "--features (the column group `features`) writes the values an estimator computes besides the curvature (the VCM's sharp-feature score and normal), which only {} computes (got --estimator {}); add {} or drop --features",
                 with.join(" or "),
                 self.estimator,
                 with.join(" or ")
@@ -476,7 +461,7 @@ mod tests {
         let mut cfg = Config {
             inputs: vec!["in.las".into()],
             output: "out.las".into(),
-            features: true,
+            columns: ColumnChoice::default().with(Group::Features),
             ..Config::default()
         };
         let e = cfg

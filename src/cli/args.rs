@@ -4,9 +4,10 @@
 
 use std::path::PathBuf;
 
-use crate::config::{ColumnType, Config, Length, OrientMode};
+use crate::config::{Config, Length, OrientMode};
 use crate::core::estimate::{EstimatorKind, EstimatorParams};
 use crate::error::{Error, Result};
+use crate::io::columns::{ColumnChoice, ColumnType, Group};
 
 use super::EXIT_HELP;
 
@@ -108,7 +109,20 @@ pub struct ResultArgs {
     #[arg(long)]
     ignore_file_normals: bool,
 
-    /// Also write the principal directions d1 (of k1) and d2 (of k2) as unit vectors.
+    /// The new columns, a comma-separated list of: normals (NormalX/Y/Z), H, K, k1, k2,
+    /// directions (d1x..d2z), features (with --estimator vcm: SharpFeature, VcmNormalX/Y/Z),
+    /// flags (CurvatureFlags). Written in that order whatever the order given. Normals already
+    /// in the input are kept and not written again.
+    #[arg(
+        long,
+        value_name = "LIST",
+        default_value = "normals,H,K,k1,k2,flags",
+        value_parser = ColumnChoice::parse
+    )]
+    columns: ColumnChoice,
+
+    /// Also write the principal directions d1 (of k1) and d2 (of k2) as unit vectors (the
+    /// column group `directions`).
     #[arg(long)]
     directions: bool,
 
@@ -118,11 +132,28 @@ pub struct ResultArgs {
     /// to agree with the PCA or file normal). The score lies in [0, 1/2]: about 0 on a plane or
     /// smooth surface, about alpha^2/12 on a sharp edge of external (dihedral turning) angle
     /// alpha in radians (about 0.2-0.3 on a right-angled edge), and around 0.2 at a corner;
-    /// threshold it to select creases.
+    /// threshold it to select creases. The column group `features`.
     #[arg(long)]
     features: bool,
 
-    /// Store the new columns as 64-bit floats (default: 32-bit).
+    /// Store the new columns of a LAS/LAZ output as 32-bit floats (NaN where undefined), as
+    /// tilecurv did before scaled columns. By default they are scaled integers, which readers
+    /// turn back into numbers with the extra-bytes descriptors' scale (laspy and PDAL apply it)
+    /// and which LAZ compresses far better (a LAZ output of forest LIDAR is about 4 times its
+    /// LAZ input instead of 6.5): unit vectors (normals, directions, the VCM normal) as i16 at
+    /// 1/32767 (error at most 1.5e-5); H, K, and k1 with k2, as i32 at a power-of-two step of at
+    /// most 1/4096 of the 99th percentile of |value| over all the points of the run (error at
+    /// most 1.2e-4 of that percentile; the RMS quantisation error is 27 to 160 times below the
+    /// estimator's RMS error on the CNC authors' torus, 570 to 830 times on generated
+    /// terrain), coarser only if the largest |value| would exceed 2^30 steps. `tilecurv info`
+    /// prints each column's step. An undefined value is the type's minimum (-32768 or
+    /// -2147483648), declared as the column's no-data value: laspy returns it scaled, so mask
+    /// it with CurvatureFlags & 7 (or the raw value). PLY has no scale field: PLY outputs are
+    /// f32 unless --f64.
+    #[arg(long = "f32", conflicts_with = "f64_columns")]
+    f32_columns: bool,
+
+    /// Store the new columns as 64-bit floats (NaN where undefined) instead of scaled integers.
     #[arg(long = "f64")]
     f64_columns: bool,
 
@@ -230,7 +261,8 @@ pub struct ProcessArgs {
     /// .ascii.ply. Holds every input
     /// point in the same order with all original fields, VLRs and EVLRs, plus the columns
     /// NormalX/Y/Z, H (mean curvature), K (Gaussian), k1 <= k2 (principal), CurvatureFlags and,
-    /// with --directions, d1x..d2z and, with --features, SharpFeature and VcmNormalX/Y/Z. Curvature is positive where the surface bends away from its
+    /// with --directions, d1x..d2z and, with --features, SharpFeature and VcmNormalX/Y/Z
+    /// (--columns picks them). Curvature is positive where the surface bends away from its
     /// normal (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
     #[arg(short, long)]
     output: PathBuf,
@@ -302,12 +334,17 @@ impl ResultArgs {
         };
         cfg.orientation = self.orient;
         cfg.ignore_file_normals = self.ignore_file_normals;
-        cfg.directions = self.directions;
-        cfg.features = self.features;
-        cfg.column_type = if self.f64_columns {
-            ColumnType::F64
-        } else {
-            ColumnType::F32
+        cfg.columns = [
+            (self.directions, Group::Directions),
+            (self.features, Group::Features),
+        ]
+        .into_iter()
+        .filter(|(on, _)| *on)
+        .fold(self.columns, |c, (_, g)| c.with(g));
+        cfg.column_type = match (self.f32_columns, self.f64_columns) {
+            (_, true) => ColumnType::F64,
+            (true, false) => ColumnType::F32,
+            (false, false) => ColumnType::Scaled,
         };
         cfg.sample_faces = self.sample_faces;
         cfg.keep_version = self.keep_version;

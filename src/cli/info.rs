@@ -77,6 +77,14 @@ fn text(f: &FileInfo) -> String {
             if d.scale != 1.0 || d.offset != 0.0 {
                 t.push_str(&format!(" scale {} offset {}", d.scale, d.offset));
             }
+            if let Some(v) = d.no_data {
+                // Integers as they are; others (f64::MAX is common) in exponent form.
+                if v.fract() == 0.0 && v.abs() < 1e16 {
+                    t.push_str(&format!(" no_data {v}"));
+                } else {
+                    t.push_str(&format!(" no_data {v:e}"));
+                }
+            }
             t.push('\n');
         }
     }
@@ -129,11 +137,12 @@ fn json(f: &FileInfo) -> String {
         .iter()
         .map(|d| {
             format!(
-                "{{\"name\":{},\"type\":{},\"scale\":{},\"offset\":{}}}",
+                "{{\"name\":{},\"type\":{},\"scale\":{},\"offset\":{},\"no_data\":{}}}",
                 s(&d.name),
                 s(&d.ty),
                 n(d.scale),
-                n(d.offset)
+                n(d.offset),
+                d.no_data.map(n).unwrap_or_else(|| "null".into())
             )
         })
         .collect();

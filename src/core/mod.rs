@@ -10,6 +10,7 @@ pub mod normals;
 pub mod orient;
 pub mod plan;
 pub mod point;
+pub mod quantize;
 pub mod rng;
 pub mod select;
 pub mod surface;

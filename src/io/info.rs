@@ -21,6 +21,9 @@ pub struct ExtraDim {
     pub scale: f64,
     /// The offset added after the scale (0 when none).
     pub offset: f64,
+    /// The raw value declared as "no data", if any (tilecurv's scaled columns: the type's
+    /// minimum, for undefined values).
+    pub no_data: Option<f64>,
 }
 
 /// What a file holds, as `tilecurv info` reports it.
@@ -111,6 +114,7 @@ pub fn file_info(path: &Path) -> Result<FileInfo> {
                         ty: descriptor_type(d),
                         scale: d.scale,
                         offset: d.value_offset,
+                        no_data: d.no_data,
                     })
                     .collect(),
                 // The writer appends its record after the carried ones: a tilecurv output of a
@@ -143,6 +147,7 @@ fn other_format(
             ty: type_name(p.ty).into(),
             scale: 1.0,
             offset: 0.0,
+            no_data: None,
         })
         .collect();
     Ok(FileInfo {

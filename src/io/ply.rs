@@ -16,7 +16,7 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::io::columns::ColumnSet;
+use crate::io::columns::output::OutputColumns;
 use crate::io::las::extra_bytes::ScalarType;
 use crate::io::output::{PointSink, TempFile};
 use crate::io::source::ply::ply_type_name;
@@ -79,7 +79,7 @@ impl PlyWriter {
     pub fn create(
         source: &dyn PointSource,
         output: &Path,
-        cols: &ColumnSet,
+        cols: &OutputColumns,
         provenance: &str,
         ascii: bool,
         names: PlyNames,
@@ -97,7 +97,7 @@ impl PlyWriter {
                 (p, ty)
             })
             .collect();
-        let new = cols.columns();
+        let new = cols.descriptors();
         let taken = |n: &str| props.iter().any(|(p, _)| p.name.eq_ignore_ascii_case(n));
         let mut new_names = Vec::with_capacity(new.len());
         for c in &new {

@@ -2,7 +2,10 @@
 //! original point id, to `tile_<x>_<y>.res` in the work directory (temporary name, fsync,
 //! rename, directory fsync). A tile is done if and only if its result file exists and holds the
 //! plan's number of points: this is the resume journal. [`Merger`] reads them back in id order
-//! with a bounded fan-in. Record: id (u64 LE) + the column bytes.
+//! with a bounded fan-in. Header: magic, point count, record size, then the tile's
+//! [`CurvatureStats`] (the magnitudes the outputs' scaled columns take their steps from,
+//! core::quantize), so that assemble learns them without reading every record twice. Record:
+//! id (u64 LE), the point's global patch (u64), the column values ([`ColumnSet::encode_result`]).
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -13,17 +16,67 @@ use std::path::{Path, PathBuf};
 use crate::core::compute::PointResult;
 use crate::core::orient::GlobalPatch;
 use crate::core::plan::TileKey;
+use crate::core::quantize::{CurvatureStats, Magnitudes};
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::workdir::tmp_name;
 
-const MAGIC: &[u8; 8] = b"TCRES002";
+const MAGIC: &[u8; 8] = b"TCRES003";
 const ORIENT_MAGIC: &[u8; 8] = b"TCORI002";
 
 /// Bytes of one record after the id: the point's global patch (u64, `--orient propagate`) and
 /// the encoded columns.
 pub fn record_size(cols: &ColumnSet) -> usize {
-    8 + cols.record_size()
+    8 + cols.result_size()
+}
+
+/// Bytes of a result file's header before its statistics: magic, count, record size, and the
+/// statistics' length.
+const HEAD: usize = 32;
+
+/// Largest statistics block a result file may declare (three full histograms are 61 KiB).
+const MAX_STATS: u64 = 1 << 20;
+
+/// The statistics block: for H, K and the principal curvatures, the largest magnitude (f64),
+/// the number of non-empty bins (u16) and each as its biased exponent (u16) and count (u64).
+fn stats_bytes(s: &CurvatureStats) -> Vec<u8> {
+    let mut b = Vec::new();
+    for m in [&s.h, &s.k, &s.principal] {
+        b.extend_from_slice(&m.max().to_le_bytes());
+        let bins: Vec<(u16, u64)> = m.bins().collect();
+        b.extend_from_slice(&(bins.len() as u16).to_le_bytes());
+        for (bin, count) in bins {
+            b.extend_from_slice(&bin.to_le_bytes());
+            b.extend_from_slice(&count.to_le_bytes());
+        }
+    }
+    b
+}
+
+/// Parses [`stats_bytes`]; None when damaged.
+fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
+    let mut at = 0usize;
+    let mut take = |n: usize| {
+        let s = b.get(at..at + n);
+        at += n;
+        s
+    };
+    let mut one = || -> Option<Magnitudes> {
+        let max = f64::from_le_bytes(take(8)?.try_into().ok()?);
+        let n = u16::from_le_bytes(take(2)?.try_into().ok()?);
+        let mut bins = Vec::with_capacity(n as usize);
+        for _ in 0..n {
+            let bin = u16::from_le_bytes(take(2)?.try_into().ok()?);
+            bins.push((bin, u64::from_le_bytes(take(8)?.try_into().ok()?)));
+        }
+        Magnitudes::from_bins(bins, max)
+    };
+    let stats = CurvatureStats {
+        h: one()?,
+        k: one()?,
+        principal: one()?,
+    };
+    (at == b.len()).then_some(stats)
 }
 
 /// The orientation sidecar of a tile (`--orient propagate`): its patch anchors and the normals
@@ -149,15 +202,19 @@ fn write_file(
     path: &Path,
     count: u64,
     cols: &ColumnSet,
+    stats: &CurvatureStats,
     mut body: impl FnMut(&mut BufWriter<File>) -> Result<()>,
 ) -> Result<PathBuf> {
     let tmp = tmp_name(path);
     let file = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
     let mut w = BufWriter::with_capacity(1 << 20, file);
+    let stats = stats_bytes(stats);
     let head = [
         &MAGIC[..],
         &count.to_le_bytes(),
         &(record_size(cols) as u64).to_le_bytes(),
+        &(stats.len() as u64).to_le_bytes(),
+        &stats,
     ]
     .concat();
     w.write_all(&head).map_err(|e| Error::write(&tmp, e))?;
@@ -177,12 +234,14 @@ fn write_tile_tmp(
     results.sort_unstable_by_key(|r| r.id);
     let path = tile_path(dir, key);
     let mut buf = Vec::with_capacity(8 + record_size(cols));
-    write_file(&path, results.len() as u64, cols, |w| {
+    let mut stats = CurvatureStats::default();
+    results.iter().for_each(|r| stats.add(&r.curvature));
+    write_file(&path, results.len() as u64, cols, &stats, |w| {
         for r in results.iter() {
             buf.clear();
             buf.extend_from_slice(&r.id.to_le_bytes());
             buf.extend_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
-            cols.encode(r, &mut buf);
+            cols.encode_result(r, &mut buf);
             w.write_all(&buf).map_err(|e| Error::write(&path, e))?;
         }
         Ok(())
@@ -259,7 +318,18 @@ pub fn is_complete(path: &Path, expected: u64, cols: &ColumnSet) -> bool {
     let Ok(r) = TileResults::open(path, cols) else {
         return false;
     };
-    r.remaining == expected && meta.len() == 24 + expected * (8 + record_size(cols) as u64)
+    r.remaining == expected
+        && meta.len() == r.header_len + expected * (8 + record_size(cols) as u64)
+}
+
+/// The curvature statistics of all the tiles whose result files are `files`: the sum of
+/// theirs, so the same whatever the tiling.
+pub fn scene_stats(files: &[PathBuf], cols: &ColumnSet) -> Result<CurvatureStats> {
+    let mut all = CurvatureStats::default();
+    for f in files {
+        all.merge(&TileResults::open(f, cols)?.stats);
+    }
+    Ok(all)
 }
 
 /// Reads one result file in id order.
@@ -268,6 +338,10 @@ pub struct TileResults {
     reader: BufReader<File>,
     remaining: u64,
     record: usize,
+    /// Bytes before the first record.
+    header_len: u64,
+    /// The statistics of the file's points.
+    stats: CurvatureStats,
 }
 
 impl TileResults {
@@ -281,7 +355,7 @@ impl TileResults {
         };
         let file = File::open(path).map_err(|e| Error::read_work(path, e))?;
         let mut reader = BufReader::with_capacity(READ_BUFFER, file);
-        let mut head = [0u8; 24];
+        let mut head = [0u8; HEAD];
         reader
             .read_exact(&mut head)
             .map_err(|e| bad(format!("result header unreadable: {e}")))?;
@@ -296,11 +370,22 @@ impl TileResults {
                 record_size(cols)
             )));
         }
+        let stats_len = word(24);
+        if stats_len > MAX_STATS {
+            return Err(bad(format!("statistics of {stats_len} bytes")));
+        }
+        let mut stats = vec![0u8; stats_len as usize];
+        reader
+            .read_exact(&mut stats)
+            .map_err(|e| bad(format!("result statistics unreadable: {e}")))?;
+        let stats = parse_stats(&stats).ok_or_else(|| bad("result statistics damaged".into()))?;
         Ok(TileResults {
             path: path.to_path_buf(),
             reader,
             remaining: word(8),
             record,
+            header_len: HEAD as u64 + stats_len,
+            stats,
         })
     }
 
@@ -361,8 +446,9 @@ impl Merger {
                 .map(|f| TileResults::open(f, cols).map(|r| r.remaining))
                 .sum::<Result<u64>>()?;
             let mut rec = Vec::new();
-            // Runs only serve this assemble pass: no need to make them durable.
-            let tmp = write_file(&run, count, cols, |w| {
+            // Runs only serve this assemble pass: no need to make them durable, nor to hold
+            // statistics (scene_stats reads the tile files).
+            let tmp = write_file(&run, count, cols, &CurvatureStats::default(), |w| {
                 while let Some(id) = m.next(&mut rec)? {
                     w.write_all(&id.to_le_bytes())
                         .and_then(|_| w.write_all(&rec))
@@ -423,16 +509,14 @@ impl Merger {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::ColumnType;
     use crate::core::estimate::Curvature;
+    use crate::io::columns::ColumnChoice;
 
     #[test]
     fn merge_with_runs_returns_every_id_once_in_order() {
         let dir = tempfile::tempdir().expect("temp dir");
         let cols = ColumnSet {
-            ty: ColumnType::F32,
-            normals: true,
-            directions: false,
+            choice: ColumnChoice::default(),
             extra: Vec::new(),
             unit: "m".into(),
         };
@@ -467,18 +551,24 @@ mod tests {
         let mut expect = 0;
         while let Some(id) = m.next(&mut rec).expect("next") {
             assert_eq!(id, expect);
-            // After the patch (u64, none here), H is the 4th f32, after the normal.
+            // After the patch (u64, none here), H is the 4th f64, after the normal.
             assert_eq!(
                 u64::from_le_bytes(rec[..8].try_into().expect("8 bytes")),
                 u64::MAX
             );
             assert_eq!(
-                f32::from_le_bytes(rec[20..24].try_into().expect("4 bytes")),
-                id as f32
+                f64::from_le_bytes(rec[32..40].try_into().expect("8 bytes")),
+                id as f64
             );
             expect += 1;
         }
         assert_eq!(expect, 150 * 7);
+        // The tiles' statistics add up to those of all the points: H = 0..1050, the rest NaN.
+        let stats = scene_stats(&files, &cols).expect("stats");
+        let mut h = Magnitudes::default();
+        (0..1050).for_each(|v| h.add(v as f64));
+        assert_eq!(stats.h, h);
+        assert_eq!(stats.principal.count(), 0);
         // Every tile file is kept (the journal); only the last runs remain besides.
         assert!(files.iter().all(|f| f.exists()));
         let runs = std::fs::read_dir(dir.path())

@@ -7,6 +7,7 @@
 use std::path::Path;
 
 use crate::error::{Error, Result};
+use crate::io::columns::output::{Encoding, OutputColumns};
 use crate::io::columns::ColumnSet;
 use crate::io::las::{carry, convert::ConvertedSink};
 use crate::io::ply::{PlyNames, PlyWriter};
@@ -63,12 +64,26 @@ pub struct OutputOptions {
     pub ply_names: PlyNames,
 }
 
+/// The new columns of `output` as `encoding` stores them: in a PLY output, which has no scale
+/// field, scaled integers become f32.
+pub fn output_columns(
+    output: &Path,
+    cols: &ColumnSet,
+    encoding: Encoding,
+) -> Result<OutputColumns> {
+    let encoding = match output_format(output)? {
+        OutputFormat::Ply { .. } => encoding.floats(),
+        OutputFormat::Las | OutputFormat::Laz => encoding,
+    };
+    Ok(OutputColumns::new(cols, encoding))
+}
+
 /// Creates the writer for `output`: LAS/LAZ (a LAS input's records kept byte for byte, any
-/// other input converted) or PLY.
+/// other input converted) or PLY, with the new columns `cols` ([`output_columns`]).
 pub fn create_sink(
     source: &dyn PointSource,
     output: &Path,
-    cols: &ColumnSet,
+    cols: &OutputColumns,
     provenance: &str,
     options: &OutputOptions,
 ) -> Result<Box<dyn PointSink>> {
@@ -100,7 +115,6 @@ pub fn create_sink(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::ColumnType;
     use crate::io::source::{open_bytes, Format, InputBytes};
 
     /// What is left in `dir` besides `keep`.
@@ -169,13 +183,15 @@ mod tests {
             InputBytes::Owned(tiny_las()),
         )
         .expect("opens the LAS");
-        let cols = ColumnSet {
-            ty: ColumnType::F32,
-            normals: true,
-            directions: false,
+        let set = ColumnSet {
+            choice: Default::default(),
             extra: Vec::new(),
             unit: "m".into(),
         };
+        let cols = crate::io::columns::output::OutputColumns::new(
+            &set,
+            crate::io::columns::output::Encoding::F32,
+        );
         let records = |src: &dyn PointSource| {
             let mut out = Vec::new();
             src.for_each_chunk(1024, &mut |_, recs| {

@@ -1,7 +1,9 @@
 //! The assemble stage: streams each input in file order and takes the results of its points
 //! from the id-ordered merge of the tile result files in the work directory, writing each input
-//! record untouched followed by its new columns, one output per input. With `--orient
-//! propagate` the cross-tile signs are solved first (run::orientation).
+//! record untouched followed by its new columns, one output per input. The steps of scaled
+//! columns come first, from the statistics the tile result files carry (so every output of a
+//! run shares one encoding); with `--orient propagate` the cross-tile signs are solved first
+//! too (run::orientation).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -13,9 +15,10 @@ use crate::core::orient::GlobalPatch;
 use crate::core::plan::TilePlan;
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
-use crate::io::columns::ColumnSet;
-use crate::io::results::{tile_path, Merger};
-use crate::io::sink::{create_sink, OutputOptions, PointSink};
+use crate::io::columns::output::{Encoding, OutputColumns, Steps};
+use crate::io::columns::{ColumnSet, ColumnType, Group};
+use crate::io::results::{scene_stats, tile_path, Merger};
+use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::WorkDir;
 use crate::progress::Reporter;
@@ -26,7 +29,8 @@ use crate::run::Exec;
 
 /// Writes every output of `spec` from the tile results in `work` (the tiles of `tiles`, all
 /// finished). Returns the number of points written whose curvature is undefined (from every
-/// tile's results, whichever run computed them).
+/// tile's results, whichever run computed them; points the class filter left out are not
+/// counted).
 pub fn assemble_outputs(
     work: &WorkDir,
     spec: &RunSpec,
@@ -43,18 +47,29 @@ pub fn assemble_outputs(
         OrientMode::Propagate => Some(resolve_orientation(&results_dir, tiles, exec.reporter)?),
         _ => None,
     };
+    let steps = Steps::from_stats(&scene_stats(&files, &spec.cols)?);
+    let curvature = [Group::H, Group::K, Group::K1, Group::K2];
+    if spec.column_type == ColumnType::Scaled && curvature.iter().any(|&g| spec.cols.choice.has(g))
+    {
+        exec.reporter.info(&format!(
+            "scaled columns (LAS/LAZ outputs): unit vectors i16 at 1/32767; H, K, and k1 with k2 i32 at steps {:e}, {:e}, {:e} (the error is at most half a step)",
+            steps.h, steps.k, steps.principal
+        ));
+    }
+    let encoding = Encoding::new(spec.column_type, steps);
     let mut merger = Merger::open(&results_dir, &files, &spec.cols)?;
     exec.reporter.phase("write", spec.total_points);
-    let provenance = spec.provenance();
     let chunk = chunk_points(spec, exec);
     let mut undefined = 0;
     for ((source, output), first) in spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids) {
+        let out_cols = output_columns(output, &spec.cols, encoding)?;
+        let provenance = format!("{}{}", spec.provenance(), out_cols.provenance());
         undefined += assemble(
             source.as_ref(),
             *first,
             &mut merger,
             flips.as_deref(),
-            &spec.cols,
+            (&spec.cols, &out_cols),
             &spec.select,
             output,
             &provenance,
@@ -69,17 +84,19 @@ pub fn assemble_outputs(
 }
 
 /// Writes `output` from `source` (whose point 0 has global id `first_id`) and the next results
-/// of `merger`; with `flips` (`--orient propagate`), the results of the patches marked there
-/// (per tile of the plan) are written with the opposite orientation. The output appears only if
-/// every point was matched with its result; otherwise the temporary file is removed. Returns
-/// the number of points written whose curvature is undefined.
+/// of `merger` (stored as the run's column set says), written as the output's columns say;
+/// with `flips` (`--orient propagate`), the results of the patches marked there (per tile of
+/// the plan) are written with the opposite orientation. The output appears only if every point
+/// was matched with its result; otherwise the temporary file is removed. Points `select` does
+/// not select have no result and are written as not computed. Returns the number of points
+/// written whose curvature is undefined.
 #[allow(clippy::too_many_arguments)]
 pub fn assemble(
     source: &dyn PointSource,
     first_id: u64,
     merger: &mut Merger,
     flips: Option<&[Vec<bool>]>,
-    cols: &ColumnSet,
+    cols: (&ColumnSet, &OutputColumns),
     select: &ClassFilter,
     output: &Path,
     provenance: &str,
@@ -88,7 +105,7 @@ pub fn assemble(
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<u64> {
-    let mut writer = create_sink(source, output, cols, provenance, options)?;
+    let mut writer = create_sink(source, output, cols.1, provenance, options)?;
     match merge_into(
         writer.as_mut(),
         source,
@@ -116,7 +133,7 @@ fn merge_into(
     first_id: u64,
     merger: &mut Merger,
     flips: Option<&[Vec<bool>]>,
-    cols: &ColumnSet,
+    (stored, cols): (&ColumnSet, &OutputColumns),
     select: &ClassFilter,
     chunk_points: usize,
     reporter: &dyn Reporter,
@@ -150,17 +167,18 @@ fn merge_into(
             }
             // The record is the point's global patch (u64) then its columns.
             let (patch, columns) = rec.split_at(8);
-            undefined += (cols.flags(columns) & flags::UNDEFINED != 0) as u64;
             let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
             out.extend_from_slice(r);
             let flip = flips
                 .zip(patch.parts())
                 .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
                 .unwrap_or(false);
+            let result = stored.decode_result(columns);
+            undefined += (result.curvature.flags & flags::UNDEFINED != 0) as u64;
             if flip {
-                cols.encode(&cols.decode(columns).flipped(&cols.extra), &mut out);
+                cols.encode(&result.flipped(&stored.extra), &mut out);
             } else {
-                out.extend_from_slice(columns);
+                cols.encode(&result, &mut out);
             }
         }
         writer.write_points(&out)?;

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use crate::config::Config;
 use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
-use crate::io::columns::ColumnSet;
+use crate::io::columns::{ColumnSet, Group};
 use crate::io::crs::UnitSource;
 use crate::io::las::writer::PROVENANCE;
 use crate::io::sink::OutputOptions;
@@ -225,7 +225,7 @@ fn check_new_names(sources: &[Box<dyn PointSource>], cols: &ColumnSet) -> Result
         let Some(clash) = cols
             .columns()
             .into_iter()
-            .find(|c| props.iter().any(|p| p.name.eq_ignore_ascii_case(&c.name)))
+            .find(|c| props.iter().any(|p| p.name.eq_ignore_ascii_case(c.name)))
         else {
             continue;
         };
@@ -307,11 +307,15 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     check_classes(cfg, &sources)?;
     let file_normals = use_file_normals(cfg, &sources)?;
     let estimator = cfg.estimator.build(&cfg.params);
+    // The input's own normals (used, or ignored but named so) are kept as they are.
+    let keeps_normals = file_normals || sources.iter().any(|s| named_normals(s.as_ref()));
     let cols = ColumnSet {
-        ty: cfg.column_type,
-        normals: !file_normals && !sources.iter().any(|s| named_normals(s.as_ref())),
-        directions: cfg.directions,
-        extra: if cfg.features {
+        choice: if keeps_normals {
+            cfg.columns.without(Group::Normals)
+        } else {
+            cfg.columns
+        },
+        extra: if cfg.columns.has(Group::Features) {
             estimator.extra_columns().to_vec()
         } else {
             Vec::new()
@@ -368,6 +372,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         unit_name,
         file_normals,
         cols,
+        column_type: cfg.column_type,
         k: cfg.k,
         orientation: cfg.orientation,
         estimator,

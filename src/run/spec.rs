@@ -5,11 +5,11 @@
 
 use std::path::PathBuf;
 
-use crate::config::{ColumnType, Config, OrientMode};
+use crate::config::{Config, OrientMode};
 use crate::core::estimate::Estimator;
 use crate::core::plan::TileGrid;
 use crate::core::select::{ClassFilter, Classes};
-use crate::io::columns::ColumnSet;
+use crate::io::columns::{ColumnSet, ColumnType};
 use crate::io::sink::OutputOptions;
 use crate::io::source::PointSource;
 use crate::io::workdir::Fingerprint;
@@ -44,6 +44,8 @@ pub struct RunSpec {
     pub file_normals: bool,
     /// The columns written.
     pub cols: ColumnSet,
+    /// How LAS/LAZ outputs store them.
+    pub column_type: ColumnType,
     /// Neighbours per point.
     pub k: usize,
     /// How PCA normals are oriented.
@@ -72,16 +74,16 @@ pub fn parameters(cfg: &Config, tile_size: f64, unit: &str, file_normals: bool) 
         p("normals", if file_normals { "file" } else { "pca" }.into()),
         p("orientation", cfg.orientation.to_string()),
         p("tile", format!("{} ({tile_size} {unit})", cfg.tile)),
+        p("columns", cfg.columns.to_string()),
         p(
-            "columns",
+            "encoding",
             match cfg.column_type {
+                ColumnType::Scaled => "scaled (LAS/LAZ; f32 in PLY), column.* lines below",
                 ColumnType::F32 => "f32",
                 ColumnType::F64 => "f64",
             }
             .into(),
         ),
-        p("directions", cfg.directions.to_string()),
-        p("features", cfg.features.to_string()),
         p("keep_version", cfg.keep_version.to_string()),
         p("ply_las_names", cfg.ply_las_names.to_string()),
         p(
@@ -210,7 +212,6 @@ mod tests {
             let in_provenance = match p.key {
                 "input" => "inputs",
                 "orient" => "orientation",
-                "f64" => "columns",
                 "ignore_file_normals" => "normals",
                 "jet_degree" => continue,
                 k => k,

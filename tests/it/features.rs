@@ -163,8 +163,8 @@ fn fandisk_features_separate_creases_flat_and_curved_patches() {
     let header = std::fs::read(&vcm_out).expect("read output");
     let header = String::from_utf8_lossy(&header[..header.len().min(4096)]).into_owned();
     assert!(
-        header.contains("comment features=true"),
-        "provenance without features=true:\n{header}"
+        header.contains("comment columns=normals,H,K,k1,k2,features,flags\n"),
+        "provenance without the features columns:\n{header}"
     );
 
     let mesh = Mesh::read(&input);

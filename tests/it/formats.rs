@@ -202,7 +202,7 @@ fn every_object_file_runs_to_ply_and_las_with_its_properties() {
         }
 
         // The same run to LAS: same points (within the quantisation), same properties as extra
-        // bytes, bit-identical curvature.
+        // bytes, the same curvature within half the LAS column's step (the PLY's is f32).
         let las = dir.path().join(format!("{name}.las"));
         process(&input, &las, &[]);
         let (src, all) = records(&las);
@@ -253,10 +253,12 @@ fn every_object_file_runs_to_ply_and_las_with_its_properties() {
         }
         laspy_reads(&las, inp.rows.len());
         let (hl, hp) = (column(&las, "H"), out.col("H"));
+        let step = src.extra.iter().find(|d| d.name == "H").expect("H").scale;
         assert!(
             hl.iter()
                 .zip(&hp)
-                .all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())),
+                .all(|(a, b)| (a - b).abs() <= step / 2.0 + 1e-7 * b.abs()
+                    || (a.is_nan() && b.is_nan())),
             "{name}: H differs between LAS and PLY output"
         );
     }

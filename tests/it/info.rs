@@ -13,11 +13,14 @@ fn info_describes_a_shared_file_and_a_tilecurv_output() {
     let dir = tempfile::tempdir().expect("temp dir");
     let output = dir.path().join("mc_curv.laz");
     process(&input, &output, &["--f64"]);
-    let (i, o) = (
+    let scaled = dir.path().join("mc_scaled.laz");
+    process(&input, &scaled, &[]);
+    let (i, o, sc) = (
         input.to_str().expect("utf-8"),
         output.to_str().expect("utf-8"),
+        scaled.to_str().expect("utf-8"),
     );
-    let out = tilecurv(&["info", i, o]);
+    let out = tilecurv(&["info", i, o, sc]);
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     for want in [
@@ -25,17 +28,20 @@ fn info_describes_a_shared_file_and_a_tilecurv_output() {
         "points: 37657\n",
         "CRS: GeoTIFF, EPSG:26912\n",
         "horizontal unit: metre (1 m)\n",
-        "    treeID f64\n",
+        "    treeID f64 no_data 1.7976931348623157e308\n",
         "tilecurv provenance: none\n",
         "format: LAS 1.4 format 1 (LAZ)\n",
         "    H f64\n",
         "    CurvatureFlags u8\n",
         "    estimator=cnc-avg-hexagram\n",
-        "    columns=f64\n",
+        "    encoding=f64\n",
+        "    NormalX i16 scale 0.00003051850947599719 offset 0 no_data -32768\n",
+        " offset 0 no_data -2147483648\n    K i32 scale ",
+        "    column.H=i32 scale ",
     ] {
         assert!(text.contains(want), "{want:?} not in:\n{text}");
     }
-    let json = tilecurv(&["info", "--json", i, o]);
+    let json = tilecurv(&["info", "--json", i, o, sc]);
     assert!(json.status.success());
     let path = dir.path().join("info.json");
     std::fs::write(&path, &json.stdout).expect("writes");
@@ -46,7 +52,7 @@ fn info_describes_a_shared_file_and_a_tilecurv_output() {
     let check = r#"
 import json, sys, laspy
 info = json.load(open(sys.argv[1]))
-assert len(info) == 2
+assert len(info) == 3
 for item, f in zip(info, sys.argv[2:]):
     h = laspy.open(f).header
     assert item["points"] == h.point_count
@@ -56,11 +62,17 @@ for item, f in zip(info, sys.argv[2:]):
     names = [d["name"] for d in item["extra_dimensions"]]
     assert names == list(h.point_format.extra_dimension_names), names
     assert item["crs"]["horizontal_unit"]["symbol"] == "m"
+    eb = [v for v in h.vlrs if v.user_id == "LASF_Spec" and v.record_id == 4][0]
+    for d, s in zip(item["extra_dimensions"], eb.extra_bytes_structs):
+        want = s.scale[0] if s.scale is not None else 1.0
+        assert d["scale"] == want, (d, want)
+        nd = s.no_data
+        assert d["no_data"] == (None if nd is None else float(nd[0])), (d, nd)
 assert info[0]["provenance"] is None
 assert "estimator=cnc-avg-hexagram" in info[1]["provenance"]
 print("ok")
 "#;
-    let said = laspy(check, &[&path, &input, &output]);
+    let said = laspy(check, &[&path, &input, &output, &scaled]);
     assert_eq!(said.trim(), "ok");
 }
 

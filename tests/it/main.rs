@@ -5,6 +5,7 @@ mod classes;
 mod closed_form;
 mod cluster;
 mod common;
+mod compact;
 mod faults;
 mod features;
 mod formats;

@@ -76,7 +76,7 @@ pub struct Curvature {
 }
 
 /// A value an estimator computes besides the curvature, written as a column by `--features`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExtraColumn {
     /// The column name.
     pub name: &'static str,
@@ -85,6 +85,9 @@ pub struct ExtraColumn {
     /// Whether the value is a component of a vector oriented by the input normal, so that it
     /// changes sign when the normal is flipped (`--orient propagate`).
     pub flips: bool,
+    /// A bound on |value| (1 for a unit vector's component): a scaled-integer output stores
+    /// the value as an i16 at bound / 32767.
+    pub bound: f64,
 }
 
 /// Most extra values an estimator may declare ([`Estimator::extra_columns`]).

@@ -182,21 +182,25 @@ const EXTRA_COLUMNS: [ExtraColumn; 4] = [
         name: "SharpFeature",
         description: "VCM edge score l2/(l1+l2+l3)",
         flips: false,
+        bound: 0.5,
     },
     ExtraColumn {
         name: "VcmNormalX",
         description: "VCM unit normal x",
         flips: true,
+        bound: 1.0,
     },
     ExtraColumn {
         name: "VcmNormalY",
         description: "VCM unit normal y",
         flips: true,
+        bound: 1.0,
     },
     ExtraColumn {
         name: "VcmNormalZ",
         description: "VCM unit normal z",
         flips: true,
+        bound: 1.0,
     },
 ];
 

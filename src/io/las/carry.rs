@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::io::columns::ColumnSet;
+use crate::io::columns::output::OutputColumns;
 use crate::io::las::extra_bytes::{self, encode, encode_undocumented, parse, DESCRIPTOR_SIZE};
 use crate::io::las::parts::LasParts;
 use crate::io::las::upgrade;
@@ -27,7 +27,7 @@ pub enum Version {
 pub fn create(
     input: LasParts<'_>,
     output: &Path,
-    cols: &ColumnSet,
+    cols: &OutputColumns,
     provenance: &str,
     version: Version,
 ) -> Result<LasFileWriter> {
@@ -66,7 +66,7 @@ pub fn create(
 /// The extra-bytes descriptors of the output: the input's, from all its extra-bytes records
 /// in file order (padded with an "undocumented" descriptor if the input's records have more
 /// extra bytes than they describe), then ours. The writer stores them as one record.
-fn extra_bytes_payload(input: &LasParts<'_>, cols: &ColumnSet) -> Result<Vec<u8>> {
+fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result<Vec<u8>> {
     let records = input.vlrs.iter().chain(input.evlrs.iter().map(|(_, v)| v));
     let mut data = extra_bytes::merged_payload(records)
         .map_err(|why| Error::bad_input(input.path, None, why))?;
@@ -79,7 +79,7 @@ fn extra_bytes_payload(input: &LasParts<'_>, cols: &ColumnSet) -> Result<Vec<u8>
         data.extend_from_slice(&encode_undocumented(n as u8));
         gap -= n;
     }
-    for c in cols.columns() {
+    for c in cols.descriptors() {
         if input
             .extra
             .iter()

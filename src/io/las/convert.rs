@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::io::columns::ColumnSet;
+use crate::io::columns::output::OutputColumns;
 use crate::io::las::carry;
 use crate::io::las::extra_bytes::{self, encode, parse, NewColumn};
 use crate::io::las::header::{LasHeader, NewHeader};
@@ -57,7 +57,7 @@ impl ConvertedSink {
     pub fn create(
         source: &dyn PointSource,
         output: &Path,
-        cols: &ColumnSet,
+        cols: &OutputColumns,
         provenance: &str,
     ) -> Result<Self> {
         let mut props = source.properties();
@@ -130,11 +130,7 @@ fn descriptors(props: &[Property]) -> Vec<u8> {
         } else {
             p.name.clone()
         };
-        eb.extend_from_slice(&encode(&NewColumn {
-            name,
-            ty: p.ty,
-            description: String::new(),
-        }));
+        eb.extend_from_slice(&encode(&NewColumn::plain(name, p.ty, "")));
     }
     eb
 }

@@ -84,6 +84,34 @@ impl ScalarType {
             F64 => f64::from_le_bytes(a),
         }
     }
+
+    /// Whether the type is a signed integer.
+    fn signed(self) -> bool {
+        use ScalarType::*;
+        matches!(self, I8 | I16 | I32 | I64)
+    }
+
+    /// The 8 bytes of a descriptor's no-data, min or max field holding `v` of this type: an
+    /// i64 for signed types, a u64 for unsigned ones, an f64 for floats.
+    pub fn upcast_encode(self, v: f64) -> [u8; 8] {
+        use ScalarType::*;
+        match self {
+            F32 | F64 => v.to_le_bytes(),
+            _ if self.signed() => (v as i64).to_le_bytes(),
+            _ => (v as u64).to_le_bytes(),
+        }
+    }
+
+    /// The value of a descriptor's 8-byte no-data, min or max field for this type.
+    pub fn upcast_decode(self, b: &[u8]) -> f64 {
+        use ScalarType::*;
+        let a: [u8; 8] = b.get(..8).and_then(|s| s.try_into().ok()).unwrap_or([0; 8]);
+        match self {
+            F32 | F64 => f64::from_le_bytes(a),
+            _ if self.signed() => i64::from_le_bytes(a) as f64,
+            _ => u64::from_le_bytes(a) as f64,
+        }
+    }
 }
 
 /// One parsed descriptor of an input file.
@@ -101,6 +129,9 @@ pub struct Descriptor {
     pub scale: f64,
     /// Offset for scalar types (0 when absent).
     pub value_offset: f64,
+    /// The raw value that marks a missing value, when the descriptor declares one (its
+    /// options bit 0), as an f64 (every i8-i32, u8-u32 and float no-data value is exact).
+    pub no_data: Option<f64>,
 }
 
 impl Descriptor {
@@ -109,10 +140,14 @@ impl Descriptor {
         ScalarType::from_code(self.data_type)
     }
 
-    /// Reads this dimension's value (scale and offset applied) from a record's extra bytes.
+    /// Reads this dimension's value (scale and offset applied) from a record's extra bytes;
+    /// NaN when the raw value is the declared no-data value.
     pub fn read(&self, extra: &[u8]) -> Option<f64> {
         let t = self.scalar()?;
         let raw = t.decode(extra.get(self.offset..self.offset + t.size())?);
+        if self.no_data == Some(raw) {
+            return Some(f64::NAN);
+        }
         Some(raw * self.scale + self.value_offset)
     }
 }
@@ -151,8 +186,19 @@ pub fn parse(data: &[u8]) -> Result<Vec<Descriptor>, String> {
             }
         };
         let f = |o: usize| f64::from_le_bytes(d[o..o + 8].try_into().unwrap_or([0; 8]));
-        let scale = if options & 0x08 != 0 { f(112) } else { 1.0 };
-        let value_offset = if options & 0x10 != 0 { f(136) } else { 0.0 };
+        let scale = if options & OPTION_SCALE != 0 {
+            f(112)
+        } else {
+            1.0
+        };
+        let value_offset = if options & OPTION_OFFSET != 0 {
+            f(136)
+        } else {
+            0.0
+        };
+        let no_data = ScalarType::from_code(data_type)
+            .filter(|_| options & OPTION_NO_DATA != 0)
+            .map(|t| t.upcast_decode(&d[40..48]));
         out.push(Descriptor {
             name,
             data_type,
@@ -160,6 +206,7 @@ pub fn parse(data: &[u8]) -> Result<Vec<Descriptor>, String> {
             size,
             scale,
             value_offset,
+            no_data,
         });
         offset += size;
     }
@@ -167,7 +214,7 @@ pub fn parse(data: &[u8]) -> Result<Vec<Descriptor>, String> {
 }
 
 /// A new column that tilecurv adds, for its descriptor.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct NewColumn {
     /// Dimension name (at most 32 bytes).
     pub name: String,
@@ -175,14 +222,51 @@ pub struct NewColumn {
     pub ty: ScalarType,
     /// Human-readable description with its unit (at most 32 bytes).
     pub description: String,
+    /// Scale and offset of a scaled column (the value is raw * scale + offset).
+    pub scaling: Option<(f64, f64)>,
+    /// The raw value that marks a missing value, declared in the descriptor.
+    pub no_data: Option<f64>,
 }
 
-/// Encodes one scalar descriptor (no scale, offset, min, max; no-data NaN for floats is not
-/// declared because readers disagree on it: the flag column says when a value is undefined).
+impl NewColumn {
+    /// A column of `ty` with no scale, offset or no-data value.
+    pub fn plain(name: impl Into<String>, ty: ScalarType, description: impl Into<String>) -> Self {
+        NewColumn {
+            name: name.into(),
+            ty,
+            description: description.into(),
+            scaling: None,
+            no_data: None,
+        }
+    }
+}
+
+/// Options bit: the no-data field (bytes 40-47) holds the raw value of a missing value.
+pub const OPTION_NO_DATA: u8 = 0x01;
+/// Options bit: the scale field (bytes 112-119) applies.
+pub const OPTION_SCALE: u8 = 0x08;
+/// Options bit: the offset field (bytes 136-143) applies.
+pub const OPTION_OFFSET: u8 = 0x10;
+
+/// Encodes one scalar descriptor (LAS 1.4 R15 table 24): name, type, description, and for a
+/// scaled column its scale and offset, and its no-data value, each with its options bit (the
+/// no-data value upcast to the field's 8 bytes: i64 for signed types, u64 for unsigned, f64
+/// for floats). No min or max. Float columns declare no no-data NaN, because readers disagree
+/// on it: the flag column says when a value is undefined.
 pub fn encode(col: &NewColumn) -> [u8; DESCRIPTOR_SIZE] {
     let mut d = [0u8; DESCRIPTOR_SIZE];
     d[2] = col.ty as u8;
-    d[3] = 0;
+    let mut options = 0;
+    if let Some(v) = col.no_data {
+        options |= OPTION_NO_DATA;
+        d[40..48].copy_from_slice(&col.ty.upcast_encode(v));
+    }
+    if let Some((scale, offset)) = col.scaling {
+        options |= OPTION_SCALE | OPTION_OFFSET;
+        d[112..120].copy_from_slice(&scale.to_le_bytes());
+        d[136..144].copy_from_slice(&offset.to_le_bytes());
+    }
+    d[3] = options;
     d[4..36].copy_from_slice(&padded::<32>(&col.name));
     d[160..192].copy_from_slice(&padded::<32>(&col.description));
     d
@@ -231,4 +315,46 @@ pub fn merged_payload<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> Result<
         data.extend_from_slice(&v.data);
     }
     Ok(data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scaled i32 column with a no-data value, byte for byte as LAS 1.4 R15 table 24 places
+    /// the fields, and parsed back: the no-data raw value reads as NaN, others scaled.
+    #[test]
+    fn scaled_columns_declare_scale_offset_and_no_data() {
+        let col = NewColumn {
+            scaling: Some((0.25, 0.0)),
+            no_data: Some(i32::MIN as f64),
+            ..NewColumn::plain("H", ScalarType::I32, "mean curvature (1/m)")
+        };
+        let d = encode(&col);
+        assert_eq!(d[2], 6, "i32");
+        assert_eq!(d[3], 0x01 | 0x08 | 0x10);
+        assert_eq!(&d[4..6], b"H\0");
+        assert_eq!(d[40..48], (i32::MIN as i64).to_le_bytes());
+        assert_eq!(d[112..120], 0.25f64.to_le_bytes());
+        assert_eq!(d[136..144], 0.0f64.to_le_bytes());
+        assert!(d[48..112].iter().all(|&b| b == 0), "no min, no max");
+        let p = parse(&d).expect("parses");
+        assert_eq!(
+            (p[0].scale, p[0].value_offset, p[0].no_data, p[0].size),
+            (0.25, 0.0, Some(i32::MIN as f64), 4)
+        );
+        assert_eq!(p[0].read(&(-6i32).to_le_bytes()), Some(-1.5));
+        assert!(p[0]
+            .read(&i32::MIN.to_le_bytes())
+            .is_some_and(|v| v.is_nan()));
+        let plain = parse(&encode(&NewColumn::plain("f", ScalarType::F32, ""))).expect("parses");
+        assert_eq!(
+            (
+                plain[0].scale,
+                plain[0].no_data,
+                encode(&NewColumn::plain("f", ScalarType::F32, ""))[3]
+            ),
+            (1.0, None, 0)
+        );
+    }
 }

@@ -456,11 +456,11 @@ mod tests {
         let dir = tempfile::tempdir().expect("temp dir");
         let out = dir.path().join("eb.las");
         let col = |name: &str| {
-            extra_bytes::encode(&extra_bytes::NewColumn {
-                name: name.into(),
-                ty: extra_bytes::ScalarType::U8,
-                description: String::new(),
-            })
+            extra_bytes::encode(&extra_bytes::NewColumn::plain(
+                name,
+                extra_bytes::ScalarType::U8,
+                "",
+            ))
             .to_vec()
         };
         let vlrs = [

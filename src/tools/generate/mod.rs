@@ -169,11 +169,7 @@ fn truth_descriptors() -> Vec<u8> {
         .iter()
         .zip(descriptions)
         .flat_map(|(name, description)| {
-            encode(&NewColumn {
-                name: (*name).into(),
-                ty: ScalarType::F64,
-                description: description.into(),
-            })
+            encode(&NewColumn::plain(*name, ScalarType::F64, description))
         })
         .collect()
 }

@@ -1,0 +1,486 @@
+//! The columns tilecurv adds to every point: their names, the groups `--columns` picks them by,
+//! their descriptions (with the file's unit) and how a tile result file stores them. One
+//! definition used by the result files, the writers and the tests. Result files hold every
+//! value as an f64, whatever the output's encoding, which is chosen when the outputs are
+//! written ([`output`]: scaled integers, f32 or f64).
+
+pub mod output;
+
+use crate::core::compute::{PointResult, NO_PATCH};
+use crate::core::estimate::{Curvature, ExtraColumn, MAX_EXTRA};
+
+/// Name of the quality-flag column.
+pub const FLAGS_NAME: &str = "CurvatureFlags";
+
+/// How the new columns are stored in a LAS/LAZ output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ColumnType {
+    /// Scaled integers (the default): unit vectors as i16 at 1/32767, curvatures as i32 at a
+    /// step chosen from the data ([`output`]). A PLY output, which has no scale field, gets
+    /// f32 instead.
+    #[default]
+    Scaled,
+    /// 32-bit floats (`--f32`).
+    F32,
+    /// 64-bit floats (`--f64`).
+    F64,
+}
+
+impl ColumnType {
+    /// The name the manifest and the provenance use.
+    pub fn name(self) -> &'static str {
+        match self {
+            ColumnType::Scaled => "scaled",
+            ColumnType::F32 => "f32",
+            ColumnType::F64 => "f64",
+        }
+    }
+
+    /// The type named `name` ([`ColumnType::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        [ColumnType::Scaled, ColumnType::F32, ColumnType::F64]
+            .into_iter()
+            .find(|t| t.name() == name)
+    }
+}
+
+/// A group of new columns, as `--columns` names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Group {
+    /// NormalX, NormalY, NormalZ.
+    Normals,
+    /// Mean curvature.
+    H,
+    /// Gaussian curvature.
+    K,
+    /// Smaller principal curvature.
+    K1,
+    /// Larger principal curvature.
+    K2,
+    /// d1x, d1y, d1z, d2x, d2y, d2z: the principal directions.
+    Directions,
+    /// The estimator's extra values (the VCM's SharpFeature, VcmNormalX/Y/Z).
+    Features,
+    /// CurvatureFlags.
+    Flags,
+}
+
+impl Group {
+    /// Every group, in record order.
+    pub const ALL: [Group; 8] = [
+        Group::Normals,
+        Group::H,
+        Group::K,
+        Group::K1,
+        Group::K2,
+        Group::Directions,
+        Group::Features,
+        Group::Flags,
+    ];
+
+    /// The name `--columns` gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Group::Normals => "normals",
+            Group::H => "H",
+            Group::K => "K",
+            Group::K1 => "k1",
+            Group::K2 => "k2",
+            Group::Directions => "directions",
+            Group::Features => "features",
+            Group::Flags => "flags",
+        }
+    }
+
+    fn bit(self) -> u8 {
+        1 << Group::ALL.iter().position(|&g| g == self).unwrap_or(0)
+    }
+}
+
+/// The groups of columns a run writes (`--columns`), always in the record order of
+/// [`Group::ALL`] whatever the order they were named in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ColumnChoice(u8);
+
+impl Default for ColumnChoice {
+    /// normals, H, K, k1, k2, flags.
+    fn default() -> Self {
+        [
+            Group::Normals,
+            Group::H,
+            Group::K,
+            Group::K1,
+            Group::K2,
+            Group::Flags,
+        ]
+        .into_iter()
+        .fold(ColumnChoice(0), ColumnChoice::with)
+    }
+}
+
+impl ColumnChoice {
+    /// Whether the group is chosen.
+    pub fn has(self, g: Group) -> bool {
+        self.0 & g.bit() != 0
+    }
+
+    /// This choice with `g` added.
+    pub fn with(self, g: Group) -> Self {
+        ColumnChoice(self.0 | g.bit())
+    }
+
+    /// This choice without `g`.
+    pub fn without(self, g: Group) -> Self {
+        ColumnChoice(self.0 & !g.bit())
+    }
+
+    /// Parses a comma-separated list of group names (any case: the lower-case names are all
+    /// different); an unknown or missing name is an error that lists the valid ones.
+    pub fn parse(list: &str) -> Result<Self, String> {
+        let valid = || {
+            Group::ALL
+                .iter()
+                .map(|g| g.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut c = ColumnChoice(0);
+        for word in list.split(',').map(str::trim) {
+            if word.is_empty() {
+                return Err(format!(
+                    "{list:?} has an empty column name: give a comma-separated list of {}",
+                    valid()
+                ));
+            }
+            let g = Group::ALL
+                .into_iter()
+                .find(|g| g.name().eq_ignore_ascii_case(word))
+                .ok_or_else(|| format!("unknown column {word:?}: the columns are {}", valid()))?;
+            c = c.with(g);
+        }
+        Ok(c)
+    }
+}
+
+impl std::fmt::Display for ColumnChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names: Vec<&str> = Group::ALL
+            .into_iter()
+            .filter(|&g| self.has(g))
+            .map(Group::name)
+            .collect();
+        write!(f, "{}", names.join(","))
+    }
+}
+
+/// The value of a point's result a column holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Value {
+    /// A component of the normal.
+    Normal(usize),
+    /// Mean curvature.
+    H,
+    /// Gaussian curvature.
+    K,
+    /// Smaller principal curvature.
+    K1,
+    /// Larger principal curvature.
+    K2,
+    /// A component of the direction of k1.
+    D1(usize),
+    /// A component of the direction of k2.
+    D2(usize),
+    /// The estimator's extra value of this index.
+    Extra(usize),
+    /// The quality flags.
+    Flags,
+}
+
+impl Value {
+    /// This value of `r` (the flags as a number).
+    pub fn get(self, r: &PointResult) -> f64 {
+        let c = &r.curvature;
+        match self {
+            Value::Normal(i) => r.normal[i],
+            Value::H => c.h,
+            Value::K => c.k,
+            Value::K1 => c.k1,
+            Value::K2 => c.k2,
+            Value::D1(i) => c.d1[i],
+            Value::D2(i) => c.d2[i],
+            Value::Extra(i) => r.extra[i],
+            Value::Flags => c.flags as f64,
+        }
+    }
+
+    fn set(self, r: &mut PointResult, v: f64) {
+        let c = &mut r.curvature;
+        match self {
+            Value::Normal(i) => r.normal[i] = v,
+            Value::H => c.h = v,
+            Value::K => c.k = v,
+            Value::K1 => c.k1 = v,
+            Value::K2 => c.k2 = v,
+            Value::D1(i) => c.d1[i] = v,
+            Value::D2(i) => c.d2[i] = v,
+            Value::Extra(i) => r.extra[i] = v,
+            Value::Flags => c.flags = v as u8,
+        }
+    }
+}
+
+/// One new column: its name, description and value.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Column {
+    /// The LAS dimension name.
+    pub name: &'static str,
+    /// The description, with its unit (at most 32 bytes: a LAS extra-bytes description).
+    pub description: String,
+    /// What it holds.
+    pub value: Value,
+}
+
+/// The new columns of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColumnSet {
+    /// The groups written; without [`Group::Normals`] when the input's own NormalX/Y/Z are
+    /// used (they are kept as they are).
+    pub choice: ColumnChoice,
+    /// The estimator's extra values (with [`Group::Features`]: its declared
+    /// [`Estimator::extra_columns`](crate::core::estimate::Estimator::extra_columns), e.g. the
+    /// VCM's `SharpFeature`, `VcmNormalX/Y/Z`); empty otherwise.
+    pub extra: Vec<ExtraColumn>,
+    /// Unit symbol of the coordinates, for the descriptions ("m", "ft", or "unit").
+    pub unit: String,
+}
+
+impl ColumnSet {
+    /// The columns written, in record order.
+    pub fn columns(&self) -> Vec<Column> {
+        let u = &self.unit;
+        let mut v = Vec::new();
+        let mut push = |name: &'static str, description: String, value| {
+            v.push(Column {
+                name,
+                description,
+                value,
+            })
+        };
+        let has = |g| self.choice.has(g);
+        if has(Group::Normals) {
+            for (i, name) in ["NormalX", "NormalY", "NormalZ"].into_iter().enumerate() {
+                push(
+                    name,
+                    format!("unit normal {}", &name[6..].to_lowercase()),
+                    Value::Normal(i),
+                );
+            }
+        }
+        if has(Group::H) {
+            push("H", format!("mean curvature (1/{u})"), Value::H);
+        }
+        if has(Group::K) {
+            push("K", format!("Gaussian curvature (1/{u}^2)"), Value::K);
+        }
+        if has(Group::K1) {
+            push("k1", format!("min principal curvature (1/{u})"), Value::K1);
+        }
+        if has(Group::K2) {
+            push("k2", format!("max principal curvature (1/{u})"), Value::K2);
+        }
+        if has(Group::Directions) {
+            for (i, name) in ["d1x", "d1y", "d1z"].into_iter().enumerate() {
+                push(
+                    name,
+                    format!("direction of k1 ({})", &name[2..]),
+                    Value::D1(i),
+                );
+            }
+            for (i, name) in ["d2x", "d2y", "d2z"].into_iter().enumerate() {
+                push(
+                    name,
+                    format!("direction of k2 ({})", &name[2..]),
+                    Value::D2(i),
+                );
+            }
+        }
+        for (i, c) in self.extra.iter().enumerate() {
+            push(c.name, c.description.to_string(), Value::Extra(i));
+        }
+        if has(Group::Flags) {
+            push(
+                FLAGS_NAME,
+                "1few 2nrm 4dgn 8bnd 16umb 32file".into(),
+                Value::Flags,
+            );
+        }
+        v
+    }
+
+    /// The values a result file stores (as f64, the flags byte after them): those of the
+    /// columns written, with k1 and k2 both when either is written (the flip of `--orient
+    /// propagate` makes each from the other). An iterator, so that no point allocates.
+    fn stored(&self) -> impl Iterator<Item = Value> + '_ {
+        let on = |g| self.choice.has(g);
+        let principal = on(Group::K1) || on(Group::K2);
+        let normals = if on(Group::Normals) { 3 } else { 0 };
+        let directions = if on(Group::Directions) { 3 } else { 0 };
+        (0..normals)
+            .map(Value::Normal)
+            .chain(on(Group::H).then_some(Value::H))
+            .chain(on(Group::K).then_some(Value::K))
+            .chain(principal.then_some(Value::K1))
+            .chain(principal.then_some(Value::K2))
+            .chain((0..directions).map(Value::D1))
+            .chain((0..directions).map(Value::D2))
+            .chain((0..self.extra.len().min(MAX_EXTRA)).map(Value::Extra))
+    }
+
+    /// Bytes per point of a result file's columns.
+    pub fn result_size(&self) -> usize {
+        8 * self.stored().count() + 1
+    }
+
+    /// Appends the stored values of one point to `out` (f64 little-endian, then the flags).
+    pub fn encode_result(&self, r: &PointResult, out: &mut Vec<u8>) {
+        for v in self.stored() {
+            out.extend_from_slice(&v.get(r).to_le_bytes());
+        }
+        out.push(r.curvature.flags);
+    }
+
+    /// Decodes one point's stored values (as [`ColumnSet::encode_result`] wrote them) into a
+    /// result with id 0 and no patch; values not stored are NaN (directions zero).
+    pub fn decode_result(&self, rec: &[u8]) -> PointResult {
+        let mut r = PointResult {
+            id: 0,
+            normal: [f64::NAN; 3],
+            curvature: Curvature::undefined(0),
+            extra: [f64::NAN; MAX_EXTRA],
+            patch: NO_PATCH,
+        };
+        let mut at = 0;
+        for v in self.stored() {
+            let bytes = rec.get(at..at + 8).and_then(|b| b.try_into().ok());
+            v.set(&mut r, bytes.map(f64::from_le_bytes).unwrap_or(f64::NAN));
+            at += 8;
+        }
+        r.curvature.flags = rec.get(at).copied().unwrap_or(0);
+        r
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::estimate::{EstimatorKind, EstimatorParams};
+
+    pub(super) fn vcm_columns() -> ColumnSet {
+        let vcm = EstimatorKind::Vcm.build(&EstimatorParams::default());
+        ColumnSet {
+            choice: ColumnChoice::default()
+                .with(Group::Directions)
+                .with(Group::Features),
+            extra: vcm.extra_columns().to_vec(),
+            unit: "m".into(),
+        }
+    }
+
+    /// `--columns` takes names in any order and case and writes them in record order; an
+    /// unknown name lists the valid ones.
+    #[test]
+    fn column_lists_parse_in_record_order() {
+        let c = ColumnChoice::parse("flags, h,K2").expect("valid");
+        assert_eq!(c.to_string(), "H,k2,flags");
+        assert_eq!(
+            ColumnChoice::default().to_string(),
+            "normals,H,K,k1,k2,flags"
+        );
+        assert_eq!(
+            ColumnChoice::parse(&ColumnChoice::default().to_string()),
+            Ok(ColumnChoice::default())
+        );
+        let e = ColumnChoice::parse("H,curvedness").expect_err("unknown");
+        assert!(
+            e.contains("\"curvedness\"")
+                && e.contains("normals, H, K, k1, k2, directions, features, flags"),
+            "{e}"
+        );
+        assert!(ColumnChoice::parse("").is_err() && ColumnChoice::parse("H,").is_err());
+    }
+
+    /// Features follow the curvature and directions, the flags come last; a result file keeps
+    /// k1 and k2 together.
+    #[test]
+    fn columns_in_record_order() {
+        let mut cols = vcm_columns();
+        cols.choice = cols
+            .choice
+            .without(Group::Directions)
+            .without(Group::Normals);
+        let names: Vec<&str> = cols.columns().iter().map(|c| c.name).collect();
+        assert_eq!(
+            names,
+            [
+                "H",
+                "K",
+                "k1",
+                "k2",
+                "SharpFeature",
+                "VcmNormalX",
+                "VcmNormalY",
+                "VcmNormalZ",
+                FLAGS_NAME
+            ]
+        );
+        assert!(cols.columns().iter().all(|c| c.description.len() <= 32));
+        assert_eq!(cols.columns()[5].description, "VCM unit normal x");
+        cols.choice = ColumnChoice::parse("k2").expect("valid");
+        let stored: Vec<Value> = cols.stored().take(3).collect();
+        assert_eq!(stored, [Value::K1, Value::K2, Value::Extra(0)]);
+        assert_eq!(cols.result_size(), 8 * 6 + 1);
+    }
+
+    /// The one flip, on decoded results: normal, H and the VCM normal negated, k1' = -k2,
+    /// k2' = -k1, directions swapped, K, the feature score and the flags kept; NaN stays the
+    /// same NaN; twice is the identity, byte for byte.
+    #[test]
+    fn flipping_decoded_results_is_exact() {
+        let cols = vcm_columns();
+        let r = PointResult {
+            id: 0,
+            normal: [0.0, 0.6, 0.8],
+            curvature: Curvature {
+                h: 0.5,
+                k: 0.06,
+                k1: 0.2,
+                k2: 0.3,
+                d1: [1.0, 0.0, 0.0],
+                d2: [0.0, 0.8, -0.6],
+                flags: 16,
+            },
+            extra: [0.125, f64::NAN, -0.6, 0.8],
+            patch: NO_PATCH,
+        };
+        let mut rec = Vec::new();
+        cols.encode_result(&r, &mut rec);
+        assert_eq!(rec.len(), cols.result_size());
+        assert_eq!(cols.decode_result(&rec).curvature, r.curvature);
+        let f = cols.decode_result(&rec).flipped(&cols.extra);
+        assert_eq!(f.normal, [-0.0, -0.6, -0.8]);
+        let c = f.curvature;
+        assert_eq!((c.h, c.k, c.k1, c.k2), (-0.5, 0.06, -0.3, -0.2));
+        assert_eq!((c.d1, c.d2, c.flags), (r.curvature.d2, r.curvature.d1, 16));
+        assert_eq!(f.extra[0], 0.125);
+        assert!(f.extra[1].is_nan());
+        assert_eq!(f.extra[2..], [0.6, -0.8]);
+        let mut flipped = Vec::new();
+        cols.encode_result(&f, &mut flipped);
+        let mut back = Vec::new();
+        cols.encode_result(
+            &cols.decode_result(&flipped).flipped(&cols.extra),
+            &mut back,
+        );
+        assert_eq!(back, rec);
+    }
+}

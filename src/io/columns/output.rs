@@ -1,0 +1,361 @@
+//! How the new columns are stored in an output (issue 13 item 6: float noise does not
+//! compress). By default a LAS/LAZ output stores scaled integers through the scale and offset
+//! fields of the extra-bytes descriptors, which laspy and PDAL apply when reading:
+//!
+//! - unit vectors (normals, principal directions, the VCM normal) as i16 at 1/32767, and
+//!   other bounded values (the VCM's sharp-feature score, at most 1/2) as i16 at
+//!   bound/32767: an error of at most bound/65534 (1.5e-5 for a unit vector's component);
+//! - H, K, and k1 with k2 (one step for both) as i32 at a power-of-two step chosen from the
+//!   values of every point of the run (core::quantize): at most 1/4096 of the 99th percentile
+//!   of |value|, so an error of at most 1.2e-4 of that percentile, and coarser only when the
+//!   largest |value| would otherwise exceed 2^30 steps;
+//! - the flags as u8.
+//!
+//! An undefined value (NaN) is the type's minimum (-32768, -2^31), declared as the column's
+//! no-data value; a finite value never is (values are clamped to the type's range less its
+//! minimum). `--f32` and `--f64` store floats (NaN where undefined, nothing declared), as a PLY
+//! output, which has no scale field, always does.
+
+use crate::core::compute::PointResult;
+use crate::core::quantize::CurvatureStats;
+use crate::io::columns::{Column, ColumnSet, ColumnType, Value};
+use crate::io::las::extra_bytes::{NewColumn, ScalarType};
+
+/// The steps of the scaled curvature columns of a run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Steps {
+    /// Of H.
+    pub h: f64,
+    /// Of K.
+    pub k: f64,
+    /// Of k1 and k2.
+    pub principal: f64,
+}
+
+impl Steps {
+    /// The steps for the values counted in `stats` (core::quantize).
+    pub fn from_stats(stats: &CurvatureStats) -> Self {
+        Steps {
+            h: stats.h.step(),
+            k: stats.k.step(),
+            principal: stats.principal.step(),
+        }
+    }
+}
+
+/// How an output stores the new columns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Encoding {
+    /// Scaled integers, the curvatures at these steps.
+    Scaled(Steps),
+    /// 32-bit floats.
+    F32,
+    /// 64-bit floats.
+    F64,
+}
+
+impl Encoding {
+    /// The encoding of `ty` with the run's curvature `steps`.
+    pub fn new(ty: ColumnType, steps: Steps) -> Self {
+        match ty {
+            ColumnType::Scaled => Encoding::Scaled(steps),
+            ColumnType::F32 => Encoding::F32,
+            ColumnType::F64 => Encoding::F64,
+        }
+    }
+
+    /// This encoding for a format without scaled columns (PLY): floats, f32 for scaled.
+    pub fn floats(self) -> Self {
+        match self {
+            Encoding::Scaled(_) => Encoding::F32,
+            other => other,
+        }
+    }
+}
+
+/// How one column is stored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Storage {
+    /// A float of this type (F32 or F64), NaN where undefined.
+    Float(ScalarType),
+    /// The flags byte.
+    Byte,
+    /// An integer of this type (I16 or I32) times `scale`; its minimum where undefined.
+    Scaled(ScalarType, f64),
+}
+
+/// The largest |raw| of a scaled type: its maximum (its minimum is the no-data value).
+fn max_raw(ty: ScalarType) -> f64 {
+    match ty {
+        ScalarType::I16 => i16::MAX as f64,
+        _ => i32::MAX as f64,
+    }
+}
+
+/// The no-data raw value of a scaled type: its minimum.
+fn no_data(ty: ScalarType) -> f64 {
+    -max_raw(ty) - 1.0
+}
+
+/// The new columns of an output with their storage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputColumns {
+    columns: Vec<(Column, Storage)>,
+}
+
+impl OutputColumns {
+    /// The columns of `set` stored as `encoding` says.
+    pub fn new(set: &ColumnSet, encoding: Encoding) -> Self {
+        let storage = |c: &Column| match (c.value, encoding) {
+            (Value::Flags, _) => Storage::Byte,
+            (_, Encoding::F32) => Storage::Float(ScalarType::F32),
+            (_, Encoding::F64) => Storage::Float(ScalarType::F64),
+            (v, Encoding::Scaled(s)) => match v {
+                Value::H => Storage::Scaled(ScalarType::I32, s.h),
+                Value::K => Storage::Scaled(ScalarType::I32, s.k),
+                Value::K1 | Value::K2 => Storage::Scaled(ScalarType::I32, s.principal),
+                Value::Extra(i) => {
+                    let bound = set.extra.get(i).map(|e| e.bound).unwrap_or(1.0);
+                    Storage::Scaled(ScalarType::I16, bound / i16::MAX as f64)
+                }
+                _ => Storage::Scaled(ScalarType::I16, 1.0 / i16::MAX as f64),
+            },
+        };
+        OutputColumns {
+            columns: set
+                .columns()
+                .into_iter()
+                .map(|c| {
+                    let s = storage(&c);
+                    (c, s)
+                })
+                .collect(),
+        }
+    }
+
+    /// The extra-bytes descriptors of the columns, in record order (a scaled column with its
+    /// scale, offset 0 and no-data value).
+    pub fn descriptors(&self) -> Vec<NewColumn> {
+        self.columns
+            .iter()
+            .map(|(c, s)| {
+                let plain = |ty| NewColumn::plain(c.name, ty, c.description.clone());
+                match *s {
+                    Storage::Float(ty) => plain(ty),
+                    Storage::Byte => plain(ScalarType::U8),
+                    Storage::Scaled(ty, scale) => NewColumn {
+                        scaling: Some((scale, 0.0)),
+                        no_data: Some(no_data(ty)),
+                        ..plain(ty)
+                    },
+                }
+            })
+            .collect()
+    }
+
+    /// Bytes per point.
+    pub fn record_size(&self) -> usize {
+        self.descriptors().iter().map(|d| d.ty.size()).sum()
+    }
+
+    /// Appends one point's columns to `out` (little-endian, record order).
+    pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
+        for (c, s) in &self.columns {
+            let v = c.value.get(r);
+            match *s {
+                Storage::Float(ScalarType::F64) => out.extend_from_slice(&v.to_le_bytes()),
+                Storage::Float(_) => out.extend_from_slice(&(v as f32).to_le_bytes()),
+                Storage::Byte => out.push(r.curvature.flags),
+                Storage::Scaled(ty, scale) => {
+                    let raw = if v.is_nan() {
+                        no_data(ty)
+                    } else {
+                        let m = max_raw(ty);
+                        (v / scale).round().clamp(-m, m)
+                    };
+                    match ty {
+                        ScalarType::I16 => out.extend_from_slice(&(raw as i16).to_le_bytes()),
+                        _ => out.extend_from_slice(&(raw as i32).to_le_bytes()),
+                    }
+                }
+            }
+        }
+    }
+
+    /// The provenance lines of the encoding: one `column.<name>=<type>` line per column, with
+    /// `scale S offset 0 no_data N` for a scaled one.
+    pub fn provenance(&self) -> String {
+        let mut t = String::new();
+        for d in self.descriptors() {
+            let ty = match d.ty {
+                ScalarType::U8 => "u8",
+                ScalarType::I16 => "i16",
+                ScalarType::I32 => "i32",
+                ScalarType::F32 => "f32",
+                _ => "f64",
+            };
+            t.push_str(&format!("column.{}={ty}", d.name));
+            if let (Some((scale, offset)), Some(n)) = (d.scaling, d.no_data) {
+                t.push_str(&format!(" scale {scale:e} offset {offset} no_data {n}"));
+            }
+            t.push('\n');
+        }
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::estimate::Curvature;
+    use crate::core::quantize::pow2;
+    use crate::io::columns::tests::vcm_columns;
+    use crate::io::columns::{ColumnChoice, Group};
+
+    const STEPS: Steps = Steps {
+        h: 1.0 / 1024.0,
+        k: 1.0 / 65536.0,
+        principal: 1.0 / 2048.0,
+    };
+
+    fn result(h: f64) -> PointResult {
+        PointResult {
+            id: 0,
+            normal: [0.6, 0.0, -0.8],
+            curvature: Curvature {
+                h,
+                k: 0.06,
+                k1: -0.2,
+                k2: 1e12,
+                d1: [1.0, 0.0, 0.0],
+                d2: [0.0, 0.8, -0.6],
+                flags: 8,
+            },
+            extra: [0.5, 0.0, 0.6, -0.8],
+            patch: crate::core::compute::NO_PATCH,
+        }
+    }
+
+    /// Scaled: unit vectors i16 at 1/32767, curvatures i32 at their steps (k1 and k2 one
+    /// step), the feature score i16 at 0.5/32767, flags u8; values round to the nearest
+    /// step, clamp instead of wrapping, and NaN is the type's minimum, the declared no-data.
+    #[test]
+    fn scaled_columns_round_clamp_and_mark_undefined() {
+        let out = OutputColumns::new(&vcm_columns(), Encoding::Scaled(STEPS));
+        let d = out.descriptors();
+        let get = |name: &str| d.iter().position(|c| c.name == name).expect("column");
+        let ty_scale = |name: &str| (d[get(name)].ty, d[get(name)].scaling);
+        assert_eq!(
+            ty_scale("NormalX"),
+            (ScalarType::I16, Some((1.0 / 32767.0, 0.0)))
+        );
+        assert_eq!(
+            ty_scale("d2z"),
+            (ScalarType::I16, Some((1.0 / 32767.0, 0.0)))
+        );
+        assert_eq!(ty_scale("H"), (ScalarType::I32, Some((STEPS.h, 0.0))));
+        assert_eq!(ty_scale("k1"), ty_scale("k2"));
+        assert_eq!(
+            ty_scale("SharpFeature"),
+            (ScalarType::I16, Some((0.5 / 32767.0, 0.0)))
+        );
+        assert_eq!(ty_scale("CurvatureFlags"), (ScalarType::U8, None));
+        assert_eq!(d[get("H")].no_data, Some(i32::MIN as f64));
+        assert_eq!(d[get("NormalZ")].no_data, Some(i16::MIN as f64));
+        assert_eq!(out.record_size(), 3 * 2 + 4 * 4 + 6 * 2 + 4 * 2 + 1);
+        let mut rec = Vec::new();
+        out.encode(&result(0.3), &mut rec);
+        assert_eq!(rec.len(), out.record_size());
+        let parsed = crate::io::las::extra_bytes::parse(
+            &d.iter()
+                .flat_map(crate::io::las::extra_bytes::encode)
+                .collect::<Vec<u8>>(),
+        )
+        .expect("descriptors");
+        let read = |rec: &[u8], name: &str| parsed[get(name)].read(rec).expect("value");
+        assert_eq!(read(&rec, "H"), (0.3f64 * 1024.0).round() / 1024.0);
+        assert!((read(&rec, "H") - 0.3).abs() <= STEPS.h / 2.0);
+        for (name, v) in [("NormalX", 0.6), ("NormalZ", -0.8), ("d2y", 0.8)] {
+            assert!(
+                (read(&rec, name) - v).abs() <= 0.5 / 32767.0 + 1e-15,
+                "{name}"
+            );
+        }
+        assert_eq!(read(&rec, "SharpFeature"), 0.5);
+        assert_eq!(
+            read(&rec, "k2"),
+            i32::MAX as f64 * STEPS.principal,
+            "clamped, not wrapped"
+        );
+        assert_eq!(read(&rec, "CurvatureFlags"), 8.0);
+        rec.clear();
+        let mut undefined = result(f64::NAN);
+        undefined.normal = [f64::NAN; 3];
+        out.encode(&undefined, &mut rec);
+        assert!(read(&rec, "H").is_nan() && read(&rec, "NormalY").is_nan());
+        let at = get_offset(&d, "H");
+        assert_eq!(rec[at..at + 4], i32::MIN.to_le_bytes());
+        assert_eq!(read(&rec, "K"), (0.06f64 / STEPS.k).round() * STEPS.k);
+        assert_eq!(pow2(-10), STEPS.h);
+    }
+
+    fn get_offset(d: &[NewColumn], name: &str) -> usize {
+        d.iter()
+            .take_while(|c| c.name != name)
+            .map(|c| c.ty.size())
+            .sum()
+    }
+
+    /// --f32 and --f64 (and PLY outputs) keep floats with NaN, nothing scaled or declared.
+    #[test]
+    fn floats_stay_floats() {
+        let set = ColumnSet {
+            choice: ColumnChoice::parse("H,flags").expect("valid"),
+            extra: Vec::new(),
+            unit: "m".into(),
+        };
+        for (enc, ty, size) in [
+            (Encoding::F32, ScalarType::F32, 5),
+            (Encoding::F64, ScalarType::F64, 9),
+            (Encoding::Scaled(STEPS).floats(), ScalarType::F32, 5),
+        ] {
+            let out = OutputColumns::new(&set, enc);
+            let d = out.descriptors();
+            assert_eq!(
+                d.iter().map(|c| c.name.as_str()).collect::<Vec<_>>(),
+                ["H", "CurvatureFlags"]
+            );
+            assert_eq!((d[0].ty, d[0].scaling, d[0].no_data), (ty, None, None));
+            let mut rec = Vec::new();
+            out.encode(&result(f64::NAN), &mut rec);
+            assert_eq!(rec.len(), size);
+            assert!(ty.decode(&rec).is_nan());
+            assert_eq!(rec[size - 1], 8);
+        }
+        assert!(!set.choice.has(Group::Normals));
+    }
+
+    /// The provenance names each column's type, and a scaled one's scale and no-data value.
+    #[test]
+    fn provenance_lists_the_encoding() {
+        let set = ColumnSet {
+            choice: ColumnChoice::parse("normals,H").expect("valid"),
+            extra: Vec::new(),
+            unit: "m".into(),
+        };
+        let t = OutputColumns::new(&set, Encoding::Scaled(STEPS)).provenance();
+        assert!(
+            t.contains("column.NormalX=i16 scale 3.051850947599719e-5 offset 0 no_data -32768\n"),
+            "{t}"
+        );
+        assert!(
+            t.contains("column.H=i32 scale 9.765625e-4 offset 0 no_data -2147483648\n"),
+            "{t}"
+        );
+        let f = OutputColumns::new(&set, Encoding::F64).provenance();
+        assert_eq!(
+            f,
+            "column.NormalX=f64\ncolumn.NormalY=f64\ncolumn.NormalZ=f64\ncolumn.H=f64\n"
+        );
+    }
+}
