@@ -11,17 +11,7 @@ use crate::common::{column_bytes, laspy_available, process, tilecurv};
 /// Writes, from a generated terrain, `all` (10% of the points lifted 0.4 m as class 7 noise, 5%
 /// of the rest withheld) and `subsets` (each a filter name and the file of its selected points).
 fn classed_terrain(dir: &Path) {
-    let t = dir.join("terrain.las");
-    let r = tilecurv(&[
-        "generate",
-        "terrain",
-        "-o",
-        t.to_str().expect("utf-8"),
-        "--points",
-        "20000",
-        "-q",
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    crate::common::generate_terrain(&dir.join("terrain.las"), "20000", 0, 10.0);
     let script = format!(
         r#"
 import laspy, numpy as np

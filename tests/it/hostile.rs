@@ -312,7 +312,7 @@ fn fuzz_findings_fail_cleanly() {
     assert!(n > 0, "no findings read");
 }
 
-/// A fuzz finding: a LASzip VLR whose fixed chunk size is 2^32-2 made the laz codec reserve a
+/// Two fuzz findings. The first: a LASzip VLR whose fixed chunk size is 2^32-2 made the laz codec reserve a
 /// 4 GiB buffer (libFuzzer's out-of-memory, an abort wherever address space is limited). The
 /// chunk size is now clamped to the point count, which decodes the same points: under
 /// `ulimit -v` of 1.5 GiB the corrupt file is bad input (exit 3), the valid file it was cut
@@ -337,14 +337,24 @@ fn a_huge_laz_chunk_size_reserves_nothing() {
         )
     };
     let out = dir.path().join("o.las");
-    let finding = root().join("tests/fuzz_findings/las-oom-85453f38.laz");
-    let (code, err) = limited(&finding, &out);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(
-        err.contains("LAZ") && !err.contains("memory allocation"),
-        "{err}"
-    );
-    assert!(!out.exists());
+    // The second: a layered (point format 6) chunk whose layer sizes add up to 17 GB in a
+    // 46 kB file made the codec allocate a 2.8 GB layer; the sizes are now checked against the
+    // chunk's bytes, naming the chunk.
+    for (name, says) in [
+        ("las-oom-85453f38.laz", "LAZ"),
+        (
+            "las-oom-6c92c036.laz",
+            "LAZ chunk 0 of 1: its layers declare",
+        ),
+    ] {
+        let (code, err) = limited(&root().join("tests/fuzz_findings").join(name), &out);
+        assert_eq!(code, Some(3), "{name}: {err}");
+        assert!(
+            err.contains(says) && !err.contains("memory allocation"),
+            "{name}: {err}"
+        );
+        assert!(!out.exists());
+    }
     if let Some(valid) = crate::common::shared("las/32-1-472-150-76.laz") {
         let (code, err) = limited(&valid, &out);
         assert_eq!(code, Some(0), "{err}");

@@ -66,16 +66,7 @@ fn heights_in_feet_under_a_metre_crs_are_converted() {
     }
     let dir = tempfile::tempdir().expect("temp dir");
     let metres = dir.path().join("terrain_m.las");
-    let r = tilecurv(&[
-        "generate",
-        "terrain",
-        "-o",
-        metres.to_str().expect("utf-8"),
-        "--points",
-        "30000",
-        "-q",
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    crate::common::generate_terrain(&metres, "30000", 0, 10.0);
     let out_m = dir.path().join("out_m.las");
     process(&metres, &out_m, &[]);
     let base = relative_error(&out_m);

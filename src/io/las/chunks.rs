@@ -78,6 +78,7 @@ pub fn read_chunk_table(
             format!("the LAZ chunk table cannot be read: {e}; the file is truncated or corrupt"),
         )
     })?;
+    let layers = layer_count(vlr);
     let mut chunks = Vec::with_capacity(table.len());
     let (mut offset, mut first_point) = (start + 8, 0u64);
     for (i, e) in table.as_ref().iter().enumerate() {
@@ -95,6 +96,14 @@ pub fn read_chunk_table(
         if variable && points > n - first_point.min(n) {
             return Err(bad(table_at, format!("LAZ chunk {i} of {count} is declared with {points} points, but only {} of the header's {n} points are left for it; the chunk table is corrupt", n - first_point.min(n))));
         }
+        if let Some(layers) = layers {
+            check_layers(file, offset, e.byte_count, vlr.items_size(), layers).map_err(|what| {
+                bad(
+                    offset,
+                    format!("LAZ chunk {i} of {count}: {what}; the chunk is corrupt"),
+                )
+            })?;
+        }
         chunks.push(Chunk {
             first_point,
             offset,
@@ -109,6 +118,54 @@ pub fn read_chunk_table(
         return Err(bad(table_at, format!("the LAZ chunk table holds {first_point} points but the header says {n}; the file is truncated or its point count is wrong")));
     }
     Ok(chunks)
+}
+
+/// The number of layers of a layered (LAS 1.4 point format 6-10) chunk, None for point-wise
+/// chunks: as the laz crate's decompressors read them, 9 for the point, 1 for RGB, 2 for RGB +
+/// NIR, 1 for a wave packet and one per extra byte.
+fn layer_count(vlr: &laz::LazVlr) -> Option<u64> {
+    use laz::LazItemType as T;
+    let mut n = 0u64;
+    for item in vlr.items() {
+        n += match item.item_type() {
+            T::Point14 => 9,
+            T::RGB14 | T::WavePacket14 => 1,
+            T::RGBNIR14 => 2,
+            T::Byte14(b) => b as u64,
+            _ => return None,
+        };
+    }
+    Some(n)
+}
+
+/// Checks a layered chunk's layer sizes before the codec sizes its buffers from them (a fuzz
+/// finding: a layer of 2.8 GB in a 30 kB file): the first point's raw bytes, the point count,
+/// one u32 size per layer, and the layers, all within the chunk's `bytes` at `offset`.
+fn check_layers(
+    file: &[u8],
+    offset: u64,
+    bytes: u64,
+    first: u64,
+    layers: u64,
+) -> std::result::Result<(), String> {
+    let table = first + 4;
+    let head = table + 4 * layers;
+    if head > bytes {
+        return Err(format!(
+            "{bytes} bytes cannot hold its first point and its {layers} layer sizes ({head} bytes)"
+        ));
+    }
+    let at = (offset + table) as usize;
+    let sum: u64 = (0..layers as usize)
+        .map(|l| u32_at(file, at + 4 * l) as u64)
+        .sum();
+    if sum > bytes - head {
+        return Err(format!(
+            "its layers declare {sum} bytes but only {} follow their sizes",
+            bytes - head
+        ));
+    }
+    Ok(())
 }
 
 /// The chunk holding point `point`: its index and the chunk.
