@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::workdir::tmp_name;
 
-const MAGIC: &[u8; 8] = b"TCRES003";
+const MAGIC: &[u8; 8] = b"TCRES004";
 const ORIENT_MAGIC: &[u8; 8] = b"TCORI002";
 
 /// Bytes of one record after the id: the point's global patch (u64, `--orient propagate`) and
@@ -519,6 +519,7 @@ mod tests {
             choice: ColumnChoice::default(),
             extra: Vec::new(),
             unit: "m".into(),
+            wide: true,
         };
         // 150 tiles, ids interleaved across tiles, merged 8 at a time (so runs are made, and
         // runs of runs).

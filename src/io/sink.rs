@@ -187,6 +187,7 @@ mod tests {
             choice: Default::default(),
             extra: Vec::new(),
             unit: "m".into(),
+            wide: true,
         };
         let cols = crate::io::columns::output::OutputColumns::new(
             &set,

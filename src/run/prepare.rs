@@ -321,6 +321,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
             Vec::new()
         },
         unit: unit_name.clone(),
+        wide: cfg.column_type == crate::io::columns::ColumnType::F64,
     };
     check_new_names(&sources, &cols)?;
     for s in &sources {

@@ -1,8 +1,9 @@
 //! The columns tilecurv adds to every point: their names, the groups `--columns` picks them by,
 //! their descriptions (with the file's unit) and how a tile result file stores them. One
 //! definition used by the result files, the writers and the tests. Result files hold every
-//! value as an f64, whatever the output's encoding, which is chosen when the outputs are
-//! written ([`output`]: scaled integers, f32 or f64).
+//! value as an f32 (an f64 for `--f64` outputs: [`ColumnSet::wide`]), whatever the output's
+//! encoding, which is chosen when the outputs are written ([`output`]: scaled integers, f32 or
+//! f64).
 
 pub mod output;
 
@@ -252,6 +253,10 @@ pub struct ColumnSet {
     pub extra: Vec<ExtraColumn>,
     /// Unit symbol of the coordinates, for the descriptions ("m", "ft", or "unit").
     pub unit: String,
+    /// Whether result files hold f64 values (for `--f64` outputs); f32 otherwise, which every
+    /// other encoding reads exactly as it would the f64 (scaled steps are 2^-12 of the P99 or
+    /// coarser, 4000 times an f32's precision), at half the work directory's bytes.
+    pub wide: bool,
 }
 
 impl ColumnSet {
@@ -336,15 +341,28 @@ impl ColumnSet {
             .chain((0..self.extra.len().min(MAX_EXTRA)).map(Value::Extra))
     }
 
-    /// Bytes per point of a result file's columns.
-    pub fn result_size(&self) -> usize {
-        8 * self.stored().count() + 1
+    /// Bytes per stored value: 8 for f64, 4 for f32 ([`ColumnSet::wide`]).
+    fn value_size(&self) -> usize {
+        if self.wide {
+            8
+        } else {
+            4
+        }
     }
 
-    /// Appends the stored values of one point to `out` (f64 little-endian, then the flags).
+    /// Bytes per point of a result file's columns.
+    pub fn result_size(&self) -> usize {
+        self.value_size() * self.stored().count() + 1
+    }
+
+    /// Appends the stored values of one point to `out` (f64 or f32 little-endian, then the
+    /// flags).
     pub fn encode_result(&self, r: &PointResult, out: &mut Vec<u8>) {
         for v in self.stored() {
-            out.extend_from_slice(&v.get(r).to_le_bytes());
+            match self.wide {
+                true => out.extend_from_slice(&v.get(r).to_le_bytes()),
+                false => out.extend_from_slice(&(v.get(r) as f32).to_le_bytes()),
+            }
         }
         out.push(r.curvature.flags);
     }
@@ -359,11 +377,15 @@ impl ColumnSet {
             extra: [f64::NAN; MAX_EXTRA],
             patch: NO_PATCH,
         };
-        let mut at = 0;
+        let (mut at, w) = (0, self.value_size());
         for v in self.stored() {
-            let bytes = rec.get(at..at + 8).and_then(|b| b.try_into().ok());
-            v.set(&mut r, bytes.map(f64::from_le_bytes).unwrap_or(f64::NAN));
-            at += 8;
+            let value = match rec.get(at..at + w) {
+                Some(b) if w == 8 => b.try_into().map(f64::from_le_bytes).ok(),
+                Some(b) => b.try_into().map(|b| f32::from_le_bytes(b) as f64).ok(),
+                None => None,
+            };
+            v.set(&mut r, value.unwrap_or(f64::NAN));
+            at += w;
         }
         r.curvature.flags = rec.get(at).copied().unwrap_or(0);
         r
@@ -383,6 +405,7 @@ mod tests {
                 .with(Group::Features),
             extra: vcm.extra_columns().to_vec(),
             unit: "m".into(),
+            wide: true,
         }
     }
 
@@ -482,5 +505,20 @@ mod tests {
             &mut back,
         );
         assert_eq!(back, rec);
+        // Narrow result files (every encoding but --f64): f32 values, half the bytes, the
+        // same values as an f32 rounding of the f64 ones.
+        let narrow = ColumnSet {
+            wide: false,
+            ..cols.clone()
+        };
+        let mut small = Vec::new();
+        narrow.encode_result(&r, &mut small);
+        assert_eq!(small.len(), narrow.result_size());
+        assert_eq!(narrow.result_size() - 1, (cols.result_size() - 1) / 2);
+        let d = narrow.decode_result(&small);
+        assert_eq!(d.curvature.h, 0.5f32 as f64);
+        assert_eq!(d.curvature.k, 0.06f32 as f64);
+        assert_eq!(d.normal, r.normal.map(|v| v as f32 as f64));
+        assert!(d.extra[1].is_nan() && d.curvature.flags == 16);
     }
 }

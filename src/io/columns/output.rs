@@ -313,6 +313,7 @@ mod tests {
             choice: ColumnChoice::parse("H,flags").expect("valid"),
             extra: Vec::new(),
             unit: "m".into(),
+            wide: true,
         };
         for (enc, ty, size) in [
             (Encoding::F32, ScalarType::F32, 5),
@@ -342,6 +343,7 @@ mod tests {
             choice: ColumnChoice::parse("normals,H").expect("valid"),
             extra: Vec::new(),
             unit: "m".into(),
+            wide: true,
         };
         let t = OutputColumns::new(&set, Encoding::Scaled(STEPS)).provenance();
         assert!(
