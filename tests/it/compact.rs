@@ -38,7 +38,8 @@ fn saddle_points() -> Vec<[f64; 3]> {
 /// The default LAZ output, read by laspy, holds i16 normals at 1/32767 and i32 curvatures at a
 /// power-of-two step between P99/8192 and P99/4096 of |value| (k1 and k2 one step), each with
 /// scale, offset 0 and the type's minimum as no-data in its descriptor (options bits 0, 3, 4);
-/// the scaled values equal the `--f64` run's within half a step; the undefined points (flags
+/// the scaled values equal the `--f64` run's within half a step (plus the f32 rounding of the
+/// result files, 2^-24 of the value); the undefined points (flags
 /// 1, 2 or 4) hold the no-data value, which laspy does not mask: it returns
 /// no_data * scale, and the flags or the raw value tell them apart. Our own reader gives NaN.
 #[test]
@@ -99,8 +100,10 @@ for name in ["NormalX", "NormalY", "NormalZ", "H", "K", "k1", "k2", "CurvatureFl
         assert p99 / 8192 < q <= p99 / 4096 or a[-1] / q > 2**29, (name, q, p99)
     assert np.array_equal(raw == lo, bad), name
     assert np.all(np.isnan(ref[bad])) and np.all(val[bad] == lo * q), name
+    # Half a step, plus the f32 rounding of the value in the result files (2^-24 relative).
     err = np.abs(val[~bad] - ref[~bad])
-    assert err.max() <= q / 2 * (1 + 1e-12), (name, err.max(), q)
+    bound = q / 2 * (1 + 1e-12) + np.abs(ref[~bad]) * 2.0**-24
+    assert np.all(err <= bound), (name, err.max(), q)
     print(name, q, err.max())
 assert steps["k1"] == steps["k2"]
 print("ok")
