@@ -103,6 +103,12 @@ fn common_unit(
                     cfg.tile
                 ));
             }
+            if let Some(r) = cfg.radius.filter(|r| r.has_unit()) {
+                reporter.warn(&format!(
+                    "{}: {why}; --radius {r} is taken in file units",
+                    sources[0].path().display(),
+                ));
+            }
             let words = format!("no length unit ({why})");
             ("unit".to_string(), None, words)
         }
@@ -302,6 +308,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         None => "file units".to_string(),
     };
     let tile_size = cfg.tile.in_file_units(unit.as_ref());
+    let radius = cfg.radius.map(|r| r.in_file_units(unit.as_ref()));
     let (z_scale, z_words) = vertical_scale(&sources, unit.as_ref(), reporter)?;
     check_extent(&sources, TileGrid { size: tile_size })?;
     check_classes(cfg, &sources)?;
@@ -352,7 +359,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         outputs: Vec::new(),
         grid: TileGrid { size: tile_size },
         params: {
-            let mut p = parameters(cfg, tile_size, &unit_name, file_normals);
+            let mut p = parameters(cfg, (tile_size, radius), &unit_name, file_normals);
             p.extend(z_words.map(|value| crate::run::spec::Param {
                 key: "z_scale",
                 value,
@@ -375,6 +382,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         cols,
         column_type: cfg.column_type,
         k: cfg.k,
+        radius,
         orientation: cfg.orientation,
         estimator,
         sources,
