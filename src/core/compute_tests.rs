@@ -112,3 +112,67 @@ fn a_set_cancel_flag_stops_the_pass() {
         apex.curvature.h
     );
 }
+
+/// The verification of radius lists, on the paraboloid loaded as a region whose sides are all
+/// open (a wider scene): a list cut at R = 0.04 (50 points within it, under the cap of 200) is
+/// complete only when R is inside the region, so a point is computed only when it and its
+/// neighbours (up to R nearer a side) are at least R from every side, and retried otherwise;
+/// with R = 0.1 and a cap of 30 that binds (its 30th neighbour at about 0.03), the 30 nearest
+/// only need to be inside, as for -k. The apex's H is the paraboloid's either way.
+#[test]
+fn radius_lists_are_verified_against_the_loaded_region() {
+    let (mut t, _) = paraboloid();
+    t.region = Rect {
+        min: [-0.2; 2],
+        max: [0.19; 2],
+    };
+    let scene = Rect {
+        min: [-1.0; 2],
+        max: [1.0; 2],
+    };
+    let est = crate::core::estimate::EstimatorKind::CncAvgHexagram.build(&Default::default());
+    let mut bufs = TileBuffers::default();
+    let go = AtomicBool::new(false);
+    for (radius, cap, done_from, retried_below) in
+        [(0.04, 200, 0.085, 0.075), (0.1, 30, 0.07, 0.025)]
+    {
+        let p = ComputeParams {
+            k: cap,
+            radius: Some(radius),
+            orientation: Orientation::Up,
+            use_file_normals: false,
+            estimator: est.as_ref(),
+            extra: 0,
+            propagate: None,
+        };
+        let out = compute_tile(&t, &scene, &p, 0, Shared::All, &mut bufs, &go).expect("runs");
+        assert_eq!(out.done.len() + out.retry.len(), t.xyz.len());
+        let done: std::collections::HashSet<u64> = out.done.iter().map(|r| r.id).collect();
+        for (i, q) in t.xyz.iter().enumerate() {
+            let room = t.region.distance_to_open_side(q[0], q[1], &scene);
+            let id = t.ids[i];
+            if room >= done_from {
+                assert!(
+                    done.contains(&id),
+                    "R {radius}: point {i} room {room} not done"
+                );
+            }
+            if room <= retried_below {
+                assert!(
+                    !done.contains(&id),
+                    "R {radius}: point {i} room {room} done"
+                );
+            }
+        }
+        let apex = out
+            .done
+            .iter()
+            .find(|r| r.id == 20 * 40 + 20)
+            .expect("apex");
+        assert!(
+            (apex.curvature.h + 1.0).abs() < 0.05,
+            "R {radius}: H {}",
+            apex.curvature.h
+        );
+    }
+}

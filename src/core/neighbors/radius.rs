@@ -76,7 +76,7 @@ mod tests {
                     z,
                 ];
                 xyz.push(p);
-                if rng.next_u64() % 9 == 0 {
+                if rng.next_u64().is_multiple_of(9) {
                     xyz.push(p);
                 }
             }
