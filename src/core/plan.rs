@@ -482,6 +482,15 @@ mod tests {
         assert!((h - 3.0 * (30.0 / std::f64::consts::PI).sqrt()).abs() < 1e-12);
     }
 
+    /// With --radius the halo is twice the radius (and a margin) unless the cap binds first.
+    #[test]
+    fn a_radius_halo_covers_twice_the_radius_or_the_capped_k() {
+        let h30 = initial_halo(10_000, 100.0, 30); // 9.27 units
+        assert_eq!(initial_halo_within(10_000, 100.0, 30, None), h30);
+        assert_eq!(initial_halo_within(10_000, 100.0, 30, Some(2.0)), 4.1);
+        assert_eq!(initial_halo_within(10_000, 100.0, 30, Some(20.0)), h30);
+    }
+
     #[test]
     fn a_sliver_tile_takes_the_halo_of_its_dense_neighbour() {
         // Tile (1, 0) holds 2 points at the scene's edge next to 10,000 in tile (0, 0); tile

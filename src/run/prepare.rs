@@ -331,9 +331,16 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         wide: cfg.column_type == crate::io::columns::ColumnType::F64,
     };
     check_new_names(&sources, &cols)?;
+    let radius_words = match (cfg.radius, radius) {
+        (Some(r), Some(size)) => format!(
+            "; radius {r} = {size:.3} {tile_units}, at most {} neighbours",
+            cfg.k
+        ),
+        _ => String::new(),
+    };
     for s in &sources {
         reporter.info(&format!(
-            "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}; normals {}",
+            "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}{radius_words}; normals {}",
             s.path().display(),
             s.len(),
             s.describe(),
