@@ -292,6 +292,17 @@ pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     open_checked(cfg, reporter)
 }
 
+/// The log line's words for `--radius` (`radius`: in file units, named `units`), empty without.
+fn radius_words(cfg: &Config, radius: Option<f64>, units: &str) -> String {
+    match (cfg.radius, radius) {
+        (Some(r), Some(size)) => format!(
+            "; radius {r} = {size:.3} {units}, at most {} neighbours",
+            cfg.k
+        ),
+        _ => String::new(),
+    }
+}
+
 /// [`open_inputs`] for a configuration already validated.
 fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     let sources = cfg
@@ -331,13 +342,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         wide: cfg.column_type == crate::io::columns::ColumnType::F64,
     };
     check_new_names(&sources, &cols)?;
-    let radius_words = match (cfg.radius, radius) {
-        (Some(r), Some(size)) => format!(
-            "; radius {r} = {size:.3} {tile_units}, at most {} neighbours",
-            cfg.k
-        ),
-        _ => String::new(),
-    };
+    let radius_words = radius_words(cfg, radius, &tile_units);
     for s in &sources {
         reporter.info(&format!(
             "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}{radius_words}; normals {}",
