@@ -135,3 +135,50 @@ fn radius_usage_errors_and_unit_warning() {
     assert!(out.status.success(), "{err}");
     assert!(err.contains("--radius 1m is taken in file units"), "{err}");
 }
+
+/// The cluster stages rebuild --radius (and its cap) from the work directory's manifest:
+/// plan, bucket, every tile task and assemble give the bytes `process` gives.
+#[test]
+fn cluster_stages_keep_the_radius() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("a.las");
+    generate_terrain(&input, "20000", 4, DENSITY);
+    let s = |p: &Path| p.to_str().expect("utf-8 path").to_string();
+    let ok = |args: &[&str]| {
+        let out = tilecurv(args);
+        assert!(
+            out.status.success(),
+            "tilecurv {args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let opts = ["--tile", "12m", "--radius", "2m", "-k", "60"];
+    let (refdir, outdir) = (dir.path().join("ref/"), dir.path().join("out/"));
+    let refs = format!("{}/", s(&refdir));
+    ok(&[&["process", &s(&input), "-q", "-o", &refs][..], &opts[..]].concat());
+    let work = s(&dir.path().join("w"));
+    let printed = ok(&[&["plan", &s(&input), "--work", &work, "-q"][..], &opts[..]].concat());
+    let tasks: u64 = printed
+        .lines()
+        .last()
+        .and_then(|l| l.strip_prefix("tasks: "))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("plan prints tasks: N: {printed}"));
+    ok(&["bucket", "--work", &work, "--task", "0", "-q"]);
+    for t in 0..tasks {
+        ok(&["run-tile", "--work", &work, "--task", &t.to_string(), "-q"]);
+    }
+    let outs = format!("{}/", s(&outdir));
+    ok(&["assemble", "--work", &work, "-o", &outs, "-q"]);
+    let (x, y) = (
+        std::fs::read(outdir.join("a.las")).expect("output"),
+        std::fs::read(refdir.join("a.las")).expect("reference"),
+    );
+    assert!(x == y, "the stages' output differs from process's");
+    let provenance = ok(&["info", &s(&outdir.join("a.las"))]);
+    assert!(
+        provenance.contains("radius=2m") && provenance.contains("k=60"),
+        "{provenance}"
+    );
+}
