@@ -211,8 +211,11 @@ pub struct Config {
     pub progress_json: Option<PathBuf>,
     /// Tile edge length.
     pub tile: Length,
-    /// Neighbours per point, the point itself included.
+    /// Neighbours per point, the point itself included; with `radius`, the cap on them.
     pub k: usize,
+    /// `--radius`: neighbourhoods of the point and every point within this distance (the
+    /// nearest `k` of them when more are); None for the k nearest.
+    pub radius: Option<Length>,
     /// The curvature estimator.
     pub estimator: EstimatorKind,
     /// Estimator parameters.
@@ -257,6 +260,7 @@ impl Default for Config {
             progress_json: None,
             tile: Length::Metres(50.0),
             k: 30,
+            radius: None,
             estimator: EstimatorKind::CncAvgHexagram,
             params: EstimatorParams::default(),
             orientation: OrientMode::Up,
@@ -302,6 +306,10 @@ impl Config {
         v.extend([
             p("estimator", self.estimator.to_string()),
             p("k", self.k.to_string()),
+            p(
+                "radius",
+                self.radius.map(|r| r.to_string()).unwrap_or_default(),
+            ),
             p("seed", self.params.seed.to_string()),
             p("triangles", self.params.triangles.to_string()),
             p("jet_degree", self.params.jet_degree.to_string()),
@@ -347,6 +355,11 @@ impl Config {
                     .ok_or_else(|| format!("estimator={value}: unknown"))?
             }
             "k" => self.k = num(value)? as usize,
+            "radius" => {
+                self.radius = (!value.is_empty())
+                    .then(|| Length::parse(value))
+                    .transpose()?
+            }
             "seed" => self.params.seed = num(value)?,
             "triangles" => self.params.triangles = num(value)? as usize,
             "jet_degree" => self.params.jet_degree = num(value)? as usize,

@@ -83,14 +83,22 @@ pub struct ResultArgs {
     tile: Length,
 
     /// Neighbours per point, the point itself included (as in the CNC authors' code). 30 suits
-    /// aerial LIDAR (the CNC paper finds 15-50 very accurate on clean data; noisy scans want more).
-    #[arg(
-        short = 'k',
-        long = "neighbours",
-        alias = "neighbors",
-        default_value_t = 30
-    )]
-    k: usize,
+    /// aerial LIDAR (the CNC paper finds 15-50 very accurate on clean data; noisy scans want
+    /// more). With --radius, the cap on neighbours: the nearest k within the radius (lidR's k
+    /// with r, CloudCompare's and PDAL's radius with a maximum count); default 30, or 100 with
+    /// --radius.
+    #[arg(short = 'k', long = "neighbours", alias = "neighbors")]
+    k: Option<usize>,
+
+    /// Neighbourhoods by distance instead of count: each point with every point within this
+    /// distance, at most -k of them (the nearest; default 100). A length with a unit like
+    /// --tile: 1.5m, 5ft, 5usft, or a bare number in file units, converted with the file's CRS
+    /// unit (taken as file units, with a warning, when the file has none). Distances are 3D.
+    /// Use it when the scale of the measure must not follow the density (curvature at a set
+    /// scale across flight lines and overlaps); -k alone adapts to the density instead. Points
+    /// with fewer than 3 neighbours within it are flagged FEW_NEIGHBOURS (flag 1).
+    #[arg(long, value_parser = Length::parse)]
+    radius: Option<Length>,
 
     /// Curvature estimator (docs/study.md compares their error and time per point).
     #[arg(long, default_value = "cnc-avg-hexagram")]
@@ -321,11 +329,19 @@ impl ExecArgs {
     }
 }
 
+/// The cap on neighbours with --radius when -k is not given.
+const RADIUS_CAP: usize = 100;
+
 impl ResultArgs {
     /// Sets these options in `cfg`.
     fn apply(&self, cfg: &mut Config) {
         cfg.tile = self.tile;
-        cfg.k = self.k;
+        cfg.radius = self.radius;
+        cfg.k = self.k.unwrap_or(if self.radius.is_some() {
+            RADIUS_CAP
+        } else {
+            30
+        });
         cfg.estimator = self.estimator;
         cfg.params = EstimatorParams {
             seed: self.seed,

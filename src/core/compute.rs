@@ -17,8 +17,11 @@ use crate::core::tile::TilePoints;
 /// What to compute per point.
 #[derive(Clone, Copy)]
 pub struct ComputeParams<'e> {
-    /// Neighbours per point, the point itself included.
+    /// Neighbours per point, the point itself included; with `radius`, the cap on them.
     pub k: usize,
+    /// `--radius`: the neighbourhood is the point and every point within this distance (file
+    /// units), the nearest `k` of them; None for the k nearest.
+    pub radius: Option<f64>,
     /// Orientation of PCA normals.
     pub orientation: Orientation,
     /// Use the file's normals where present.
@@ -220,26 +223,33 @@ pub struct TileBuffers {
     info: Vec<ListInfo>,
 }
 
-/// k-NN of point `i` into `slot` (its k entries of the flat list array).
+/// The neighbourhood of point `i` into `slot` (its k entries of the flat list array): its k
+/// nearest, cut at `radius` when one is given.
 #[allow(clippy::too_many_arguments)]
 fn knn_into(
     t: &TilePoints,
     index: &NeighbourIndex<'_>,
     scene: &Rect,
-    k: usize,
+    (k, radius): (usize, Option<f64>),
     i: usize,
     scratch: &mut KnnScratch,
     list: &mut Vec<u32>,
     slot: &mut [u32],
 ) -> ListInfo {
     let far = index.knn(i, k, scratch, list);
+    let full = list.len() == k;
+    let cut = radius.is_some_and(|r| index.cut_to_radius(i, r, list));
     slot[..list.len()].copy_from_slice(list);
     let p = t.xyz[i];
     let room = t.region.distance_to_open_side(p[0], p[1], scene);
-    // Any point not loaded is strictly farther than `room`; with fewer than k points loaded,
-    // only a region covering the whole scene proves the list complete.
-    let complete = if list.len() < k {
-        room.is_infinite()
+    // Any point not loaded is strictly farther than `room`. A list cut at the radius, or one
+    // with fewer than k points loaded, holds every loaded point within the radius: complete
+    // when nothing within the radius can be unloaded (a margin of a few ulps covers the
+    // rounding of the squared distances). Otherwise the list is the k nearest loaded points,
+    // complete when the farthest of them is within `room` (all inside the radius, if any).
+    let within = |r: f64| r * (1.0 + 8.0 * f64::EPSILON) < room;
+    let complete = if cut || !full {
+        room.is_infinite() || radius.is_some_and(within)
     } else {
         far <= room
     };
@@ -249,16 +259,17 @@ fn knn_into(
     }
 }
 
-/// Steps 1 and 2: the k-NN lists of the core points, then of the halo points that core
+/// Steps 1 and 2 (`reach`: k and the radius, if any): the neighbour lists of the core points, then of the halo points that core
 /// neighbourhoods reach (their normals are used), into `bufs` (point i: `lists[i k ..][..len]`).
 fn neighbour_lists(
     t: &TilePoints,
     index: &NeighbourIndex<'_>,
     scene: &Rect,
-    k: usize,
+    reach: (usize, Option<f64>),
     bufs: &mut TileBuffers,
     cancel: &AtomicBool,
 ) {
+    let k = reach.0;
     let n = t.xyz.len();
     let n_core = t.n_core;
     let TileBuffers { lists, info } = bufs;
@@ -273,7 +284,7 @@ fn neighbour_lists(
         .enumerate()
         .for_each_init(scratch, |(s, list), (i, (slot, li))| {
             if !cancel.load(Ordering::Relaxed) {
-                *li = knn_into(t, index, scene, k, i, s, list, slot);
+                *li = knn_into(t, index, scene, reach, i, s, list, slot);
             }
         });
     let needed: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
@@ -292,7 +303,7 @@ fn neighbour_lists(
         .for_each_init(scratch, |(s, list), (h, (slot, li))| {
             let j = n_core + h;
             if needed[j].load(Ordering::Relaxed) && !cancel.load(Ordering::Relaxed) {
-                *li = knn_into(t, index, scene, k, j, s, list, slot);
+                *li = knn_into(t, index, scene, reach, j, s, list, slot);
             }
         });
 }
@@ -414,7 +425,7 @@ pub fn compute_tile(
     };
     let (n, k, n_core) = (t.xyz.len(), p.k, t.n_core);
     stop()?;
-    neighbour_lists(t, &index, scene, k, bufs, cancel);
+    neighbour_lists(t, &index, scene, (k, p.radius), bufs, cancel);
     stop()?;
     let bufs = &*bufs;
     let mut normals = tile_normals(t, p, bufs, cancel);
@@ -462,116 +473,5 @@ pub fn compute_tile(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A 40 x 40 patch of the paraboloid z = (x^2 + y^2) / 2 (|H| = 1 at the apex), loaded as a
-    /// whole scene.
-    fn paraboloid() -> (TilePoints, Rect) {
-        let mut t = TilePoints {
-            xyz: Vec::new(),
-            ids: Vec::new(),
-            file_normals: Vec::new(),
-            n_core: 0,
-            region: Rect {
-                min: [f64::NEG_INFINITY; 2],
-                max: [f64::INFINITY; 2],
-            },
-        };
-        for i in 0..1600u64 {
-            let (x, y) = ((i % 40) as f64 * 0.01 - 0.2, (i / 40) as f64 * 0.01 - 0.2);
-            t.xyz.push([x, y, 0.5 * (x * x + y * y)]);
-            t.ids.push(i);
-            t.file_normals.push(None);
-        }
-        t.n_core = t.xyz.len();
-        let scene = Rect {
-            min: [-0.2; 2],
-            max: [0.2; 2],
-        };
-        (t, scene)
-    }
-
-    /// Flag 64 follows the geometric bound on a unit sphere (exact outward normals): up to
-    /// reach 1.4 the estimate is within 11% and never flagged; at reach 1.9 (most of the
-    /// sphere) CNC's H is 25% high, H r > 2, and the flag catches it. The rule itself on set
-    /// values: radius of curvature 0.4 is flagged exactly when r > 0.8.
-    #[test]
-    fn sharper_than_the_neighbourhood_is_the_sphere_bound() {
-        let est = crate::core::estimate::EstimatorKind::CncAvgHexagram.build(&Default::default());
-        let mut buf = NeighbourhoodBuf::with_capacity(400);
-        let q = [0.0, 0.0, 1.0];
-        let mut xyz = vec![q];
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        for i in 1..400 {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / 400.0;
-            let (s, a) = ((1.0 - z * z).sqrt(), golden * i as f64);
-            xyz.push([s * a.cos(), s * a.sin(), z]);
-        }
-        let outward: Vec<Option<V3>> = xyz.iter().map(|p| Some(*p)).collect();
-        let dist = |j: u32| crate::core::geometry::norm(sub(xyz[j as usize], q));
-        for reach in [0.3, 1.0, 1.4, 1.9] {
-            let list: Vec<u32> = (0..xyz.len() as u32)
-                .filter(|&j| dist(j) <= reach)
-                .collect();
-            let r = list.iter().map(|&j| dist(j)).fold(0.0, f64::max);
-            let c = buf.estimate(est.as_ref(), &xyz, &outward, 0, &list, &mut []);
-            let flagged = c.flags & flags::SHARPER_THAN_NEIGHBOURHOOD != 0;
-            if reach < 1.5 {
-                assert!((c.h - 1.0).abs() < 0.11, "reach {reach}: H {}", c.h);
-                assert!(!flagged, "reach {reach}");
-            } else {
-                assert!(c.h * r > 2.0 && flagged, "reach {reach}: H {} r {r}", c.h);
-            }
-            let tight = Curvature {
-                h: 2.5,
-                k1: 2.5,
-                k2: 2.5,
-                k: 6.25,
-                ..c
-            };
-            assert_eq!(sharper_than(&tight, r), r > 0.8, "reach {reach}");
-        }
-        assert!(
-            !sharper_than(&Curvature::undefined(0), 10.0),
-            "NaN values are never flagged"
-        );
-    }
-
-    /// A set cancel flag stops the pass with `Cancelled` (no partial results); a clear one
-    /// computes every point, H near -1 at the apex (normals up point into the bowl, like inward
-    /// normals on a sphere, so H = -1/r by the convention of algorithms.md §5.2).
-    #[test]
-    fn a_set_cancel_flag_stops_the_pass() {
-        let (t, scene) = paraboloid();
-        let est = crate::core::estimate::EstimatorKind::CncAvgHexagram.build(&Default::default());
-        let p = ComputeParams {
-            k: 30,
-            orientation: Orientation::Up,
-            use_file_normals: false,
-            estimator: est.as_ref(),
-            extra: 0,
-            propagate: None,
-        };
-        let mut bufs = TileBuffers::default();
-        let all = Shared::All;
-        let stop = AtomicBool::new(true);
-        assert_eq!(
-            compute_tile(&t, &scene, &p, 0, all, &mut bufs, &stop).err(),
-            Some(Cancelled)
-        );
-        let go = AtomicBool::new(false);
-        let out = compute_tile(&t, &scene, &p, 0, all, &mut bufs, &go).expect("not cancelled");
-        assert_eq!(out.done.len(), t.xyz.len());
-        let apex = out
-            .done
-            .iter()
-            .find(|r| r.id == 20 * 40 + 20)
-            .expect("apex");
-        assert!(
-            (apex.curvature.h + 1.0).abs() < 0.05,
-            "H {}",
-            apex.curvature.h
-        );
-    }
-}
+#[path = "compute_tests.rs"]
+mod tests;

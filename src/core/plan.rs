@@ -262,13 +262,27 @@ pub fn initial_halo(count: u64, size: f64, k: usize) -> f64 {
     3.0 * (k as f64 / (std::f64::consts::PI * density)).sqrt()
 }
 
-/// Plans the tiles for `stats` with tile edge `size` (file units) and `k` neighbours.
+/// The initial halo for neighbourhoods of `k` points, or with `radius` (`--radius`) of the
+/// points within it, at most `k`: twice the radius is enough for the neighbours' own
+/// neighbourhoods, so the halo is the smaller of that and [`initial_halo`] (a radius holding
+/// more than `k` points is cut to the `k` nearest). A small margin keeps the points at the
+/// tile's edge from failing verification by rounding.
+pub fn initial_halo_within(count: u64, size: f64, k: usize, radius: Option<f64>) -> f64 {
+    let h = initial_halo(count, size, k);
+    match radius {
+        Some(r) => h.min(2.05 * r),
+        None => h,
+    }
+}
+
+/// Plans the tiles for `stats` with tile edge `size` (file units), `k` neighbours and the
+/// `radius` of `--radius`, if any ([`initial_halo_within`]).
 ///
 /// A tile's initial halo follows the densest of it and its eight neighbours: a sliver of a few
 /// points at the edge of the scene has its neighbours in the next tile, at that tile's density,
 /// while its own count would ask for a halo hundreds of metres wide (loading millions of points
 /// for one). Points whose neighbourhoods reach further are found by verification and retried.
-pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
+pub fn plan(stats: &ScanStats, size: f64, k: usize, radius: Option<f64>) -> TilePlan {
     let grid = TileGrid { size };
     let densest_around = |(x, y): TileKey| {
         (-1..=1)
@@ -285,7 +299,7 @@ pub fn plan(stats: &ScanStats, size: f64, k: usize) -> TilePlan {
             index: index as u32,
             key,
             count,
-            halo: initial_halo(densest_around(key), size, k),
+            halo: initial_halo_within(densest_around(key), size, k, radius),
         })
         .collect();
     TilePlan {
@@ -468,6 +482,15 @@ mod tests {
         assert!((h - 3.0 * (30.0 / std::f64::consts::PI).sqrt()).abs() < 1e-12);
     }
 
+    /// With --radius the halo is twice the radius (and a margin) unless the cap binds first.
+    #[test]
+    fn a_radius_halo_covers_twice_the_radius_or_the_capped_k() {
+        let h30 = initial_halo(10_000, 100.0, 30); // 9.27 units
+        assert_eq!(initial_halo_within(10_000, 100.0, 30, None), h30);
+        assert_eq!(initial_halo_within(10_000, 100.0, 30, Some(2.0)), 4.1);
+        assert_eq!(initial_halo_within(10_000, 100.0, 30, Some(20.0)), h30);
+    }
+
     #[test]
     fn a_sliver_tile_takes_the_halo_of_its_dense_neighbour() {
         // Tile (1, 0) holds 2 points at the scene's edge next to 10,000 in tile (0, 0); tile
@@ -482,7 +505,7 @@ mod tests {
             per_tile,
             centroid: Centroid::default(),
         };
-        let p = plan(&stats, 100.0, 30);
+        let p = plan(&stats, 100.0, 30, None);
         let halo = |key| p.tiles.iter().find(|t| t.key == key).map(|t| t.halo);
         let dense = initial_halo(10_000, 100.0, 30); // 9.27 units
         assert_eq!(halo((0, 0)), Some(dense));

@@ -190,7 +190,7 @@ pub fn status(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result
     let total = a.layout.tile_tasks();
     let missing: Vec<u64> = match open_buckets(&a.work, &a.spec, &a.layout) {
         Ok(scan) => {
-            let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k);
+            let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k, a.spec.radius);
             let mut m: Vec<u64> =
                 missing_tiles(&a.work.path().join("results"), &a.spec, &tplan, &a.layout)
                     .into_iter()
@@ -222,7 +222,7 @@ pub fn assemble(
     let mut a = attach(path, exec_cfg, reporter)?;
     let exec = Exec::new(exec_cfg, &a.spec, reporter, cancel)?;
     let scan = open_buckets(&a.work, &a.spec, &a.layout)?;
-    let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k);
+    let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k, a.spec.radius);
     let results = a.work.path().join("results");
     let missing = missing_tiles(&results, &a.spec, &tplan, &a.layout);
     if !missing.is_empty() {

@@ -40,7 +40,7 @@ fn estimate(scratch: &WorkDir, spec: &RunSpec, exec: &Exec<'_>, work_path: &Path
     let scan = bucket_all(scratch, spec, &layout, exec)?;
     let scan_s = t0.elapsed().as_secs_f64();
     let params = compute_params(spec, &scan.stats);
-    let tplan = plan(&scan.stats, spec.grid.size, spec.k);
+    let tplan = plan(&scan.stats, spec.grid.size, spec.k, spec.radius);
     let mut counts: Vec<u64> = tplan.tiles.iter().map(|t| t.count).collect();
     counts.sort_unstable();
     let median = counts[counts.len() / 2];

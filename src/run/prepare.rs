@@ -103,6 +103,12 @@ fn common_unit(
                     cfg.tile
                 ));
             }
+            if let Some(r) = cfg.radius.filter(|r| r.has_unit()) {
+                reporter.warn(&format!(
+                    "{}: {why}; --radius {r} is taken in file units",
+                    sources[0].path().display(),
+                ));
+            }
             let words = format!("no length unit ({why})");
             ("unit".to_string(), None, words)
         }
@@ -286,6 +292,17 @@ pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     open_checked(cfg, reporter)
 }
 
+/// The log line's words for `--radius` (`radius`: in file units, named `units`), empty without.
+fn radius_words(cfg: &Config, radius: Option<f64>, units: &str) -> String {
+    match (cfg.radius, radius) {
+        (Some(r), Some(size)) => format!(
+            "; radius {r} = {size:.3} {units}, at most {} neighbours",
+            cfg.k
+        ),
+        _ => String::new(),
+    }
+}
+
 /// [`open_inputs`] for a configuration already validated.
 fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     let sources = cfg
@@ -302,6 +319,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         None => "file units".to_string(),
     };
     let tile_size = cfg.tile.in_file_units(unit.as_ref());
+    let radius = cfg.radius.map(|r| r.in_file_units(unit.as_ref()));
     let (z_scale, z_words) = vertical_scale(&sources, unit.as_ref(), reporter)?;
     check_extent(&sources, TileGrid { size: tile_size })?;
     check_classes(cfg, &sources)?;
@@ -324,9 +342,10 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         wide: cfg.column_type == crate::io::columns::ColumnType::F64,
     };
     check_new_names(&sources, &cols)?;
+    let radius_words = radius_words(cfg, radius, &tile_units);
     for s in &sources {
         reporter.info(&format!(
-            "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}; normals {}",
+            "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}{radius_words}; normals {}",
             s.path().display(),
             s.len(),
             s.describe(),
@@ -352,7 +371,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         outputs: Vec::new(),
         grid: TileGrid { size: tile_size },
         params: {
-            let mut p = parameters(cfg, tile_size, &unit_name, file_normals);
+            let mut p = parameters(cfg, (tile_size, radius), &unit_name, file_normals);
             p.extend(z_words.map(|value| crate::run::spec::Param {
                 key: "z_scale",
                 value,
@@ -375,6 +394,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         cols,
         column_type: cfg.column_type,
         k: cfg.k,
+        radius,
         orientation: cfg.orientation,
         estimator,
         sources,

@@ -46,8 +46,10 @@ pub struct RunSpec {
     pub cols: ColumnSet,
     /// How LAS/LAZ outputs store them.
     pub column_type: ColumnType,
-    /// Neighbours per point.
+    /// Neighbours per point (with `radius`, the cap on them).
     pub k: usize,
+    /// `--radius` in file units: neighbourhoods of the points within it.
+    pub radius: Option<f64>,
     /// How PCA normals are oriented.
     pub orientation: OrientMode,
     /// The estimator, built once.
@@ -62,13 +64,28 @@ pub struct RunSpec {
     pub output_options: OutputOptions,
 }
 
-/// The parameters of `cfg` that change the output, with the resolved tile size, unit and
-/// normal source, in the order the provenance lists them.
-pub fn parameters(cfg: &Config, tile_size: f64, unit: &str, file_normals: bool) -> Vec<Param> {
+/// The parameters of `cfg` that change the output, with the resolved tile size and radius
+/// (`sizes`, file units), unit and normal source, in the order the provenance lists them.
+pub fn parameters(
+    cfg: &Config,
+    sizes: (f64, Option<f64>),
+    unit: &str,
+    file_normals: bool,
+) -> Vec<Param> {
+    let (tile_size, radius) = sizes;
     let p = |key, value: String| Param { key, value };
     let mut v = vec![
         p("estimator", cfg.estimator.to_string()),
         p("k", cfg.k.to_string()),
+        p(
+            "radius",
+            match (cfg.radius, radius) {
+                (Some(r), Some(size)) => {
+                    format!("{r} ({size} {unit}; at most k neighbours within it)")
+                }
+                _ => "none (k nearest neighbours)".into(),
+            },
+        ),
         p("seed", cfg.params.seed.to_string()),
         p("triangles", cfg.params.triangles.to_string()),
         p("normals", if file_normals { "file" } else { "pca" }.into()),
@@ -202,9 +219,10 @@ mod tests {
     fn every_option_is_in_the_provenance() {
         let cfg = Config {
             sample_faces: Some(1000),
+            radius: Some(crate::config::Length::Metres(1.5)),
             ..Config::default()
         };
-        let names: Vec<&str> = parameters(&cfg, 50.0, "m", false)
+        let names: Vec<&str> = parameters(&cfg, (50.0, Some(1.5)), "m", false)
             .iter()
             .map(|p| p.key)
             .collect();

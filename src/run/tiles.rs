@@ -48,6 +48,7 @@ pub struct TilesDone {
 pub fn compute_params<'s>(spec: &'s RunSpec, stats: &ScanStats) -> ComputeParams<'s> {
     ComputeParams {
         k: spec.k,
+        radius: spec.radius,
         // A viewpoint is given in file coordinates: its z converts like the points'.
         orientation: match spec.orientation.resolve(stats.centroid()) {
             Orientation::Viewpoint([x, y, z]) => Orientation::Viewpoint([x, y, z * spec.z_scale]),
@@ -219,7 +220,7 @@ pub fn tiles(
     exec: &Exec<'_>,
 ) -> Result<TilesDone> {
     let params = compute_params(spec, &scan.stats);
-    let tplan = plan(&scan.stats, spec.grid.size, spec.k);
+    let tplan = plan(&scan.stats, spec.grid.size, spec.k, spec.radius);
     let results_dir = work.path().join("results");
     std::fs::create_dir_all(&results_dir).map_err(|e| Error::write(&results_dir, e))?;
     // Result files and sidecars that killed runs of this host left half-written.

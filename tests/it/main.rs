@@ -20,6 +20,7 @@ mod layout;
 mod order;
 mod orientation;
 mod outofcore;
+mod radius;
 mod real_files;
 mod reference;
 mod sample;

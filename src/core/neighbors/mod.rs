@@ -31,6 +31,7 @@ use crate::core::point::{cmp_point, cmp_position};
 mod duplicates;
 mod grid;
 mod kdtree;
+mod radius;
 mod shell;
 
 use duplicates::Duplicates;
