@@ -4,7 +4,6 @@
 //! points' columns equal those of a run on a file holding only those points (written by laspy).
 
 use std::path::Path;
-use std::process::Command;
 
 use crate::common::{column_bytes, laspy_available, process, tilecurv};
 
@@ -34,15 +33,7 @@ for name, keep in [("default", ~noise), ("no_withheld", (~noise) & (~held)), ("n
 "#,
         dir = dir.to_str().expect("utf-8"),
     );
-    let out = Command::new("python3")
-        .args(["-c", &script])
-        .output()
-        .expect("python3");
-    assert!(
-        out.status.success(),
-        "laspy: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::interop::laspy(&script, &[]);
 }
 
 /// The indices saved by [`classed_terrain`] (numpy's .npy of int64).

@@ -5,7 +5,6 @@
 //! (TrueH, in 1/m), rewritten in feet by laspy.
 
 use std::path::Path;
-use std::process::Command;
 
 use crate::common::{column, laspy_available, process, tilecurv};
 
@@ -35,15 +34,7 @@ f.write({dst:?})
         src = src.to_str().expect("utf-8"),
         dst = dst.to_str().expect("utf-8"),
     );
-    let out = Command::new("python3")
-        .args(["-c", &script])
-        .output()
-        .expect("python3");
-    assert!(
-        out.status.success(),
-        "laspy rewrite: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::interop::laspy(&script, &[]);
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
