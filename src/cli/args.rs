@@ -62,10 +62,11 @@ pub struct TerrainArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 
-    /// Standard deviation of Gaussian noise added to z, in metres. The truth columns stay those
-    /// of the noise-free surface at the point's x, y.
-    #[arg(long, default_value_t = 0.0)]
-    pub noise: f64,
+    /// Standard deviation of Gaussian noise added to z, in metres: one value (0.02), or
+    /// WEST:EAST for the square's two halves (0:0.05: clean west of the middle, 5 cm of noise
+    /// east of it). The truth columns stay those of the noise-free surface at the point's x, y.
+    #[arg(long, default_value = "0", value_parser = crate::tools::generate::Noise::parse)]
+    pub noise: crate::tools::generate::Noise,
 
     /// Print nothing on success.
     #[arg(short, long)]

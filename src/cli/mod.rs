@@ -173,7 +173,7 @@ fn generate(args: TerrainArgs) -> Result<i32, i32> {
         points: args.points,
         density_per_m2: args.density,
         seed: args.seed,
-        noise_m: args.noise,
+        noise: args.noise,
     };
     let s = crate::tools::generate::generate_terrain(&opts, &args.output, &CANCEL)
         .map_err(|e| fail(&e))?;

@@ -147,8 +147,9 @@ pub(super) fn generate_row(
         let qy = (y / SCALE_M).round();
         let (xs, ys) = (qx * SCALE_M, qy * SCALE_M);
         let jet = terrain.jet(xs, ys);
-        let noise = if opts.noise_m > 0.0 {
-            opts.noise_m * rng.normal()
+        let sigma = opts.noise.at(xs, plan.side_m);
+        let noise = if sigma > 0.0 {
+            sigma * rng.normal()
         } else {
             0.0
         };
