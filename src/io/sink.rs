@@ -129,35 +129,12 @@ mod tests {
 
     /// A LAS 1.2 file of three point format 0 records.
     fn tiny_las() -> Vec<u8> {
-        use crate::io::las::header::NewHeader;
-        use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
+        use crate::io::las::writer::{tests, LasFileWriter};
         let dir = tempfile::tempdir().expect("temp dir");
         let path = dir.path().join("tiny.las");
-        let spec = LasFileSpec {
-            origin: None,
-            header: HeaderStart::New(NewHeader {
-                minor: 2,
-                system: "TEST",
-                software: "tilecurv test",
-                point_format: 0,
-                record_length: 20,
-                points: 3,
-                scale: [0.01; 3],
-                offset: [0.0; 3],
-                min: [0.0; 3],
-                max: [1.0; 3],
-            }),
-            record_length: 20,
-            vlrs: &[],
-            evlrs: &[],
-            extra_bytes: Vec::new(),
-            provenance: "test",
-        };
-        let mut w = LasFileWriter::create(&path, spec).expect("creates");
+        let mut w = LasFileWriter::create(&path, tests::spec(3)).expect("creates");
         for xyz in [[0i32, 0, 0], [100, 0, 0], [0, 100, 100]] {
-            let mut r: Vec<u8> = xyz.iter().flat_map(|c| c.to_le_bytes()).collect();
-            r.resize(20, 0);
-            w.write_records(&r).expect("writes");
+            w.write_records(&tests::record(xyz)).expect("writes");
         }
         w.finish().expect("finishes");
         std::fs::read(&path).expect("reads back")

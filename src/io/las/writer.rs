@@ -384,12 +384,13 @@ impl PointSink for LasFileWriter {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::io::source::{LasSource, PointSource};
 
-    /// A new LAS 1.2 file of `points` point format 0 records, centimetre coordinates.
-    fn spec(points: u64) -> LasFileSpec<'static> {
+    /// A new LAS 1.2 file of `points` point format 0 records, centimetre coordinates (also
+    /// the sink tests' input).
+    pub(crate) fn spec(points: u64) -> LasFileSpec<'static> {
         LasFileSpec {
             origin: None,
             header: HeaderStart::New(NewHeader {
@@ -412,7 +413,8 @@ mod tests {
         }
     }
 
-    fn record(q: [i32; 3]) -> Vec<u8> {
+    /// A point format 0 record at integer coordinates `q`.
+    pub(crate) fn record(q: [i32; 3]) -> Vec<u8> {
         let mut r: Vec<u8> = q.iter().flat_map(|v| v.to_le_bytes()).collect();
         r.resize(20, 0);
         r
