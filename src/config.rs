@@ -324,14 +324,7 @@ impl Config {
             ),
             p("keep_version", self.keep_version.to_string()),
             p("ply_las_names", self.ply_las_names.to_string()),
-            p(
-                "classes",
-                self.select
-                    .only
-                    .as_deref()
-                    .map(|c| Classes(c).to_string())
-                    .unwrap_or_default(),
-            ),
+            p("classes", self.select.only_text("")),
             p("skip_classes", Classes(&self.select.skip).to_string()),
             p("skip_withheld", self.select.skip_withheld.to_string()),
         ]);

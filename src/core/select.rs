@@ -50,6 +50,29 @@ impl ClassFilter {
         !skipped && self.only.as_ref().is_none_or(|o| o.contains(&c.class))
     }
 
+    /// `--classes` as [`parse_classes`] reads it, or `all` when it is not given.
+    pub fn only_text(&self, all: &str) -> String {
+        match &self.only {
+            Some(c) => Classes(c).to_string(),
+            None => all.to_string(),
+        }
+    }
+
+    /// The rule in words, for the log: `classes 2,9, skipping 7,18, not withheld`.
+    pub fn describe(&self) -> String {
+        let mut w = match &self.only {
+            Some(c) => format!("classes {}", Classes(c)),
+            None => "every class".to_string(),
+        };
+        if !self.skip.is_empty() {
+            w.push_str(&format!(", skipping {}", Classes(&self.skip)));
+        }
+        if self.skip_withheld {
+            w.push_str(", not withheld");
+        }
+        w
+    }
+
     /// Whether the rule needs classes beyond the default skip of the noise classes (so an
     /// input without classes cannot honour it).
     pub fn needs_classes(&self) -> bool {

@@ -103,14 +103,7 @@ pub fn parameters(
         ),
         p("keep_version", cfg.keep_version.to_string()),
         p("ply_las_names", cfg.ply_las_names.to_string()),
-        p(
-            "classes",
-            cfg.select
-                .only
-                .as_deref()
-                .map(|c| Classes(c).to_string())
-                .unwrap_or_else(|| "all".into()),
-        ),
+        p("classes", cfg.select.only_text("all")),
         p("skip_classes", Classes(&cfg.select.skip).to_string()),
         p("skip_withheld", cfg.select.skip_withheld.to_string()),
     ];

@@ -298,14 +298,14 @@ fn report_plan(spec: &RunSpec, scan: &Bucketed, tplan: &TilePlan, resumed: usize
     if scan.stats.count == 0 {
         exec.reporter.warn(&format!(
             "no point is selected by the class filter ({}); every point is written as not computed (flag 128)",
-            select_words(&spec.select)
+            spec.select.describe()
         ));
     } else if skipped > 0 {
         exec.reporter.info(&format!(
             "{} of {} points selected ({}); the other {skipped} are written as not computed (flag 128)",
             scan.stats.count,
             spec.total_points,
-            select_words(&spec.select)
+            spec.select.describe()
         ));
     }
     exec.reporter.info(&format!(
@@ -324,22 +324,6 @@ fn report_plan(spec: &RunSpec, scan: &Bucketed, tplan: &TilePlan, resumed: usize
             "in memory"
         }
     ));
-}
-
-/// The class filter in words, for the log.
-fn select_words(f: &crate::core::select::ClassFilter) -> String {
-    use crate::core::select::Classes;
-    let mut w = match &f.only {
-        Some(c) => format!("classes {}", Classes(c)),
-        None => "every class".to_string(),
-    };
-    if !f.skip.is_empty() {
-        w.push_str(&format!(", skipping {}", Classes(&f.skip)));
-    }
-    if f.skip_withheld {
-        w.push_str(", not withheld");
-    }
-    w
 }
 
 /// A finished tile on its way to the journal.
