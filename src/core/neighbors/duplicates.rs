@@ -70,24 +70,20 @@ fn alone(p: V3, start: usize, end: usize, at: &dyn Fn(usize) -> V3, n: usize) ->
         d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
     };
     let dx2 = |q: V3| (q[0] - p[0]) * (q[0] - p[0]);
-    let below = (0..start).rev().map(at);
-    let above = (end..n).map(at);
-    for side in [
-        &mut below.take(SCAN_LIMIT + 1) as &mut dyn Iterator<Item = V3>,
-        &mut above.take(SCAN_LIMIT + 1),
-    ] {
-        let mut seen = 0;
-        for q in side {
+    // One side in rank order: clear once an x difference squares above 0; not clear if a
+    // point sits at distance 0 or the scan runs past its limit first.
+    let clear = |side: &mut dyn Iterator<Item = V3>| {
+        for (seen, q) in side.enumerate() {
             if dx2(q) > 0.0 {
-                break;
+                return true;
             }
-            seen += 1;
-            if d2(q) == 0.0 || seen > SCAN_LIMIT {
+            if seen >= SCAN_LIMIT || d2(q) == 0.0 {
                 return false;
             }
         }
-    }
-    true
+        true
+    };
+    clear(&mut (0..start).rev().map(at)) && clear(&mut (end..n).map(at))
 }
 
 #[cfg(test)]
