@@ -243,37 +243,3 @@ fn malformed_off_counts_and_duplicated_ply_properties_are_refused() {
         &["header line 7", "property \"x\" twice"],
     );
 }
-
-/// A tilecurv output given back as input (its columns would be written twice) is refused before
-/// any work, by `process` and by `--dry-run` alike: exit 3 naming the file and the column, and
-/// no work directory or output left (it failed only after the curvature phase, and the dry run
-/// said yes).
-#[test]
-fn an_output_given_back_is_refused_before_any_work() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let first = dir.path().join("first.las");
-    crate::common::process(&root().join("data/Haystack_Rock.las"), &first, &[]);
-    for extra in [&[][..], &["--dry-run"][..]] {
-        let again = dir.path().join("again.las");
-        let mut args = vec![
-            "process",
-            first.to_str().expect("utf-8"),
-            "-o",
-            again.to_str().expect("utf-8"),
-        ];
-        args.extend_from_slice(extra);
-        let out = tilecurv(&args);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(3), "{extra:?}: {err}");
-        assert!(err.contains("first.las") && err.contains("\"H\""), "{err}");
-        let left: Vec<_> = std::fs::read_dir(dir.path())
-            .expect("list")
-            .map(|e| e.expect("entry").file_name())
-            .collect();
-        assert_eq!(
-            left,
-            vec![std::ffi::OsString::from("first.las")],
-            "{extra:?}"
-        );
-    }
-}

@@ -83,20 +83,27 @@ pub fn generate_terrain(path: &Path, points: &str, seed: u64, density: f64) {
 
 /// Runs `tilecurv process` and asserts success.
 pub fn process(input: &Path, output: &Path, extra: &[&str]) {
+    let mut quiet = vec!["-q"];
+    quiet.extend_from_slice(extra);
+    let out = run_process(input, output, &quiet);
+    assert!(
+        out.status.success(),
+        "tilecurv process {} {quiet:?} failed: {}",
+        input.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Runs `tilecurv process INPUT -o OUTPUT EXTRA...` and returns what it did, whatever its exit.
+pub fn run_process(input: &Path, output: &Path, extra: &[&str]) -> Output {
     let mut args = vec![
         "process",
         input.to_str().expect("utf-8 path"),
         "-o",
         output.to_str().expect("utf-8 path"),
-        "-q",
     ];
     args.extend_from_slice(extra);
-    let out = tilecurv(&args);
-    assert!(
-        out.status.success(),
-        "tilecurv {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    tilecurv(&args)
 }
 
 /// All raw point records of a LAS/LAZ file, in file order.

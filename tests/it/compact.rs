@@ -192,16 +192,7 @@ fn an_unknown_column_is_a_usage_error() {
     let input = dir.path().join("saddle.las");
     saddle_with_duplicates(&input);
     let output = dir.path().join("o.laz");
-    let run = |extra: &[&str]| {
-        let mut args = vec![
-            "process",
-            input.to_str().expect("utf-8"),
-            "-o",
-            output.to_str().expect("utf-8"),
-        ];
-        args.extend_from_slice(extra);
-        tilecurv(&args)
-    };
+    let run = |extra: &[&str]| crate::common::run_process(&input, &output, extra);
     let out = run(&["--columns", "H,curvedness"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");

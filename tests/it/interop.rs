@@ -418,14 +418,7 @@ fn a_tilecurv_output_as_input_is_refused_before_any_work() {
     process(&input, &first, &[]);
     for extra in [&[][..], &["--dry-run"][..]] {
         let again = dir.path().join("twice.las");
-        let mut args = vec![
-            "process",
-            first.to_str().expect("utf-8"),
-            "-o",
-            again.to_str().expect("utf-8"),
-        ];
-        args.extend_from_slice(extra);
-        let out = crate::common::tilecurv(&args);
+        let out = crate::common::run_process(&first, &again, extra);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(3), "{err}");
         assert!(

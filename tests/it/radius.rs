@@ -108,16 +108,7 @@ fn radius_usage_errors_and_unit_warning() {
         .collect();
     crate::common::write_las(&input, &xyz, None, 0.001);
     let output = dir.path().join("out.las");
-    let run = |extra: &[&str]| {
-        let mut args = vec![
-            "process",
-            input.to_str().expect("utf-8"),
-            "-o",
-            output.to_str().expect("utf-8"),
-        ];
-        args.extend_from_slice(extra);
-        tilecurv(&args)
-    };
+    let run = |extra: &[&str]| crate::common::run_process(&input, &output, extra);
     for bad in [
         "--radius=0",
         "--radius=-1m",
