@@ -18,7 +18,8 @@ use crate::run::spec::RunSpec;
 /// input, with `--memory 256M` 146 MiB (the allocator in one arena, as under a limit).
 const PROGRAM_BYTES: u64 = 32 << 20;
 
-/// The address space of one thread's stack (Rust's and rayon's default size).
+/// The address space of one thread's stack besides the run's workers (Rust's and rayon's
+/// default size); the workers have [`super::WORKER_STACK`].
 const STACK_BYTES: u64 = 2 << 20;
 
 const MIB: u64 = 1 << 20;
@@ -32,9 +33,12 @@ pub fn fit_memory(cfg: &Config, spec: &RunSpec, reporter: &dyn Reporter) -> Resu
         .iter()
         .map(|s| std::fs::metadata(s.path()).map_or(0, |m| m.len()))
         .sum();
-    // The run's pool, rayon's global pool (the LAZ compressor's), the tile drivers, the rest.
+    // The run's pool (large stacks), rayon's global pool (the LAZ compressor's), the tile
+    // drivers, the rest.
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
-    let own = PROGRAM_BYTES + (cfg.threads as u64 + cores + 4) * STACK_BYTES;
+    let own = PROGRAM_BYTES
+        + cfg.threads as u64 * super::WORKER_STACK as u64
+        + (cores + 4) * STACK_BYTES;
     let mut budget = cfg.memory_bytes;
     if let Some(limit) = address_space_limit() {
         let besides = format!(

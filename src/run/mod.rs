@@ -75,7 +75,7 @@ pub struct Exec<'a> {
 /// their models on the stack) and runs the estimators: 8x rayon's 2 MiB default, so that a
 /// malformed chunk cannot overflow it (issue 12 item 2 reported an abort there). Address space
 /// only: pages are touched as used.
-const WORKER_STACK: usize = 16 << 20;
+pub(crate) const WORKER_STACK: usize = 16 << 20;
 
 impl<'a> Exec<'a> {
     /// The execution settings of `cfg` for a run of `spec`: its budget fitted to the machine's
