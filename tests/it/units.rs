@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use crate::common::{column, laspy_available, process, tilecurv};
+use crate::common::{column, laspy_available, median, process, tilecurv};
 
 const FT_US: f64 = 1200.0 / 3937.0;
 
@@ -35,12 +35,6 @@ f.write({dst:?})
         dst = dst.to_str().expect("utf-8"),
     );
     crate::interop::laspy(&script, &[]);
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.retain(|x| x.is_finite());
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// Median |H - TrueH| over median |TrueH| (both 1/m).
