@@ -36,9 +36,8 @@ pub fn fit_memory(cfg: &Config, spec: &RunSpec, reporter: &dyn Reporter) -> Resu
     // The run's pool (large stacks), rayon's global pool (the LAZ compressor's), the tile
     // drivers, the rest.
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
-    let own = PROGRAM_BYTES
-        + cfg.threads as u64 * super::WORKER_STACK as u64
-        + (cores + 4) * STACK_BYTES;
+    let own =
+        PROGRAM_BYTES + cfg.threads as u64 * super::WORKER_STACK as u64 + (cores + 4) * STACK_BYTES;
     let mut budget = cfg.memory_bytes;
     if let Some(limit) = address_space_limit() {
         let besides = format!(
