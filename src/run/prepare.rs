@@ -9,7 +9,7 @@ use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnSet, Group};
 use crate::io::crs::UnitSource;
-use crate::io::las::writer::PROVENANCE;
+use crate::io::las::provenance::PROVENANCE;
 use crate::io::sink::OutputOptions;
 use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;

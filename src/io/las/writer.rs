@@ -14,11 +14,9 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::las::extra_bytes;
 use crate::io::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
+use crate::io::las::provenance::PROVENANCE;
 use crate::io::las::vlr::{laszip, Vlr};
 use crate::io::output::{PointSink, TempFile};
-
-/// User id and record id of the provenance VLR.
-pub const PROVENANCE: (&str, u16) = ("tilecurv", 1);
 
 /// Whether a path names a LAZ file (by extension; anything else that is .las is LAS).
 fn output_is_laz(path: &Path) -> Result<bool> {
