@@ -240,6 +240,9 @@ pub fn assemble(
     let outputs = output_paths(&a.cfg)?;
     check_outputs(&a.cfg, &outputs)?;
     a.spec.outputs = outputs;
+    let s = &a.spec;
+    let names = (&s.cols, s.output_options.ply_names);
+    super::rerun::check_ply_names(&a.cfg, &s.sources, &s.outputs, names)?;
     let undefined = super::assemble::assemble_outputs(&a.work, &a.spec, &tplan, &exec)?;
     Ok(Summary {
         points: a.spec.total_points,

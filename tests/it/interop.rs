@@ -406,30 +406,3 @@ fn ply_columns_are_named_for_cloudcompare() {
         assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
     }
 }
-
-/// Issue 13 item 7 (the refusal part): a tilecurv output given again as input is refused
-/// before any work, naming the column and the provenance record, also with `--dry-run`, and no
-/// work directory is left.
-#[test]
-fn a_tilecurv_output_as_input_is_refused_before_any_work() {
-    let input = crate::common::root().join("data/Haystack_Rock.las");
-    let dir = tempfile::tempdir().expect("temp dir");
-    let first = dir.path().join("once.las");
-    process(&input, &first, &[]);
-    for extra in [&[][..], &["--dry-run"][..]] {
-        let again = dir.path().join("twice.las");
-        let out = crate::common::run_process(&first, &again, extra);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(3), "{err}");
-        assert!(
-            err.contains("extra dimension named \"H\"") && err.contains("provenance"),
-            "{err}"
-        );
-        assert!(!err.contains("scan:"), "refused before the scan: {err}");
-        assert!(!again.exists());
-        assert!(
-            !dir.path().join(".twice.las.tilecurv").exists(),
-            "no work directory"
-        );
-    }
-}

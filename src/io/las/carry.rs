@@ -85,8 +85,9 @@ fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result<Vec
             .iter()
             .any(|d| d.name.eq_ignore_ascii_case(&c.name))
         {
+            // `process` refuses this before any work (run::rerun); a safety net.
             return Err(Error::bad_input(input.path, None, format!(
-                "the input already has an extra dimension named {:?} (is it a tilecurv output?); process the original file instead", c.name)));
+                "the input already has an extra dimension named {:?}; leave the new column out with --columns, or rename the input's", c.name)));
         }
         data.extend_from_slice(&encode(&c));
     }
