@@ -222,6 +222,47 @@ fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bo
     Ok(with_normals > 0 && !cfg.ignore_file_normals)
 }
 
+/// Refuses, before any work, a LAS/LAZ output (among `outputs`, one per source, with the new
+/// columns `cols`) whose extra-bytes descriptors do not fit a VLR (65535 bytes) when it keeps a
+/// LAS version before 1.4, which has no EVLRs to hold them. Returns the warnings for the LAS
+/// 1.4 outputs that get them as an EVLR instead, which some readers ignore.
+pub fn check_extra_bytes(
+    cfg: &Config,
+    sources: &[Box<dyn PointSource>],
+    outputs: &[PathBuf],
+    cols: &ColumnSet,
+) -> Result<Vec<String>> {
+    use crate::io::sink::{extra_bytes_payload, output_format, OutputFormat};
+    // The number of descriptors does not depend on the encoding, chosen later from the data.
+    let new = crate::io::columns::output::OutputColumns::new(
+        cols,
+        crate::io::columns::output::Encoding::F32,
+    );
+    let mut notes = Vec::new();
+    for (s, output) in sources.iter().zip(outputs) {
+        if matches!(output_format(output)?, OutputFormat::Ply { .. }) {
+            continue;
+        }
+        let bytes = extra_bytes_payload(s.as_ref(), &new)?.len();
+        if bytes <= u16::MAX as usize {
+            continue;
+        }
+        if let SourceLayout::Las(p) = s.layout() {
+            if cfg.keep_version && p.header.version.1 < 4 {
+                let why = crate::io::las::writer::too_many_descriptors(bytes, p.header.version);
+                return Err(Error::Usage(format!("{}: {why}", s.path().display())));
+            }
+        }
+        notes.push(format!(
+            "{}: the {} extra-bytes descriptors of {} do not fit a VLR (65535 bytes): they are written as an extra-bytes EVLR, as LAS 1.4 allows; PDAL reads it, but laspy (2.7) and CloudCompare read extra dimensions from VLRs only",
+            s.path().display(),
+            bytes / crate::io::las::extra_bytes::DESCRIPTOR_SIZE,
+            output.display()
+        ));
+    }
+    Ok(notes)
+}
+
 /// Refuses, before any work, inputs whose declared bounds (a LAS header's, when finite) reach
 /// past the tile grid: the tile is too small for the extent. Inputs without declared bounds,
 /// and headers whose bounds are wrong, are checked point by point by the scan.
@@ -331,6 +372,7 @@ fn open_checked(cfg: &Config, outputs: Vec<PathBuf>, reporter: &dyn Reporter) ->
     crate::run::rerun::check_new_names(cfg, &sources, &cols)?;
     let ply = (&cols, output_options.ply_names);
     crate::run::rerun::check_ply_names(cfg, &sources, &outputs, ply)?;
+    notes.extend(check_extra_bytes(cfg, &sources, &outputs, &cols)?);
     for note in &notes {
         reporter.warn(note);
     }
