@@ -125,7 +125,8 @@ pub struct ResultArgs {
     #[arg(long, default_value = "up", value_parser = OrientMode::parse)]
     orient: OrientMode,
 
-    /// Estimate normals by PCA even when the input has NormalX/Y/Z.
+    /// Estimate normals by PCA even when the input has NormalX/Y/Z (a tilecurv output's own
+    /// NormalX/Y/Z are never the file's normals: a re-run replaces them).
     #[arg(long)]
     ignore_file_normals: bool,
 

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use crate::error::Result;
 use crate::io::crs_summary::{crs_summary, CrsSummary};
 use crate::io::las::extra_bytes::Descriptor;
-use crate::io::las::writer::PROVENANCE;
+use crate::io::las::provenance;
 use crate::io::source::{PointSource, SourceLayout};
 
 /// One extra dimension (LAS extra bytes) or non-coordinate property (other formats).
@@ -119,11 +119,7 @@ pub fn file_info(path: &Path) -> Result<FileInfo> {
                     .collect(),
                 // The writer appends its record after the carried ones: a tilecurv output of a
                 // generated terrain carries `generate`'s record first.
-                provenance: records
-                    .iter()
-                    .rev()
-                    .find(|v| v.is(PROVENANCE.0, PROVENANCE.1))
-                    .map(|v| String::from_utf8_lossy(&v.data).into_owned()),
+                provenance: provenance::texts(records.iter().copied()).pop(),
             }
         }
         SourceLayout::Converted => other_format(path, source.as_ref(), format, points)?,

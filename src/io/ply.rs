@@ -73,6 +73,34 @@ fn ply_name(name: &str) -> String {
     }
 }
 
+/// The PLY property names of the new columns `new` (LAS names, in record order) after an
+/// input with the properties `input`, named as `names` says; an input's own `nx ny nz`
+/// (ignored with --ignore-file-normals) leave the new normals their LAS names. Err: a new
+/// column whose name (PLY or LAS, any case) an input property already has, as (that name, the
+/// column's LAS name).
+pub fn column_names<'a>(
+    input: &[&str],
+    new: impl IntoIterator<Item = &'a str>,
+    names: PlyNames,
+) -> std::result::Result<Vec<String>, (String, String)> {
+    let taken = |n: &str| input.iter().any(|p| p.eq_ignore_ascii_case(n));
+    let mut out = Vec::new();
+    for column in new {
+        let mapped = names.name(column);
+        let normal = mapped.len() == 2 && mapped.starts_with('n');
+        let name = if normal && taken(&mapped) {
+            column.to_string()
+        } else {
+            mapped
+        };
+        if let Some(clash) = [name.as_str(), column].into_iter().find(|n| taken(n)) {
+            return Err((clash.to_string(), column.to_string()));
+        }
+        out.push(name);
+    }
+    Ok(out)
+}
+
 impl PlyWriter {
     /// Creates the temporary output beside `output` and writes the header: the provenance and
     /// the column descriptions as comments, then the vertex element.
@@ -98,25 +126,14 @@ impl PlyWriter {
             })
             .collect();
         let new = cols.descriptors();
-        let taken = |n: &str| props.iter().any(|(p, _)| p.name.eq_ignore_ascii_case(n));
-        let mut new_names = Vec::with_capacity(new.len());
-        for c in &new {
-            let mapped = names.name(&c.name);
-            // An input's own `nx` (ignored with --ignore-file-normals) leaves the LAS name; any
-            // other clash (a tilecurv output fed back in) is refused.
-            let normal = mapped.len() == 2 && mapped.starts_with('n');
-            let name = if normal && taken(&mapped) {
-                c.name.clone()
-            } else {
-                mapped
-            };
-            if let Some(clash) = [&name, &c.name].into_iter().find(|n| taken(n)) {
-                return Err(Error::bad_input(source.path(), None, format!(
-                    "the input already has a property named {clash:?} (is it a tilecurv output?); process the original file instead"
-                )));
-            }
-            new_names.push(name);
-        }
+        let input: Vec<&str> = props.iter().map(|(p, _)| p.name.as_str()).collect();
+        let new_names = column_names(&input, new.iter().map(|c| c.name.as_str()), names)
+            .map_err(|(clash, column)| {
+                // `process` refuses this before any work (run::rerun); a safety net.
+                Error::bad_input(source.path(), None, format!(
+                    "the input already has a property named {clash:?}, the PLY name of the new column {column}; leave the column out with --columns, or rename the input's property"
+                ))
+            })?;
         let mut head = String::from("ply\n");
         head += if ascii {
             "format ascii 1.0\n"

@@ -9,7 +9,8 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns};
 use crate::io::columns::ColumnSet;
-use crate::io::las::{carry, convert::ConvertedSink};
+use crate::io::las::carry;
+use crate::io::las::convert::{self, ConvertedSink};
 use crate::io::ply::{PlyNames, PlyWriter};
 use crate::io::source::{PointSource, SourceLayout};
 
@@ -76,6 +77,22 @@ pub fn output_columns(
         OutputFormat::Las | OutputFormat::Laz => encoding,
     };
     Ok(OutputColumns::new(cols, encoding))
+}
+
+/// The extra-bytes descriptors (encoded) of a LAS/LAZ output of `source` with the new columns
+/// `cols`: the one payload its writer stores (the input's descriptors, merged, or a converted
+/// input's, then the new columns'), whose size decides whether it fits a VLR.
+pub fn extra_bytes_payload(source: &dyn PointSource, cols: &OutputColumns) -> Result<Vec<u8>> {
+    match source.layout() {
+        SourceLayout::Las(parts) => carry::extra_bytes_payload(&parts, cols),
+        SourceLayout::Converted => {
+            let mut data = convert::input_descriptors(source)?;
+            for c in cols.descriptors() {
+                data.extend_from_slice(&crate::io::las::extra_bytes::encode(&c));
+            }
+            Ok(data)
+        }
+    }
 }
 
 /// Creates the writer for `output`: LAS/LAZ (a LAS input's records kept byte for byte, any

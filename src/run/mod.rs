@@ -22,6 +22,7 @@ pub mod dry_run;
 pub mod limits;
 pub mod orientation;
 pub mod prepare;
+pub mod rerun;
 pub mod spec;
 pub mod tiles;
 

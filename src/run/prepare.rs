@@ -1,6 +1,7 @@
 //! The first stage: opens the inputs and runs every check that can fail before any work is
-//! done (output paths, inputs that would be overwritten, units, normals, column names), then
-//! resolves the configuration against the inputs into a [`RunSpec`].
+//! done (output paths, inputs that would be overwritten, units, normals, column names: a
+//! tilecurv output's own columns are replaced, see `run::rerun`), then resolves the
+//! configuration against the inputs into a [`RunSpec`].
 
 use std::path::{Path, PathBuf};
 
@@ -9,7 +10,6 @@ use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnSet, Group};
 use crate::io::crs::UnitSource;
-use crate::io::las::writer::PROVENANCE;
 use crate::io::sink::OutputOptions;
 use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
@@ -193,7 +193,8 @@ fn check_classes(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<()> {
     }
 }
 
-/// Whether an input already has columns named NormalX/Y/Z (a LAS file's normals).
+/// Whether an input already has columns named NormalX/Y/Z (a LAS file's normals; a tilecurv
+/// output's own are dropped when it is opened, so these are someone else's).
 fn named_normals(s: &dyn PointSource) -> bool {
     s.properties()
         .iter()
@@ -221,39 +222,45 @@ fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bo
     Ok(with_normals > 0 && !cfg.ignore_file_normals)
 }
 
-/// Refuses, before any work, an input that already has a column named like one of the new
-/// ones (case-insensitive, as LAS readers match names): the output would hold two. A tilecurv
-/// output (its provenance record says so) is named as such; replacing its columns is not
-/// supported yet, so the original file must be processed instead.
-fn check_new_names(sources: &[Box<dyn PointSource>], cols: &ColumnSet) -> Result<()> {
-    for s in sources {
-        let props = s.properties();
-        let Some(clash) = cols
-            .columns()
-            .into_iter()
-            .find(|c| props.iter().any(|p| p.name.eq_ignore_ascii_case(c.name)))
-        else {
+/// Refuses, before any work, a LAS/LAZ output (among `outputs`, one per source, with the new
+/// columns `cols`) whose extra-bytes descriptors do not fit a VLR (65535 bytes) when it keeps a
+/// LAS version before 1.4, which has no EVLRs to hold them. Returns the warnings for the LAS
+/// 1.4 outputs that get them as an EVLR instead, which some readers ignore.
+pub fn check_extra_bytes(
+    cfg: &Config,
+    sources: &[Box<dyn PointSource>],
+    outputs: &[PathBuf],
+    cols: &ColumnSet,
+) -> Result<Vec<String>> {
+    use crate::io::sink::{extra_bytes_payload, output_format, OutputFormat};
+    // The number of descriptors does not depend on the encoding, chosen later from the data.
+    let new = crate::io::columns::output::OutputColumns::new(
+        cols,
+        crate::io::columns::output::Encoding::F32,
+    );
+    let mut notes = Vec::new();
+    for (s, output) in sources.iter().zip(outputs) {
+        if matches!(output_format(output)?, OutputFormat::Ply { .. }) {
             continue;
-        };
-        let ours = match s.layout() {
-            SourceLayout::Las(parts) => parts.vlrs.iter().any(|v| v.is(PROVENANCE.0, PROVENANCE.1)),
-            SourceLayout::Converted => false,
-        };
-        let what = if ours {
-            "it is a tilecurv output, with tilecurv's provenance record".to_string()
-        } else {
-            "is it a tilecurv output?".to_string()
-        };
-        return Err(Error::bad_input(
-            s.path(),
-            None,
-            format!(
-                "the input already has an extra dimension named {:?} ({what}); process the original file instead",
-                clash.name
-            ),
+        }
+        let bytes = extra_bytes_payload(s.as_ref(), &new)?.len();
+        if bytes <= u16::MAX as usize {
+            continue;
+        }
+        if let SourceLayout::Las(p) = s.layout() {
+            if cfg.keep_version && p.header.version.1 < 4 {
+                let why = crate::io::las::writer::too_many_descriptors(bytes, p.header.version);
+                return Err(Error::Usage(format!("{}: {why}", s.path().display())));
+            }
+        }
+        notes.push(format!(
+            "{}: the {} extra-bytes descriptors of {} do not fit a VLR (65535 bytes): they are written as an extra-bytes EVLR, as LAS 1.4 allows; PDAL reads it, but laspy (2.7) and CloudCompare read extra dimensions from VLRs only",
+            s.path().display(),
+            bytes / crate::io::las::extra_bytes::DESCRIPTOR_SIZE,
+            output.display()
         ));
     }
-    Ok(())
+    Ok(notes)
 }
 
 /// Refuses, before any work, inputs whose declared bounds (a LAS header's, when finite) reach
@@ -280,16 +287,14 @@ pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     cfg.validate()?;
     let outputs = output_paths(cfg)?;
     check_outputs(cfg, &outputs)?;
-    let mut spec = open_checked(cfg, reporter)?;
-    spec.outputs = outputs;
-    Ok(spec)
+    open_checked(cfg, outputs, reporter)
 }
 
 /// Opens and checks the inputs of `cfg` and resolves the run, without outputs (the stages of a
 /// cluster run that write none).
 pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     cfg.validate()?;
-    open_checked(cfg, reporter)
+    open_checked(cfg, Vec::new(), reporter)
 }
 
 /// The log line's words for `--radius` (`radius`: in file units, named `units`), empty without.
@@ -306,16 +311,38 @@ fn radius_words(cfg: &Config, radius: Option<f64>, units: &str) -> String {
     }
 }
 
-/// [`open_inputs`] for a configuration already validated.
-fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
-    let sources = cfg
-        .inputs
+/// Opens the inputs of `cfg` (a tilecurv output without its own columns, `run::rerun`),
+/// adding to `notes` the warnings to give once every check passed.
+fn open_sources(cfg: &Config, notes: &mut Vec<String>) -> Result<Vec<Box<dyn PointSource>>> {
+    cfg.inputs
         .iter()
         .map(|p| match cfg.sample_faces {
             Some(n) => crate::io::source::open_sampled(p, n, cfg.params.seed),
-            None => crate::io::source::open(p),
+            None => crate::run::rerun::open_input(p).map(|(s, note)| {
+                notes.extend(note);
+                s
+            }),
         })
-        .collect::<Result<Vec<_>>>()?;
+        .collect()
+}
+
+/// How `cfg` writes its outputs besides their columns.
+fn output_options(cfg: &Config) -> OutputOptions {
+    OutputOptions {
+        keep_las_version: cfg.keep_version,
+        ply_names: if cfg.ply_las_names {
+            crate::io::ply::PlyNames::Las
+        } else {
+            crate::io::ply::PlyNames::CloudCompare
+        },
+    }
+}
+
+/// [`open_inputs`] for a configuration already validated, with the `outputs` of the inputs
+/// (none for the stages that write none).
+fn open_checked(cfg: &Config, outputs: Vec<PathBuf>, reporter: &dyn Reporter) -> Result<RunSpec> {
+    let mut notes = Vec::new();
+    let sources = open_sources(cfg, &mut notes)?;
     let (unit_name, unit, unit_words) = common_unit(cfg, &sources, reporter)?;
     let tile_units = match unit {
         Some(_) => unit_name.clone(),
@@ -346,7 +373,14 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         unit: unit_name.clone(),
         wide: cfg.column_type == crate::io::columns::ColumnType::F64,
     };
-    check_new_names(&sources, &cols)?;
+    let output_options = output_options(cfg);
+    crate::run::rerun::check_new_names(cfg, &sources, &cols)?;
+    let ply = (&cols, output_options.ply_names);
+    crate::run::rerun::check_ply_names(cfg, &sources, &outputs, ply)?;
+    notes.extend(check_extra_bytes(cfg, &sources, &outputs, &cols)?);
+    for note in &notes {
+        reporter.warn(note);
+    }
     let radius_words = radius_words(cfg, radius, &tile_units);
     for s in &sources {
         reporter.info(&format!(
@@ -373,7 +407,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     Ok(RunSpec {
         total_points: sources.iter().map(|s| s.len()).sum(),
         first_ids,
-        outputs: Vec::new(),
+        outputs,
         grid: TileGrid { size: tile_size },
         params: {
             let mut p = parameters(cfg, (tile_size, radius), &unit_name, file_normals);
@@ -386,14 +420,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         z_scale,
         select: cfg.select.clone(),
         config: cfg.params(),
-        output_options: OutputOptions {
-            keep_las_version: cfg.keep_version,
-            ply_names: if cfg.ply_las_names {
-                crate::io::ply::PlyNames::Las
-            } else {
-                crate::io::ply::PlyNames::CloudCompare
-            },
-        },
+        output_options,
         unit_name,
         file_normals,
         cols,

@@ -407,29 +407,91 @@ fn ply_columns_are_named_for_cloudcompare() {
     }
 }
 
-/// Issue 13 item 7 (the refusal part): a tilecurv output given again as input is refused
-/// before any work, naming the column and the provenance record, also with `--dry-run`, and no
-/// work directory is left.
+/// Issue 13 item 7 (the optional part): extra-bytes descriptors that do not fit a VLR (more
+/// than 65535 bytes: an input with 340 extra dimensions plus the 8 new columns) are written as
+/// one extra-bytes EVLR in a LAS 1.4 output, with a warning; laspy parses that EVLR's
+/// descriptors (it does not take a point format from an EVLR, so the test decodes H from the
+/// raw extra bytes with them) and they match the records. A LAS 1.2 input with
+/// `--keep-version` is refused before any work (exit 2), since LAS 1.2 has no EVLRs.
 #[test]
-fn a_tilecurv_output_as_input_is_refused_before_any_work() {
-    let input = crate::common::root().join("data/Haystack_Rock.las");
-    let dir = tempfile::tempdir().expect("temp dir");
-    let first = dir.path().join("once.las");
-    process(&input, &first, &[]);
-    for extra in [&[][..], &["--dry-run"][..]] {
-        let again = dir.path().join("twice.las");
-        let out = crate::common::run_process(&first, &again, extra);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(3), "{err}");
-        assert!(
-            err.contains("extra dimension named \"H\"") && err.contains("provenance"),
-            "{err}"
-        );
-        assert!(!err.contains("scan:"), "refused before the scan: {err}");
-        assert!(!again.exists());
-        assert!(
-            !dir.path().join(".twice.las.tilecurv").exists(),
-            "no work directory"
-        );
+fn descriptors_past_a_vlr_go_to_an_evlr_in_las14() {
+    if !laspy_available() {
+        return;
     }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let write = r#"
+import sys, laspy, numpy as np
+h = laspy.LasHeader(point_format=int(sys.argv[3]), version=sys.argv[2])
+h.scales, h.offsets = [0.001] * 3, [0.0] * 3
+h.add_extra_dims([laspy.ExtraBytesParams(name=f"e{j}", type=np.uint8) for j in range(340)])
+f = laspy.LasData(h)
+i = np.arange(400)
+x, y = i % 20 - 10.0, i // 20 - 10.0
+f.x, f.y, f.z = x, y, (x * x + y * y) / 100
+f["e339"] = i % 200
+f.write(sys.argv[1])
+print("ok")
+"#;
+    let read = r#"
+import sys, laspy, numpy as np
+f = laspy.read(sys.argv[1])
+eb = [v for v in f.header.evlrs if v.user_id == "LASF_Spec" and v.record_id == 4]
+assert len(eb) == 1 and not [v for v in f.header.vlrs if v.user_id == "LASF_Spec"]
+dims = eb[0].type_of_extra_dims()
+names = [d.name for d in dims]
+assert names[:340] == [f"e{j}" for j in range(340)], names[:3]
+raw = np.asarray(f.points["ExtraBytes"]).reshape(len(f.points), -1)
+at = sum(np.dtype(d.type).itemsize for d in dims[:names.index("H")])
+h = dims[names.index("H")]
+q = raw[:, at:at + 4].copy().view("<i4")[:, 0]
+v = np.where(q == -2 ** 31, np.nan, q * h.scales[0])
+print(",".join(names[340:]))
+print(" ".join(repr(float(x)) for x in v))
+"#;
+    let input = dir.path().join("many.las");
+    let said = laspy(write, &[&input, Path::new("1.4"), Path::new("6")]);
+    assert_eq!(said.trim(), "ok");
+    for ext in ["las", "laz"] {
+        let output = dir.path().join(format!("many_out.{ext}"));
+        let out = crate::common::run_process(&input, &output, &["-q"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert!(err.contains("written as an extra-bytes EVLR"), "{err}");
+        let (src, _) = records(&output);
+        assert_eq!(src.extra.len(), 348, "{ext}");
+        let said = laspy(read, &[&output]);
+        let mut lines = said.lines();
+        assert_eq!(
+            lines.next(),
+            Some(crate::common::COLUMNS.join(",").as_str())
+        );
+        let h: Vec<f64> = lines
+            .next()
+            .expect("H values")
+            .split(' ')
+            .map(|v| v.parse().expect("a number"))
+            .collect();
+        let ours = crate::common::column(&output, "H");
+        let same = |(a, b): (&f64, &f64)| a == b || (a.is_nan() && b.is_nan());
+        assert!(h.len() == 400 && h.iter().zip(&ours).all(same), "{ext}");
+        assert_eq!(crate::common::column(&output, "e339")[399], 199.0);
+    }
+    let old = dir.path().join("many12.las");
+    assert_eq!(
+        laspy(write, &[&old, Path::new("1.2"), Path::new("0")]).trim(),
+        "ok"
+    );
+    let output = dir.path().join("kept.las");
+    let out = crate::common::run_process(&old, &output, &["--keep-version"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("many12.las") && err.contains("348 extra-bytes descriptors"),
+        "{err}"
+    );
+    assert!(
+        err.contains("without --keep-version") && !err.contains("scan:"),
+        "{err}"
+    );
+    assert!(!output.exists() && !dir.path().join(".kept.las.tilecurv").exists());
 }

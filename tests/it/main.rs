@@ -24,6 +24,7 @@ mod outofcore;
 mod radius;
 mod real_files;
 mod reference;
+mod rerun;
 mod sample;
 mod sampled;
 mod units;

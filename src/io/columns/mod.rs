@@ -8,7 +8,7 @@
 pub mod output;
 
 use crate::core::compute::{PointResult, NO_PATCH};
-use crate::core::estimate::{Curvature, ExtraColumn, MAX_EXTRA};
+use crate::core::estimate::{Curvature, EstimatorKind, EstimatorParams, ExtraColumn, MAX_EXTRA};
 
 /// Name of the quality-flag column.
 pub const FLAGS_NAME: &str = "CurvatureFlags";
@@ -232,6 +232,21 @@ impl Value {
         }
     }
 
+    /// The `--columns` group of the column holding this value.
+    pub fn group(self) -> Group {
+        match self {
+            Value::Normal(_) => Group::Normals,
+            Value::H => Group::H,
+            Value::K => Group::K,
+            Value::K1 => Group::K1,
+            Value::K2 => Group::K2,
+            Value::D1(_) | Value::D2(_) => Group::Directions,
+            Value::Extra(_) => Group::Features,
+            Value::ScaleK | Value::ScaleFlags => Group::Scale,
+            Value::Flags => Group::Flags,
+        }
+    }
+
     fn set(self, r: &mut PointResult, v: f64) {
         let c = &mut r.curvature;
         match self {
@@ -259,6 +274,29 @@ pub struct Column {
     pub description: String,
     /// What it holds.
     pub value: Value,
+}
+
+/// The name of every column tilecurv can write (every group, every estimator's extra
+/// columns): what an output's provenance record is taken to claim when it does not list its
+/// columns (outputs of a tilecurv older than the list).
+pub fn every_name() -> Vec<&'static str> {
+    let mut extra: Vec<ExtraColumn> = Vec::new();
+    for kind in EstimatorKind::ALL {
+        for c in kind.build(&EstimatorParams::default()).extra_columns() {
+            if !extra.iter().any(|e| e.name == c.name) {
+                extra.push(*c);
+            }
+        }
+    }
+    let set = ColumnSet {
+        choice: Group::ALL
+            .into_iter()
+            .fold(ColumnChoice(0), ColumnChoice::with),
+        extra,
+        unit: String::new(),
+        wide: false,
+    };
+    set.columns().into_iter().map(|c| c.name).collect()
 }
 
 /// The new columns of a run.

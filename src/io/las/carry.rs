@@ -66,7 +66,7 @@ pub fn create(
 /// The extra-bytes descriptors of the output: the input's, from all its extra-bytes records
 /// in file order (padded with an "undocumented" descriptor if the input's records have more
 /// extra bytes than they describe), then ours. The writer stores them as one record.
-fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result<Vec<u8>> {
+pub fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result<Vec<u8>> {
     let records = input.vlrs.iter().chain(input.evlrs.iter().map(|(_, v)| v));
     let mut data = extra_bytes::merged_payload(records)
         .map_err(|why| Error::bad_input(input.path, None, why))?;
@@ -85,8 +85,9 @@ fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result<Vec
             .iter()
             .any(|d| d.name.eq_ignore_ascii_case(&c.name))
         {
+            // `process` refuses this before any work (run::rerun); a safety net.
             return Err(Error::bad_input(input.path, None, format!(
-                "the input already has an extra dimension named {:?} (is it a tilecurv output?); process the original file instead", c.name)));
+                "the input already has an extra dimension named {:?}; leave the new column out with --columns, or rename the input's", c.name)));
         }
         data.extend_from_slice(&encode(&c));
     }

@@ -60,15 +60,7 @@ impl ConvertedSink {
         cols: &OutputColumns,
         provenance: &str,
     ) -> Result<Self> {
-        let mut props = source.properties();
-        let Some(xyz) = xyz_and_normals(props.iter().map(|p| p.name.as_str())).0 else {
-            return Err(Error::Internal(format!(
-                "{}: the reader lists no x, y, z properties",
-                source.path().display()
-            )));
-        };
-        let xyz = xyz.map(|i| props[i].clone());
-        props.retain(|p| !xyz.contains(p));
+        let (xyz, props) = split_xyz(source)?;
         let eb = descriptors(&props);
         let extra = parse(&eb).map_err(Error::Internal)?;
         let vlrs: Vec<Vlr> = if eb.is_empty() {
@@ -115,6 +107,26 @@ impl PointSink for ConvertedSink {
     fn abandon(self: Box<Self>) {
         self.writer.abandon()
     }
+}
+
+/// A source's x, y, z properties, and the others, which become extra bytes.
+fn split_xyz(source: &dyn PointSource) -> Result<([Property; 3], Vec<Property>)> {
+    let mut props = source.properties();
+    let Some(xyz) = xyz_and_normals(props.iter().map(|p| p.name.as_str())).0 else {
+        return Err(Error::Internal(format!(
+            "{}: the reader lists no x, y, z properties",
+            source.path().display()
+        )));
+    };
+    let xyz = xyz.map(|i| props[i].clone());
+    props.retain(|p| !xyz.contains(p));
+    Ok((xyz, props))
+}
+
+/// The encoded extra-bytes descriptors of a converted output of `source`, before the new
+/// columns': one per property but x, y and z.
+pub fn input_descriptors(source: &dyn PointSource) -> Result<Vec<u8>> {
+    Ok(descriptors(&split_xyz(source)?.1))
 }
 
 /// The encoded extra-bytes descriptors of the properties kept as extra bytes.

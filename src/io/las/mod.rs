@@ -10,6 +10,8 @@ pub mod extra_bytes;
 pub mod fields;
 pub mod header;
 pub mod parts;
+pub mod provenance;
+pub mod trim;
 pub mod upgrade;
 pub mod vlr;
 pub mod writer;

@@ -14,11 +14,9 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::las::extra_bytes;
 use crate::io::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
+use crate::io::las::provenance::PROVENANCE;
 use crate::io::las::vlr::{laszip, Vlr};
 use crate::io::output::{PointSink, TempFile};
-
-/// User id and record id of the provenance VLR.
-pub const PROVENANCE: (&str, u16) = ("tilecurv", 1);
 
 /// Whether a path names a LAZ file (by extension; anything else that is .las is LAS).
 fn output_is_laz(path: &Path) -> Result<bool> {
@@ -66,7 +64,9 @@ pub struct LasFileSpec<'a> {
     /// The extra-bytes descriptors of the output records (encoded), written as exactly one
     /// record: in place of the first carried extra-bytes VLR (else EVLR), the others dropped
     /// (their descriptors are expected in this payload), or as a new VLR after the carried
-    /// ones if there is none.
+    /// ones if there is none; as an EVLR (the first carried one, else a new one after the
+    /// others) when they do not fit a VLR (more than 65535 bytes: 341 descriptors), which
+    /// only a LAS 1.4 file has.
     pub extra_bytes: Vec<u8>,
     /// The provenance text, written as the provenance VLR (after the extra bytes).
     pub provenance: &'a str,
@@ -162,21 +162,25 @@ impl LasFileSpec<'_> {
                 evlrs.push(v.clone());
             }
         }
+        if home == ExtraBytesHome::NewEvlr {
+            evlrs.push(extra_bytes::vlr(self.extra_bytes.clone()));
+        }
         (evlrs, waveform)
     }
 
     /// Where the one extra-bytes record of the output goes.
     fn extra_bytes_home(&self) -> ExtraBytesHome {
-        if self.vlrs.iter().any(extra_bytes::is_extra_bytes) {
-            ExtraBytesHome::FirstVlr
-        } else if self
+        let fits = self.extra_bytes.len() <= u16::MAX as usize;
+        let in_vlr = self.vlrs.iter().any(extra_bytes::is_extra_bytes);
+        let in_evlr = self
             .evlrs
             .iter()
-            .any(|(_, v)| extra_bytes::is_extra_bytes(v))
-        {
-            ExtraBytesHome::FirstEvlr
-        } else {
-            ExtraBytesHome::NewVlr
+            .any(|(_, v)| extra_bytes::is_extra_bytes(v));
+        match (in_vlr && fits, in_evlr, fits) {
+            (true, _, _) => ExtraBytesHome::FirstVlr,
+            (false, true, _) => ExtraBytesHome::FirstEvlr,
+            (false, false, true) => ExtraBytesHome::NewVlr,
+            (false, false, false) => ExtraBytesHome::NewEvlr,
         }
     }
 
@@ -189,12 +193,25 @@ impl LasFileSpec<'_> {
 }
 
 /// Where the output's one extra-bytes record is written: in place of the input's first
-/// extra-bytes VLR, else of its first extra-bytes EVLR, else as a new VLR.
+/// extra-bytes VLR (if the descriptors fit a VLR), else of its first extra-bytes EVLR, else
+/// as a new VLR, or a new EVLR if they do not fit one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum ExtraBytesHome {
     FirstVlr,
     FirstEvlr,
     NewVlr,
+    NewEvlr,
+}
+
+/// Why extra-bytes descriptors of `bytes` bytes cannot be written in a LAS file of `version`
+/// (before 1.4: no EVLR), and what to do.
+pub fn too_many_descriptors(bytes: usize, version: (u8, u8)) -> String {
+    format!(
+        "the output needs {} extra-bytes descriptors ({bytes} bytes), more than a VLR holds (65535 bytes, 341 descriptors), and a LAS {}.{} file has no EVLRs to hold them; write LAS 1.4 (without --keep-version) or fewer columns (--columns)",
+        bytes / extra_bytes::DESCRIPTOR_SIZE,
+        version.0,
+        version.1
+    )
 }
 
 fn is_laszip(v: &Vlr) -> bool {
@@ -234,6 +251,9 @@ impl LasFileWriter {
         let header = spec.start_header(output)?;
         let (vlrs, laz_vlr) = spec.vlrs(&header, compressed)?;
         let (evlrs, waveform_evlr) = spec.evlrs(&header);
+        if spec.extra_bytes.len() > u16::MAX as usize && header.version.1 < 4 {
+            return Err(spec.error(too_many_descriptors(spec.extra_bytes.len(), header.version)));
+        }
         let mut head = Vec::new();
         for v in &vlrs {
             v.write_vlr(&mut head).map_err(|why| spec.error(why))?;
@@ -488,6 +508,49 @@ pub(crate) mod tests {
         assert_eq!(ids, [("LASF_Spec", 4), ("other", 7), PROVENANCE]);
         let names: Vec<&str> = src.extra.iter().map(|d| d.name.as_str()).collect();
         assert_eq!(names, ["a", "b"]);
+    }
+
+    /// Descriptors past a VLR's 65535 bytes go to a new EVLR in LAS 1.4, and are refused in
+    /// LAS 1.2, which has no EVLRs.
+    #[test]
+    fn descriptors_past_a_vlr_go_to_an_evlr_in_las14_only() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let n = 342;
+        let data: Vec<u8> = (0..n)
+            .flat_map(|i| {
+                let c =
+                    extra_bytes::NewColumn::plain(format!("e{i}"), extra_bytes::ScalarType::U8, "");
+                extra_bytes::encode(&c)
+            })
+            .collect();
+        for minor in [2, 4] {
+            let out = dir.path().join(format!("many{minor}.las"));
+            let mut s = spec(1);
+            if let HeaderStart::New(h) = &mut s.header {
+                h.minor = minor;
+                h.record_length = 20 + n as u16;
+            }
+            s.record_length = 20 + n as u16;
+            s.extra_bytes = data.clone();
+            let w = LasFileWriter::create(&out, s);
+            if minor == 2 {
+                let e = w.err().expect("refused").to_string();
+                assert!(
+                    e.contains("342 extra-bytes descriptors") && e.contains("no EVLRs"),
+                    "{e}"
+                );
+                continue;
+            }
+            let mut w = w.expect("creates");
+            let mut r = record([1, 2, 3]);
+            r.resize(20 + n, 7);
+            w.write_records(&r).expect("writes");
+            w.finish().expect("finishes");
+            let src = LasSource::open(&out).expect("reads back");
+            assert!(!src.vlrs.iter().any(extra_bytes::is_extra_bytes));
+            assert_eq!(src.evlrs.len(), 1);
+            assert_eq!(src.extra.len(), n);
+        }
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! LAS and LAZ input: a file opened once, memory-mapped, validated against its size, and
 //! streamed in file order as chunks of raw point records. Uncompressed LAS is decoded straight from
 //! the map; LAZ is decompressed chunk by chunk (in parallel over LAZ chunks). The raw records are
-//! what `assemble` copies to the output untouched.
+//! what `assemble` copies to the output untouched, unless extra dimensions were dropped
+//! ([`LasSource::drop_extra`]: a re-run drops the previous run's columns), in which case every
+//! reader of the source sees the trimmed records, header and descriptors only.
 
 use std::fs::File;
 use std::io::{Cursor, Seek, SeekFrom};
@@ -13,6 +15,7 @@ use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk};
 use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
 use crate::io::las::header::{LasHeader, POINT_FORMAT_SIZES};
 use crate::io::las::parts::LasParts;
+use crate::io::las::trim::Trim;
 use crate::io::las::vlr::{read_evlrs, read_vlrs, Vlr};
 
 use super::{InputBytes, PointSource, Property, SourceLayout, SourcePoint, Stored};
@@ -21,7 +24,7 @@ use super::{InputBytes, PointSource, Property, SourceLayout, SourcePoint, Stored
 pub struct LasSource {
     path: PathBuf,
     map: InputBytes,
-    /// The parsed header.
+    /// The parsed header (its record length the trimmed records' after [`LasSource::drop_extra`]).
     pub header: LasHeader,
     /// The VLRs, in file order.
     pub vlrs: Vec<Vlr>,
@@ -29,6 +32,8 @@ pub struct LasSource {
     pub evlrs: Vec<(u64, Vlr)>,
     /// Extra-bytes descriptors of the input (empty if none).
     pub extra: Vec<Descriptor>,
+    /// The extra dimensions dropped from every record, if any.
+    trim: Option<Trim>,
     normal_dims: Option<[Descriptor; 3]>,
     laz: Option<laz::LazVlr>,
     /// The checked LAZ chunk table (empty for LAS).
@@ -94,10 +99,73 @@ impl LasSource {
             vlrs,
             evlrs,
             extra,
+            trim: None,
             normal_dims,
             laz,
             chunks,
         })
+    }
+
+    /// Drops the extra dimensions named in `names` (any case) from every record this source
+    /// streams: its header, extra-bytes records and descriptors then describe the records
+    /// without them (the first extra-bytes record holds the kept descriptors, unchanged, and
+    /// the others are gone), so that a writer carries the rest over as it would a file
+    /// without them, and NormalX/Y/Z among them are no longer the file's normals. Returns
+    /// whether anything was dropped. Once per source.
+    pub fn drop_extra(&mut self, names: &[String]) -> Result<bool> {
+        if self.trim.is_some() {
+            return Err(Error::Internal(format!(
+                "{}: extra dimensions dropped twice",
+                self.path.display()
+            )));
+        }
+        let bad = |why: String| Error::bad_input(&self.path, None, why);
+        let records = self.vlrs.iter().chain(self.evlrs.iter().map(|(_, v)| v));
+        let payload = extra_bytes::merged_payload(records).map_err(bad)?;
+        let base = POINT_FORMAT_SIZES[self.header.point_format as usize] as usize;
+        let stored = self.stored_length();
+        let Some(trim) = Trim::new(base, stored, &payload, names).map_err(bad)? else {
+            return Ok(false);
+        };
+        let extra = extra_bytes::parse(&trim.payload).map_err(bad)?;
+        let mut first = true;
+        let mut put = |v: &mut Vlr| {
+            if !extra_bytes::is_extra_bytes(v) {
+                return true;
+            }
+            if std::mem::take(&mut first) {
+                v.data = trim.payload.clone();
+                return true;
+            }
+            false
+        };
+        self.vlrs.retain_mut(|v| put(v));
+        self.evlrs.retain_mut(|(_, v)| put(v));
+        let length = trim.record_length() as u16;
+        self.header.record_length = length;
+        self.header.raw[105..107].copy_from_slice(&length.to_le_bytes());
+        self.normal_dims = normal_dims(&extra);
+        self.extra = extra;
+        self.trim = Some(trim);
+        Ok(true)
+    }
+
+    /// Bytes per record as the file stores them.
+    fn stored_length(&self) -> usize {
+        self.trim
+            .as_ref()
+            .map_or(self.header.record_length as usize, Trim::stored_length)
+    }
+
+    /// The coordinates of a raw record (stored or trimmed: the point format's fields stay).
+    fn xyz(&self, rec: &[u8]) -> [f64; 3] {
+        let h = &self.header;
+        let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as f64;
+        [
+            c(0) * h.scale[0] + h.offset[0],
+            c(4) * h.scale[1] + h.offset[1],
+            c(8) * h.scale[2] + h.offset[2],
+        ]
     }
 }
 
@@ -117,9 +185,8 @@ impl LasSource {
         let extent = (0..3).map(|a| h.max[a] - h.min[a]).fold(0.0, f64::max);
         let step = h.scale.iter().fold(0.0, |m: f64, s| m.max(s.abs()));
         let margin = extent.max(1000.0 * step);
-        let rl = h.record_length as usize;
-        for (i, rec) in records.chunks_exact(rl).enumerate() {
-            let p = self.decode(first + i as u64, rec).xyz;
+        for (i, rec) in records.chunks_exact(self.stored_length()).enumerate() {
+            let p = self.xyz(rec);
             if let Some(a) =
                 (0..3).find(|&a| !(p[a] >= h.min[a] - margin && p[a] <= h.max[a] + margin))
             {
@@ -298,28 +365,31 @@ impl PointSource for LasSource {
 
     /// Decodes one raw record into a [`SourcePoint`].
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
-        let h = &self.header;
-        let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as f64;
-        let xyz = [
-            c(0) * h.scale[0] + h.offset[0],
-            c(4) * h.scale[1] + h.offset[1],
-            c(8) * h.scale[2] + h.offset[2],
-        ];
+        let xyz = self.xyz(rec);
         let normal = self.normal_dims.as_ref().and_then(|d| {
-            let extra = &rec[POINT_FORMAT_SIZES[h.point_format as usize] as usize..];
+            let extra = &rec[POINT_FORMAT_SIZES[self.header.point_format as usize] as usize..];
             Some([d[0].read(extra)?, d[1].read(extra)?, d[2].read(extra)?])
         });
         SourcePoint { id, xyz, normal }
     }
 
     /// Streams the raw point records in file order, about `chunk_points` at a time, calling
-    /// `f(first_point_index, records)`. Stops at the first error `f` returns.
+    /// `f(first_point_index, records)` (trimmed records when dimensions were dropped). Stops
+    /// at the first error `f` returns.
     fn for_each_chunk(
         &self,
         chunk_points: usize,
         f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
     ) -> Result<()> {
-        let rl = self.header.record_length as usize;
+        let mut trimmed = Vec::new();
+        let mut f = |first: u64, records: &[u8]| match &self.trim {
+            None => f(first, records),
+            Some(t) => {
+                t.apply(records, &mut trimmed);
+                f(first, &trimmed)
+            }
+        };
+        let rl = self.stored_length();
         let n = self.header.point_count;
         let start = self.header.offset_to_point_data as usize;
         // Pages already streamed are handed back to the kernel, so that resident memory does

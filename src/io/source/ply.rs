@@ -75,6 +75,8 @@ struct Header {
     end: usize,
     /// Number of header lines.
     lines: u64,
+    /// The text of the `comment` lines, in order.
+    comments: Vec<String>,
 }
 
 fn parse_header(path: &Path, map: &[u8]) -> Result<Header> {
@@ -85,6 +87,7 @@ fn parse_header(path: &Path, map: &[u8]) -> Result<Header> {
     let mut line = 0u64;
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
+    let mut comments = Vec::new();
     loop {
         let rest = &map[pos..];
         let Some(len) = rest.iter().position(|&b| b == b'\n') else {
@@ -109,7 +112,8 @@ fn parse_header(path: &Path, map: &[u8]) -> Result<Header> {
         }
         match words.as_slice() {
             ["end_header"] => break,
-            [] | ["comment", ..] | ["obj_info", ..] => {}
+            ["comment", rest @ ..] => comments.push(rest.join(" ")),
+            [] | ["obj_info", ..] => {}
             ["format", f, _version] => {
                 encoding = Some(match *f {
                     "ascii" => Encoding::Ascii,
@@ -172,7 +176,27 @@ fn parse_header(path: &Path, map: &[u8]) -> Result<Header> {
         elements,
         end: pos,
         lines: line,
+        comments,
     })
+}
+
+/// The tilecurv provenance record among a PLY file's header comments (the PLY writer puts
+/// each line of its record in a `comment`): from the last comment starting `tilecurv ` through
+/// the `key=value` lines after it. None when there is none.
+pub fn provenance(path: &Path, map: &[u8]) -> Result<Option<String>> {
+    let h = parse_header(path, map)?;
+    let Some(start) = h.comments.iter().rposition(|c| c.starts_with("tilecurv ")) else {
+        return Ok(None);
+    };
+    let mut text = format!("{}\n", h.comments[start]);
+    for c in h.comments[start + 1..]
+        .iter()
+        .take_while(|c| c.contains('='))
+    {
+        text.push_str(c);
+        text.push('\n');
+    }
+    Ok(Some(text))
 }
 
 fn unknown_type(path: &Path, line: u64, ty: &str) -> Error {
