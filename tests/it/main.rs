@@ -25,4 +25,5 @@ mod real_files;
 mod reference;
 mod sample;
 mod sampled;
+mod shapes;
 mod units;
