@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use crate::core::estimate::{EstimatorKind, EstimatorParams};
 use crate::core::geometry::V3;
 use crate::core::normals::Orientation;
+use crate::core::scale::Ladder;
 use crate::core::select::{parse_classes, ClassFilter, Classes};
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnType, Group};
@@ -197,6 +198,27 @@ impl std::fmt::Display for OrientMode {
 }
 
 /// Everything a `process` run needs.
+/// The value of `-k`: a count, or `auto`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KArg {
+    /// This many neighbours.
+    Count(usize),
+    /// The scale chosen per point (`--k-range`).
+    Auto,
+}
+
+impl KArg {
+    /// Parses `-k`: a whole number or `auto`.
+    pub fn parse(text: &str) -> std::result::Result<KArg, String> {
+        if text.eq_ignore_ascii_case("auto") {
+            return Ok(KArg::Auto);
+        }
+        text.parse::<usize>()
+            .map(KArg::Count)
+            .map_err(|_| format!("{text:?} is neither a number of neighbours (e.g. 30) nor auto"))
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct Config {
     /// The input files: one scene (halos cross file borders), one output per input.
@@ -211,8 +233,11 @@ pub struct Config {
     pub progress_json: Option<PathBuf>,
     /// Tile edge length.
     pub tile: Length,
-    /// Neighbours per point, the point itself included; with `radius`, the cap on them.
+    /// Neighbours per point, the point itself included; with `radius`, the cap on them; with
+    /// `scale`, its top rung.
     pub k: usize,
+    /// `-k auto`: the ladder the scale is chosen from per point (`--k-range`); None for one k.
+    pub scale: Option<Ladder>,
     /// `--radius`: neighbourhoods of the point and every point within this distance (the
     /// nearest `k` of them when more are); None for the k nearest.
     pub radius: Option<Length>,
@@ -260,6 +285,7 @@ impl Default for Config {
             progress_json: None,
             tile: Length::Metres(50.0),
             k: 30,
+            scale: None,
             radius: None,
             estimator: EstimatorKind::CncAvgHexagram,
             params: EstimatorParams::default(),
@@ -307,6 +333,10 @@ impl Config {
             p("estimator", self.estimator.to_string()),
             p("k", self.k.to_string()),
             p(
+                "k_range",
+                self.scale.map(|l| l.to_string()).unwrap_or_default(),
+            ),
+            p(
                 "radius",
                 self.radius.map(|r| r.to_string()).unwrap_or_default(),
             ),
@@ -348,6 +378,11 @@ impl Config {
                     .ok_or_else(|| format!("estimator={value}: unknown"))?
             }
             "k" => self.k = num(value)? as usize,
+            "k_range" => {
+                self.scale = (!value.is_empty())
+                    .then(|| Ladder::parse(value))
+                    .transpose()?
+            }
             "radius" => {
                 self.radius = (!value.is_empty())
                     .then(|| Length::parse(value))
@@ -381,6 +416,29 @@ impl Config {
         Ok(())
     }
 
+    /// Checks `-k auto` against the options it cannot be combined with (yet).
+    fn validate_scale(&self) -> Result<()> {
+        let Some(ladder) = self.scale else {
+            if self.columns.has(Group::Scale) {
+                return Err(Error::Usage("the column group `scale` (ScaleK, ScaleFlags) is the scale -k auto chose per point: add -k auto, or drop `scale` from --columns".into()));
+            }
+            return Ok(());
+        };
+        if self.k != ladder.max {
+            return Err(Error::Usage(format!(
+                "--k-range {ladder} chooses K per point (-k auto): it cannot go with -k {}; drop one of them",
+                self.k
+            )));
+        }
+        if self.radius.is_some() {
+            return Err(Error::Usage("-k auto chooses the number of neighbours per point, --radius sets their distance: give one of them".into()));
+        }
+        if self.orientation == OrientMode::Propagate {
+            return Err(Error::Usage("-k auto with --orient propagate is not supported yet (each rung would need its own propagation): use --orient up (aerial scans) or outward, or a fixed -k".into()));
+        }
+        Ok(())
+    }
+
     /// Checks the values that do not depend on the input file.
     pub fn validate(&self) -> Result<()> {
         if self.k < 6 {
@@ -392,6 +450,7 @@ impl Config {
                 self.k
             )));
         }
+        self.validate_scale()?;
         if self.threads == 0 {
             return Err(Error::Usage("--threads must be at least 1".into()));
         }

@@ -4,8 +4,9 @@
 
 use std::path::PathBuf;
 
-use crate::config::{Config, Length, OrientMode};
+use crate::config::{Config, KArg, Length, OrientMode};
 use crate::core::estimate::{EstimatorKind, EstimatorParams};
+use crate::core::scale::Ladder;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnType, Group};
 
@@ -34,8 +35,18 @@ pub struct ResultArgs {
     /// more). With --radius, the cap on neighbours: the nearest k within the radius (lidR's k
     /// with r, CloudCompare's and PDAL's radius with a maximum count); default 30, or 100 with
     /// --radius.
-    #[arg(short = 'k', long = "neighbours", alias = "neighbors")]
-    k: Option<usize>,
+    ///
+    /// `-k auto` chooses K per point among the rungs of --k-range (default 20..320) by the
+    /// stability of H across scales (docs/scale.md): for noisy or unevenly noisy scans, where
+    /// no single K suits every region. About 10-20x the time of -k 30; writes the chosen K
+    /// (ScaleK) and ScaleFlags (1: the top rung was chosen while the error was still falling).
+    #[arg(short = 'k', long = "neighbours", alias = "neighbors", value_parser = KArg::parse, value_name = "K|auto")]
+    k: Option<KArg>,
+
+    /// The ladder of -k auto: MIN..MAX, rungs MIN, 2 MIN, 4 MIN, ... up to MAX (MAX = MIN times
+    /// 4 to 64, MIN at least 16). Implies -k auto.
+    #[arg(long, value_name = "MIN..MAX", value_parser = Ladder::parse)]
+    k_range: Option<Ladder>,
 
     /// Neighbourhoods by distance instead of count: each point with every point within this
     /// distance, at most -k of them (the nearest; default 100). A length with a unit like
@@ -284,11 +295,16 @@ impl ResultArgs {
     fn apply(&self, cfg: &mut Config) {
         cfg.tile = self.tile;
         cfg.radius = self.radius;
-        cfg.k = self.k.unwrap_or(if self.radius.is_some() {
-            RADIUS_CAP
-        } else {
-            30
-        });
+        cfg.scale = match self.k {
+            Some(KArg::Auto) => Some(self.k_range.unwrap_or_default()),
+            _ => self.k_range,
+        };
+        cfg.k = match (self.k, cfg.scale) {
+            (Some(KArg::Count(k)), _) => k,
+            (_, Some(ladder)) => ladder.max,
+            _ if self.radius.is_some() => RADIUS_CAP,
+            _ => 30,
+        };
         cfg.estimator = self.estimator;
         cfg.params = EstimatorParams {
             seed: self.seed,

@@ -13,6 +13,7 @@ pub mod point;
 pub mod quantize;
 pub mod rng;
 pub mod sampling;
+pub mod scale;
 pub mod select;
 pub mod surface;
 pub mod tasks;

@@ -331,7 +331,9 @@ pub struct MemoryPlan {
     /// Bytes for each tile in flight: 2/5 of the budget shared by `tiles_in_flight`.
     pub per_tile_bytes: usize,
     /// Bytes a loaded tile needs per point (coordinates, ids, neighbour list, normal, result),
-    /// measured layout of `TilePoints` and `compute_tile`'s buffers, rounded up: 300 + 4 k.
+    /// measured layout of `TilePoints` and `compute_tile`'s buffers, rounded up: 300 + 4 k;
+    /// with `-k auto`, 128 more per rung past the first (a normal and a result per rung, from
+    /// the layout of core::compute::auto).
     pub tile_point_bytes: usize,
     /// Most core points of one tile part: a tile with more is computed in quadtree parts
     /// (2/3 of `per_tile_bytes` over `tile_point_bytes`, room for its halo; at least 1024).
@@ -341,12 +343,13 @@ pub struct MemoryPlan {
 }
 
 impl MemoryPlan {
-    /// The plan for a budget of `budget_bytes` and `k` neighbours per point.
-    pub fn new(budget_bytes: usize, k: usize) -> Self {
+    /// The plan for a budget of `budget_bytes`, `k` neighbours per point and `rungs` scales
+    /// per point (`-k auto`; 1 for one k).
+    pub fn new(budget_bytes: usize, k: usize, rungs: usize) -> Self {
         let tiles_in_flight = 2;
         let buckets_bytes = budget_bytes * 2 / 5;
         let per_tile_bytes = budget_bytes * 2 / 5 / tiles_in_flight;
-        let tile_point_bytes = 300 + 4 * k;
+        let tile_point_bytes = 300 + 4 * k + 128 * rungs.saturating_sub(1);
         MemoryPlan {
             budget_bytes,
             buckets_bytes,
@@ -459,7 +462,7 @@ mod tests {
 
     #[test]
     fn memory_plan_shares_the_budget() {
-        let m = MemoryPlan::new(1 << 30, 30);
+        let m = MemoryPlan::new(1 << 30, 30, 1);
         // Buckets during the scan and the tiles in flight after it never exceed the budget.
         assert!(m.buckets_bytes + m.bucket_cache_bytes <= m.budget_bytes);
         assert!(m.bucket_cache_bytes + m.tiles_in_flight * m.per_tile_bytes <= m.budget_bytes);
@@ -469,7 +472,7 @@ mod tests {
         assert_eq!(m.chunk_points(1_000_000, 2000), 32_513);
         assert_eq!(m.chunk_points(500, 2000), 500);
         assert_eq!(
-            MemoryPlan::new(64 << 20, 30).chunk_points(1 << 20, 1 << 20),
+            MemoryPlan::new(64 << 20, 30, 1).chunk_points(1 << 20, 1 << 20),
             1024
         );
     }

@@ -536,6 +536,8 @@ mod tests {
                     },
                     extra: [f64::NAN; crate::core::estimate::MAX_EXTRA],
                     patch: crate::core::compute::NO_PATCH,
+                    scale: 0,
+                    scale_flags: 0,
                 })
                 .collect();
             journal

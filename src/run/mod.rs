@@ -99,7 +99,7 @@ impl<'a> Exec<'a> {
             })?;
         Ok(Exec {
             pool,
-            memory: MemoryPlan::new(budget as usize, cfg.k),
+            memory: MemoryPlan::new(budget as usize, cfg.k, cfg.scale.map_or(1, |l| l.rungs())),
             chunk_points: cfg.chunk_points,
             reporter,
             cancel,

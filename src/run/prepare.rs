@@ -299,7 +299,10 @@ fn radius_words(cfg: &Config, radius: Option<f64>, units: &str) -> String {
             "; radius {r} = {size:.3} {units}, at most {} neighbours",
             cfg.k
         ),
-        _ => String::new(),
+        _ => match cfg.scale {
+            Some(l) => format!("; k auto, chosen per point among {l}"),
+            None => String::new(),
+        },
     }
 }
 
@@ -328,11 +331,13 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
     // The input's own normals (used, or ignored but named so) are kept as they are.
     let keeps_normals = file_normals || sources.iter().any(|s| named_normals(s.as_ref()));
     let cols = ColumnSet {
+        // -k auto always writes the scale it chose.
         choice: if keeps_normals {
             cfg.columns.without(Group::Normals)
         } else {
             cfg.columns
-        },
+        }
+        .with_if(cfg.scale.is_some(), Group::Scale),
         extra: if cfg.columns.has(Group::Features) {
             estimator.extra_columns().to_vec()
         } else {
@@ -394,6 +399,7 @@ fn open_checked(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
         cols,
         column_type: cfg.column_type,
         k: cfg.k,
+        ladder: cfg.scale,
         radius,
         orientation: cfg.orientation,
         estimator,

@@ -46,8 +46,10 @@ pub struct RunSpec {
     pub cols: ColumnSet,
     /// How LAS/LAZ outputs store them.
     pub column_type: ColumnType,
-    /// Neighbours per point (with `radius`, the cap on them).
+    /// Neighbours per point (with `radius`, the cap on them; with `ladder`, its top rung).
     pub k: usize,
+    /// `-k auto`: the ladder the scale is chosen from per point.
+    pub ladder: Option<crate::core::scale::Ladder>,
     /// `--radius` in file units: neighbourhoods of the points within it.
     pub radius: Option<f64>,
     /// How PCA normals are oriented.
@@ -77,6 +79,13 @@ pub fn parameters(
     let mut v = vec![
         p("estimator", cfg.estimator.to_string()),
         p("k", cfg.k.to_string()),
+        p(
+            "k_range",
+            match cfg.scale {
+                Some(l) => format!("{l} (-k auto: the scale chosen per point, ScaleK)"),
+                None => "none (one k)".into(),
+            },
+        ),
         p(
             "radius",
             match (cfg.radius, radius) {

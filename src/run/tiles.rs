@@ -58,6 +58,7 @@ pub fn compute_params<'s>(spec: &'s RunSpec, stats: &ScanStats) -> ComputeParams
         estimator: spec.estimator.as_ref(),
         extra: spec.cols.extra.len(),
         propagate: (spec.orientation == OrientMode::Propagate).then_some(stats.centroid()),
+        ladder: spec.ladder,
     }
 }
 

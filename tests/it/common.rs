@@ -134,6 +134,17 @@ pub fn column(path: &Path, name: &str) -> Vec<f64> {
         .collect()
 }
 
+/// The x coordinate of every point of a LAS/LAZ file, in file order.
+pub fn xs(path: &Path) -> Vec<f64> {
+    let (s, all) = records(path);
+    all.chunks_exact(s.header.record_length as usize)
+        .map(|r| {
+            let raw = i32::from_le_bytes([r[0], r[1], r[2], r[3]]);
+            raw as f64 * s.header.scale[0] + s.header.offset[0]
+        })
+        .collect()
+}
+
 /// The raw bytes of one column (for bit-identity checks).
 pub fn column_bytes(path: &Path, name: &str) -> Vec<u8> {
     let (s, all) = records(path);

@@ -198,7 +198,7 @@ fn an_unknown_column_is_a_usage_error() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
         err.contains("curvedness")
-            && err.contains("normals, H, K, k1, k2, directions, features, flags"),
+            && err.contains("normals, H, K, k1, k2, directions, features, scale, flags"),
         "{err}"
     );
     let out = run(&["--f32", "--f64"]);

@@ -1,5 +1,6 @@
 //! Integration tests: the `tilecurv` binary on real and synthetic files.
 
+mod auto;
 mod bad_input;
 mod classes;
 mod closed_form;

@@ -90,8 +90,9 @@ fn shuffled_records_give_identical_columns() {
 
     let directions = ["d1x", "d1y", "d1z", "d2x", "d2y", "d2z"];
     let common = ["--tile", "20", "--threads", "2", "--directions"];
-    let cases: [(&str, &[&str]); 4] = [
+    let cases: [(&str, &[&str]); 5] = [
         ("default", &[]),
+        ("auto", &["-k", "auto"]),
         ("propagate", &["--orient", "propagate"]),
         (
             "cnc-uniform",

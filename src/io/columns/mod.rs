@@ -62,13 +62,15 @@ pub enum Group {
     Directions,
     /// The estimator's extra values (the VCM's SharpFeature, VcmNormalX/Y/Z).
     Features,
+    /// ScaleK, ScaleFlags: the scale `-k auto` chose (always written with it, never without).
+    Scale,
     /// CurvatureFlags.
     Flags,
 }
 
 impl Group {
     /// Every group, in record order.
-    pub const ALL: [Group; 8] = [
+    pub const ALL: [Group; 9] = [
         Group::Normals,
         Group::H,
         Group::K,
@@ -76,6 +78,7 @@ impl Group {
         Group::K2,
         Group::Directions,
         Group::Features,
+        Group::Scale,
         Group::Flags,
     ];
 
@@ -89,11 +92,12 @@ impl Group {
             Group::K2 => "k2",
             Group::Directions => "directions",
             Group::Features => "features",
+            Group::Scale => "scale",
             Group::Flags => "flags",
         }
     }
 
-    fn bit(self) -> u8 {
+    fn bit(self) -> u16 {
         1 << Group::ALL.iter().position(|&g| g == self).unwrap_or(0)
     }
 }
@@ -101,7 +105,7 @@ impl Group {
 /// The groups of columns a run writes (`--columns`), always in the record order of
 /// [`Group::ALL`] whatever the order they were named in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ColumnChoice(u8);
+pub struct ColumnChoice(u16);
 
 impl Default for ColumnChoice {
     /// normals, H, K, k1, k2, flags.
@@ -128,6 +132,14 @@ impl ColumnChoice {
     /// This choice with `g` added.
     pub fn with(self, g: Group) -> Self {
         ColumnChoice(self.0 | g.bit())
+    }
+
+    /// This choice with `g` added when `on`.
+    pub fn with_if(self, on: bool, g: Group) -> Self {
+        match on {
+            true => self.with(g),
+            false => self,
+        }
     }
 
     /// This choice without `g`.
@@ -193,6 +205,10 @@ pub enum Value {
     D2(usize),
     /// The estimator's extra value of this index.
     Extra(usize),
+    /// The K of the rung `-k auto` chose.
+    ScaleK,
+    /// How `-k auto` chose it (core::scale::scale_flags).
+    ScaleFlags,
     /// The quality flags.
     Flags,
 }
@@ -210,6 +226,8 @@ impl Value {
             Value::D1(i) => c.d1[i],
             Value::D2(i) => c.d2[i],
             Value::Extra(i) => r.extra[i],
+            Value::ScaleK => r.scale as f64,
+            Value::ScaleFlags => r.scale_flags as f64,
             Value::Flags => c.flags as f64,
         }
     }
@@ -225,6 +243,8 @@ impl Value {
             Value::D1(i) => c.d1[i] = v,
             Value::D2(i) => c.d2[i] = v,
             Value::Extra(i) => r.extra[i] = v,
+            Value::ScaleK => r.scale = v as u16,
+            Value::ScaleFlags => r.scale_flags = v as u8,
             Value::Flags => c.flags = v as u8,
         }
     }
@@ -312,6 +332,18 @@ impl ColumnSet {
         for (i, c) in self.extra.iter().enumerate() {
             push(c.name, c.description.to_string(), Value::Extra(i));
         }
+        if has(Group::Scale) {
+            push(
+                "ScaleK",
+                "neighbours of the chosen scale".into(),
+                Value::ScaleK,
+            );
+            push(
+                "ScaleFlags",
+                "1saturated 2larger 4nocriterion".into(),
+                Value::ScaleFlags,
+            );
+        }
         if has(Group::Flags) {
             push(
                 FLAGS_NAME,
@@ -339,6 +371,8 @@ impl ColumnSet {
             .chain((0..directions).map(Value::D1))
             .chain((0..directions).map(Value::D2))
             .chain((0..self.extra.len().min(MAX_EXTRA)).map(Value::Extra))
+            .chain(on(Group::Scale).then_some(Value::ScaleK))
+            .chain(on(Group::Scale).then_some(Value::ScaleFlags))
     }
 
     /// Bytes per stored value: 8 for f64, 4 for f32 ([`ColumnSet::wide`]).
@@ -376,6 +410,8 @@ impl ColumnSet {
             curvature: Curvature::undefined(0),
             extra: [f64::NAN; MAX_EXTRA],
             patch: NO_PATCH,
+            scale: 0,
+            scale_flags: 0,
         };
         let (mut at, w) = (0, self.value_size());
         for v in self.stored() {
@@ -426,7 +462,7 @@ mod tests {
         let e = ColumnChoice::parse("H,curvedness").expect_err("unknown");
         assert!(
             e.contains("\"curvedness\"")
-                && e.contains("normals, H, K, k1, k2, directions, features, flags"),
+                && e.contains("normals, H, K, k1, k2, directions, features, scale, flags"),
             "{e}"
         );
         assert!(ColumnChoice::parse("").is_err() && ColumnChoice::parse("H,").is_err());
@@ -484,6 +520,8 @@ mod tests {
             },
             extra: [0.125, f64::NAN, -0.6, 0.8],
             patch: NO_PATCH,
+            scale: 0,
+            scale_flags: 0,
         };
         let mut rec = Vec::new();
         cols.encode_result(&r, &mut rec);

@@ -78,8 +78,8 @@ impl Encoding {
 enum Storage {
     /// A float of this type (F32 or F64), NaN where undefined.
     Float(ScalarType),
-    /// The flags byte.
-    Byte,
+    /// An unsigned integer of this type (U8 or U16): the flags, the chosen scale.
+    Unsigned(ScalarType),
     /// An integer of this type (I16 or I32) times `scale`; its minimum where undefined.
     Scaled(ScalarType, f64),
 }
@@ -107,7 +107,8 @@ impl OutputColumns {
     /// The columns of `set` stored as `encoding` says.
     pub fn new(set: &ColumnSet, encoding: Encoding) -> Self {
         let storage = |c: &Column| match (c.value, encoding) {
-            (Value::Flags, _) => Storage::Byte,
+            (Value::Flags | Value::ScaleFlags, _) => Storage::Unsigned(ScalarType::U8),
+            (Value::ScaleK, _) => Storage::Unsigned(ScalarType::U16),
             (_, Encoding::F32) => Storage::Float(ScalarType::F32),
             (_, Encoding::F64) => Storage::Float(ScalarType::F64),
             (v, Encoding::Scaled(s)) => match v {
@@ -142,7 +143,7 @@ impl OutputColumns {
                 let plain = |ty| NewColumn::plain(c.name, ty, c.description.clone());
                 match *s {
                     Storage::Float(ty) => plain(ty),
-                    Storage::Byte => plain(ScalarType::U8),
+                    Storage::Unsigned(ty) => plain(ty),
                     Storage::Scaled(ty, scale) => NewColumn {
                         scaling: Some((scale, 0.0)),
                         no_data: Some(no_data(ty)),
@@ -165,7 +166,8 @@ impl OutputColumns {
             match *s {
                 Storage::Float(ScalarType::F64) => out.extend_from_slice(&v.to_le_bytes()),
                 Storage::Float(_) => out.extend_from_slice(&(v as f32).to_le_bytes()),
-                Storage::Byte => out.push(r.curvature.flags),
+                Storage::Unsigned(ScalarType::U8) => out.push(v as u8),
+                Storage::Unsigned(_) => out.extend_from_slice(&(v as u16).to_le_bytes()),
                 Storage::Scaled(ty, scale) => {
                     let raw = if v.is_nan() {
                         no_data(ty)
@@ -189,6 +191,7 @@ impl OutputColumns {
         for d in self.descriptors() {
             let ty = match d.ty {
                 ScalarType::U8 => "u8",
+                ScalarType::U16 => "u16",
                 ScalarType::I16 => "i16",
                 ScalarType::I32 => "i32",
                 ScalarType::F32 => "f32",
@@ -233,6 +236,8 @@ mod tests {
             },
             extra: [0.5, 0.0, 0.6, -0.8],
             patch: crate::core::compute::NO_PATCH,
+            scale: 160,
+            scale_flags: 1,
         }
     }
 
@@ -288,6 +293,23 @@ mod tests {
             "clamped, not wrapped"
         );
         assert_eq!(read(&rec, "CurvatureFlags"), 8.0);
+        // `-k auto`'s columns: exact unsigned integers before the flags.
+        let auto = ColumnSet {
+            choice: ColumnChoice::parse("H,scale,flags").expect("valid"),
+            ..vcm_columns()
+        };
+        let scale = OutputColumns::new(&auto, Encoding::Scaled(STEPS));
+        let names: Vec<&str> = scale.columns.iter().map(|(c, _)| c.name).collect();
+        assert_eq!(
+            &names[names.len() - 3..],
+            ["ScaleK", "ScaleFlags", "CurvatureFlags"]
+        );
+        let mut srec = Vec::new();
+        scale.encode(&result(0.3), &mut srec);
+        assert_eq!(srec[srec.len() - 4..], [160, 0, 1, 8][..]);
+        let sd = scale.descriptors();
+        assert_eq!(sd[sd.len() - 3].ty, ScalarType::U16);
+        assert_eq!(sd[sd.len() - 3].scaling, None);
         rec.clear();
         let mut undefined = result(f64::NAN);
         undefined.normal = [f64::NAN; 3];

@@ -90,6 +90,7 @@ fn a_set_cancel_flag_stops_the_pass() {
         estimator: est.as_ref(),
         extra: 0,
         propagate: None,
+        ladder: None,
     };
     let mut bufs = TileBuffers::default();
     let all = Shared::All;
@@ -136,6 +137,7 @@ fn radius_lists_are_verified_against_the_loaded_region() {
             estimator: est.as_ref(),
             extra: 0,
             propagate: None,
+            ladder: None,
         };
         let out = compute_tile(&t, &scene, &p, 0, Shared::All, &mut bufs, &go).expect("runs");
         assert_eq!(out.done.len() + out.retry.len(), t.xyz.len());
@@ -169,4 +171,70 @@ fn apex_h(out: &TileOutcome) -> f64 {
         .find(|r| r.id == 20 * 40 + 20)
         .map(|r| r.curvature.h)
         .expect("the apex is computed")
+}
+
+/// `-k auto` on the paraboloid: loaded whole, every point is computed at a rung of the ladder
+/// and the apex's H is the paraboloid's; loaded as a region with an open side, the points it
+/// computes are bit-identical to the whole load's (verification covers the lists of the 64
+/// nearest and their neighbours' normal prefixes), the points near the open side are retried,
+/// and the points far from it are done.
+#[test]
+fn auto_scale_results_do_not_depend_on_the_loaded_region() {
+    let (whole, scene) = paraboloid();
+    let est = crate::core::estimate::EstimatorKind::CncAvgHexagram.build(&Default::default());
+    let ladder = crate::core::scale::Ladder { min: 16, max: 128 };
+    let p = ComputeParams {
+        k: ladder.max,
+        radius: None,
+        orientation: Orientation::Up,
+        use_file_normals: false,
+        estimator: est.as_ref(),
+        extra: 0,
+        propagate: None,
+        ladder: Some(ladder),
+    };
+    let (mut bufs, go) = (TileBuffers::default(), AtomicBool::new(false));
+    let full = compute_tile(&whole, &scene, &p, 0, Shared::All, &mut bufs, &go).expect("runs");
+    assert_eq!(full.done.len(), whole.xyz.len());
+    assert!(full.retry.is_empty());
+    assert!(full
+        .done
+        .iter()
+        .all(|r| [16, 32, 64, 128].contains(&r.scale)));
+    let h = apex_h(&full);
+    assert!((h + 1.0).abs() < 0.05, "H {h}");
+
+    let mut open = whole.clone();
+    open.region = Rect {
+        min: [-0.2; 2],
+        max: [0.19, 0.2],
+    };
+    // The scene goes on past x = 0.19 only: that is the one open side.
+    let wider = Rect {
+        min: [-0.2; 2],
+        max: [1.0, 0.2],
+    };
+    let part = compute_tile(&open, &wider, &p, 0, Shared::All, &mut bufs, &go).expect("runs");
+    assert_eq!(part.done.len() + part.retry.len(), whole.xyz.len());
+    let counts = (part.done.len(), part.retry.len());
+    assert!(counts.1 > 0 && counts.0 > whole.xyz.len() / 3, "{counts:?}");
+    for r in &part.done {
+        let same = format!("{r:?}") == format!("{:?}", full.done[r.id as usize]);
+        assert!(same, "point {}", r.id);
+    }
+    // r_128 is about 0.064 here (10^4 points per unit area): a point within it of the open
+    // side x = 0.19 is never done; one farther than 0.3 always is (the reach is r_64 + r_128
+    // + r_64 inside, up to 1.4 times that at the patch's closed edges, where neighbourhoods
+    // are half discs).
+    for &id in &part.retry {
+        let x = whole.xyz[id as usize][0];
+        assert!(x > 0.19 - 0.3, "point {id} at x {x} retried");
+    }
+    for r in &part.done {
+        assert!(
+            whole.xyz[r.id as usize][0] < 0.19 - 0.06,
+            "point {} done",
+            r.id
+        );
+    }
 }

@@ -12,7 +12,10 @@ use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::{orient, pca_normal, Orientation};
 use crate::core::plan::Rect;
 use crate::core::rng::position_key;
+use crate::core::scale::Ladder;
 use crate::core::tile::TilePoints;
+
+mod auto;
 
 /// What to compute per point.
 #[derive(Clone, Copy)]
@@ -34,6 +37,9 @@ pub struct ComputeParams<'e> {
     /// `--orient propagate`: the cloud's centroid, from which each tile's propagation is seeded
     /// (orient.rs); None for the per-point rules.
     pub propagate: Option<V3>,
+    /// `-k auto`: the ladder of scales chosen from per point ([`auto`]); `k` is then its top
+    /// rung. None for one fixed `k`.
+    pub ladder: Option<Ladder>,
 }
 
 /// Which loaded points of a pass another pass also orients (for the cross-tile votes of
@@ -75,6 +81,10 @@ pub struct PointResult {
     /// With `--orient propagate`: the point's patch, numbered within its tile (see orient.rs);
     /// [`NO_PATCH`] otherwise.
     pub patch: u32,
+    /// With `-k auto`: the K of the chosen rung (0 otherwise).
+    pub scale: u16,
+    /// With `-k auto`: the choice's [`scale_flags`](crate::core::scale::scale_flags).
+    pub scale_flags: u8,
 }
 
 impl PointResult {
@@ -87,6 +97,8 @@ impl PointResult {
             curvature: Curvature::undefined(flags::NOT_COMPUTED),
             extra: [f64::NAN; MAX_EXTRA],
             patch: NO_PATCH,
+            scale: 0,
+            scale_flags: 0,
         }
     }
 
@@ -212,6 +224,9 @@ struct ListInfo {
     /// Whether the list is provably the point's true k-NN (nothing nearer is outside the
     /// loaded region).
     complete: bool,
+    /// Whether the list's first [`Reach::prefix`] entries are provably the point's true
+    /// nearest (always so when the list is complete).
+    prefix: bool,
 }
 
 /// `compute_tile`'s flat neighbour lists and their [`ListInfo`], owned by the caller and reused
@@ -223,22 +238,34 @@ pub struct TileBuffers {
     info: Vec<ListInfo>,
 }
 
+/// How far a tile's neighbour lists reach.
+#[derive(Clone, Copy)]
+struct Reach {
+    /// Entries per list.
+    k: usize,
+    /// `--radius`, if any.
+    radius: Option<f64>,
+    /// The prefix whose completeness is recorded besides the whole list's ([`ListInfo`]): the
+    /// neighbourhood of the normals under `-k auto`; `k` otherwise.
+    prefix: usize,
+}
+
 /// The neighbourhood of point `i` into `slot` (its k entries of the flat list array): its k
 /// nearest, cut at `radius` when one is given.
-#[allow(clippy::too_many_arguments)]
 fn knn_into(
     t: &TilePoints,
     index: &NeighbourIndex<'_>,
     scene: &Rect,
-    (k, radius): (usize, Option<f64>),
+    reach: Reach,
     i: usize,
-    scratch: &mut KnnScratch,
-    list: &mut Vec<u32>,
+    (scratch, list): &mut (KnnScratch, Vec<u32>),
     slot: &mut [u32],
 ) -> ListInfo {
-    let far = index.knn(i, k, scratch, list);
-    let full = list.len() == k;
-    let cut = radius.is_some_and(|r| index.cut_to_radius(i, r, list));
+    let far = index.knn(i, reach.k, scratch, list);
+    let full = list.len() == reach.k;
+    let cut = reach
+        .radius
+        .is_some_and(|r| index.cut_to_radius(i, r, list));
     slot[..list.len()].copy_from_slice(list);
     let p = t.xyz[i];
     let room = t.region.distance_to_open_side(p[0], p[1], scene);
@@ -249,63 +276,85 @@ fn knn_into(
     // complete when the farthest of them is within `room` (all inside the radius, if any).
     let within = |r: f64| r * (1.0 + 8.0 * f64::EPSILON) < room;
     let complete = if cut || !full {
-        room.is_infinite() || radius.is_some_and(within)
+        room.is_infinite() || reach.radius.is_some_and(within)
     } else {
         far <= room
     };
+    // A prefix of the k nearest is the true nearest of its size when its farthest is within
+    // `room` (recomputed here, hence the margin).
+    let prefix = complete
+        || list.get(reach.prefix.wrapping_sub(1)).is_some_and(|&j| {
+            let d = sub(t.xyz[j as usize], p);
+            within(dot(d, d).sqrt())
+        });
     ListInfo {
         len: list.len() as u32,
         complete,
+        prefix,
     }
 }
 
-/// Steps 1 and 2 (`reach`: k and the radius, if any): the neighbour lists of the core points, then of the halo points that core
-/// neighbourhoods reach (their normals are used), into `bufs` (point i: `lists[i k ..][..len]`).
+/// The lists of the points `which` marks that have none yet, into `bufs`.
+fn lists_for(
+    t: &TilePoints,
+    index: &NeighbourIndex<'_>,
+    scene: &Rect,
+    reach: Reach,
+    bufs: &mut TileBuffers,
+    which: &[bool],
+    cancel: &AtomicBool,
+) {
+    let scratch = || (KnnScratch::default(), Vec::with_capacity(reach.k));
+    let TileBuffers { lists, info } = bufs;
+    lists
+        .par_chunks_mut(reach.k)
+        .zip(info.par_iter_mut())
+        .enumerate()
+        .for_each_init(scratch, |s, (i, (slot, li))| {
+            if li.len == 0 && which[i] && !cancel.load(Ordering::Relaxed) {
+                *li = knn_into(t, index, scene, reach, i, s, slot);
+            }
+        });
+}
+
+/// The points within the first `prefix` entries of the lists of the points `from` marks.
+fn mark(bufs: &TileBuffers, k: usize, from: &[bool], prefix: usize) -> Vec<bool> {
+    let marked: Vec<AtomicBool> = from.iter().map(|_| AtomicBool::new(false)).collect();
+    (0..from.len()).into_par_iter().for_each(|i| {
+        if from[i] {
+            let l = bufs.list(i, k);
+            for &j in &l[..l.len().min(prefix)] {
+                marked[j as usize].store(true, Ordering::Relaxed);
+            }
+        }
+    });
+    marked.into_iter().map(AtomicBool::into_inner).collect()
+}
+
+/// Steps 1 and 2: the neighbour lists of the core points, then level by level of the points
+/// the previous level's lists reach (the first `levels[l]` entries of each), into `bufs`
+/// (point i: `lists[i k ..][..len]`). One fixed k needs one level (the neighbours, whose
+/// normals are used); `-k auto` two (auto.rs).
 fn neighbour_lists(
     t: &TilePoints,
     index: &NeighbourIndex<'_>,
     scene: &Rect,
-    reach: (usize, Option<f64>),
+    reach: Reach,
+    levels: &[usize],
     bufs: &mut TileBuffers,
     cancel: &AtomicBool,
 ) {
-    let k = reach.0;
     let n = t.xyz.len();
-    let n_core = t.n_core;
-    let TileBuffers { lists, info } = bufs;
-    lists.clear();
-    lists.resize(n * k, 0);
-    info.clear();
-    info.resize(n, ListInfo::default());
-    let scratch = || (KnnScratch::default(), Vec::with_capacity(k));
-    lists[..n_core * k]
-        .par_chunks_mut(k)
-        .zip(info[..n_core].par_iter_mut())
-        .enumerate()
-        .for_each_init(scratch, |(s, list), (i, (slot, li))| {
-            if !cancel.load(Ordering::Relaxed) {
-                *li = knn_into(t, index, scene, reach, i, s, list, slot);
-            }
-        });
-    let needed: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
-    lists[..n_core * k]
-        .par_chunks(k)
-        .zip(info[..n_core].par_iter())
-        .for_each(|(l, li)| {
-            for &j in &l[..li.len as usize] {
-                needed[j as usize].store(true, Ordering::Relaxed);
-            }
-        });
-    lists[n_core * k..]
-        .par_chunks_mut(k)
-        .zip(info[n_core..].par_iter_mut())
-        .enumerate()
-        .for_each_init(scratch, |(s, list), (h, (slot, li))| {
-            let j = n_core + h;
-            if needed[j].load(Ordering::Relaxed) && !cancel.load(Ordering::Relaxed) {
-                *li = knn_into(t, index, scene, reach, j, s, list, slot);
-            }
-        });
+    bufs.lists.clear();
+    bufs.lists.resize(n * reach.k, 0);
+    bufs.info.clear();
+    bufs.info.resize(n, ListInfo::default());
+    let mut level: Vec<bool> = (0..n).map(|i| i < t.n_core).collect();
+    lists_for(t, index, scene, reach, bufs, &level, cancel);
+    for &prefix in levels {
+        level = mark(bufs, reach.k, &level, prefix);
+        lists_for(t, index, scene, reach, bufs, &level, cancel);
+    }
 }
 
 impl TileBuffers {
@@ -348,6 +397,39 @@ fn tile_normals(
         .collect()
 }
 
+/// The estimator at point `i` with the neighbour list `list` and the tile's `normals`: its
+/// curvature (flagged FILE_NORMAL when the file's normal was used) and extra values; undefined
+/// (DEGENERATE_NORMAL, and FEW_NEIGHBOURS below 3 points) without a normal at `i`.
+fn estimate_one(
+    t: &TilePoints,
+    p: &ComputeParams<'_>,
+    normals: &[Option<V3>],
+    i: usize,
+    list: &[u32],
+    s: &mut NeighbourhoodBuf,
+) -> (Curvature, [f64; MAX_EXTRA]) {
+    let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
+        flags::FILE_NORMAL
+    } else {
+        0
+    };
+    let mut extra = [f64::NAN; MAX_EXTRA];
+    if normals[i].is_none() {
+        // Fewer than 3 points in the whole neighbourhood: both reasons hold.
+        let few = if list.len() < 3 {
+            flags::FEW_NEIGHBOURS
+        } else {
+            0
+        };
+        let c = Curvature::undefined(flags::DEGENERATE_NORMAL | few | file_flag);
+        return (c, extra);
+    }
+    let out = &mut extra[..p.extra.min(MAX_EXTRA)];
+    let mut curvature = s.estimate(p.estimator, &t.xyz, normals, i, list, out);
+    curvature.flags |= file_flag;
+    (curvature, extra)
+}
+
 /// Step 4: the estimator at the core points `todo` (verified), written in place (an indexed
 /// collect: partition_map's intermediate lists and appends were half of all page faults).
 fn estimate_points(
@@ -364,37 +446,22 @@ fn estimate_points(
         .map_init(
             || NeighbourhoodBuf::with_capacity(p.k),
             |s, &i| {
-                let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
-                    flags::FILE_NORMAL
-                } else {
-                    0
+                let (curvature, extra) = match cancel.load(Ordering::Relaxed) {
+                    true => (Curvature::undefined(0), [f64::NAN; MAX_EXTRA]),
+                    false => estimate_one(t, p, normals, i, bufs.list(i, p.k), s),
                 };
-                let Some(n0) = normals[i].filter(|_| !cancel.load(Ordering::Relaxed)) else {
-                    // Fewer than 3 points in the whole neighbourhood: both reasons hold.
-                    let few = if bufs.list(i, p.k).len() < 3 {
-                        flags::FEW_NEIGHBOURS
-                    } else {
-                        0
-                    };
-                    return PointResult {
-                        id: t.ids[i],
-                        normal: [f64::NAN; 3],
-                        curvature: Curvature::undefined(flags::DEGENERATE_NORMAL | few | file_flag),
-                        extra: [f64::NAN; MAX_EXTRA],
-                        patch: NO_PATCH,
-                    };
-                };
-                let list = bufs.list(i, p.k);
-                let mut extra = [f64::NAN; MAX_EXTRA];
-                let out = &mut extra[..p.extra.min(MAX_EXTRA)];
-                let mut curvature = s.estimate(p.estimator, &t.xyz, normals, i, list, out);
-                curvature.flags |= file_flag;
                 PointResult {
                     id: t.ids[i],
-                    normal: n0,
+                    normal: normals[i].unwrap_or([f64::NAN; 3]),
                     curvature,
                     extra,
-                    patch: patch_of(i),
+                    patch: if normals[i].is_some() {
+                        patch_of(i)
+                    } else {
+                        NO_PATCH
+                    },
+                    scale: 0,
+                    scale_flags: 0,
                 }
             },
         )
@@ -423,9 +490,17 @@ pub fn compute_tile(
     let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids, p.k) else {
         return Ok(TileOutcome::default());
     };
+    if let Some(ladder) = p.ladder {
+        return auto::compute_auto(t, scene, p, ladder, &index, bufs, cancel);
+    }
     let (n, k, n_core) = (t.xyz.len(), p.k, t.n_core);
     stop()?;
-    neighbour_lists(t, &index, scene, (k, p.radius), bufs, cancel);
+    let reach = Reach {
+        k,
+        radius: p.radius,
+        prefix: k,
+    };
+    neighbour_lists(t, &index, scene, reach, &[k], bufs, cancel);
     stop()?;
     let bufs = &*bufs;
     let mut normals = tile_normals(t, p, bufs, cancel);
@@ -473,5 +548,4 @@ pub fn compute_tile(
 }
 
 #[cfg(test)]
-#[path = "compute_tests.rs"]
 mod tests;
