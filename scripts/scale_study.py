@@ -5,14 +5,17 @@
                                             one CSV row: errors of OUT.las against its truth
   scale_study.py report --csv CSV --table MD --plot PNG
                                             the Markdown tables and the H RMS vs K plot
+  scale_study.py survey --name N --mode M --times U S E OUT.las
+                                            one Markdown row about a real survey's output
   scale_study.py map --column H --title T --png PNG OUT.las
                                             a top-view map of one column (H clipped at the
                                             2-98 percentiles; ScaleK on a log scale)
 
 Errors are against the closed-form columns TrueH and TrueK that `tilecurv generate` writes, over
 the points where both the estimate and the truth are defined, away from a border band of B
-metres from the cloud's bounding box in x and y (B = 0: every point; the terrain's square has
-one-sided neighbourhoods near its edges, the torus and goursat are closed).
+metres from the cloud's bounding box in x and y (--border B; the terrain's square has one-sided
+neighbourhoods near its edges), or for a torus processed with --orient outward away from the
+seams where that orientation flips, with the flipped H's sign restored (--torus-seam BAND).
 """
 
 import argparse
@@ -43,15 +46,27 @@ def read(path, names):
     las = laspy.read(path)
     dims = set(las.point_format.dimension_names)
     cols = {n: np.asarray(las[n], dtype=np.float64) for n in names if n in dims}
-    return np.asarray(las.x), np.asarray(las.y), cols
+    return np.asarray(las.x), np.asarray(las.y), np.asarray(las.z), cols
 
 
 def rms(v):
     return float(np.sqrt(np.mean(v * v))) if v.size else float("nan")
 
 
+def torus_seam(x, y, z, band_m, big_r=6.0, r=2.0):
+    """For a torus processed with --orient outward (normals away from the centroid, the origin):
+    the sign that turns its H into the outward normal's, and the points farther than band_m
+    (along the tube) from the seams where that orientation flips. The outward normal n at
+    tube angle theta has <n | p> = R cos(theta) + r, so `outward` flips the normals where
+    cos(theta) < -r/R; neighbourhoods across that circle mix both signs and are left out."""
+    ct = (np.hypot(x, y) - big_r) / np.hypot(np.hypot(x, y) - big_r, z)
+    theta = np.arccos(np.clip(ct, -1.0, 1.0))  # 0..pi, symmetric in z
+    seam = math.acos(-r / big_r)
+    return np.where(big_r * ct + r < 0, -1.0, 1.0), np.abs(theta - seam) * r > band_m
+
+
 def measure(a):
-    x, y, c = read(a.output, ["H", "K", "TrueH", "TrueK", "CurvatureFlags", "ScaleK", "ScaleFlags"])
+    x, y, z, c = read(a.output, ["H", "K", "TrueH", "TrueK", "CurvatureFlags", "ScaleK", "ScaleFlags"])
     n = x.size
     flags = c["CurvatureFlags"].astype(np.int64)
     inside = np.ones(n, dtype=bool)
@@ -60,6 +75,9 @@ def measure(a):
             (x >= x.min() + a.border) & (x <= x.max() - a.border)
             & (y >= y.min() + a.border) & (y <= y.max() - a.border)
         )
+    if a.torus_seam > 0:
+        sign, inside = torus_seam(x, y, z, a.torus_seam)
+        c["H"] = c["H"] * sign
     truth = np.isfinite(c["TrueH"]) & np.isfinite(c["TrueK"]) & inside
     defined = np.isfinite(c["H"]) & np.isfinite(c["K"]) & ((flags & UNDEFINED) == 0)
     ok = truth & defined
@@ -203,6 +221,22 @@ def plot(rows, clouds, path):
     save_png(fig, path)
 
 
+def survey(a):
+    x, _, _, c = read(a.output, ["H", "CurvatureFlags", "ScaleK", "ScaleFlags"])
+    ok = np.isfinite(c["H"]) & ((c["CurvatureFlags"].astype(np.int64) & UNDEFINED) == 0)
+    h = c["H"][ok]
+    p2, p50, p98 = np.percentile(h, [2, 50, 98])
+    scale, sat = "-", "-"
+    if "ScaleK" in c:
+        sk = c["ScaleK"][ok].astype(int)
+        rungs, counts = np.unique(sk, return_counts=True)
+        scale = ", ".join(f"{r}: {100 * k / sk.size:.0f}%" for r, k in zip(rungs, counts))
+        sat = f"{100 * ((c['ScaleFlags'][ok].astype(np.int64) & SATURATED) != 0).mean():.0f}%"
+    user, sys_, _ = (float(t) for t in a.times)
+    print(f"| {a.name} | {a.mode} | {ok.sum()} | {p2:.3g} / {p50:.3g} / {p98:.3g} | {h.std():.3g} "
+          f"| {scale} | {sat} | {1e6 * (user + sys_) / ok.sum():.2f} |")
+
+
 def binned(idx, v, nx, ny):
     """The mean of v per pixel (NaN where empty), as an ny x nx image."""
     total = np.bincount(idx, weights=v, minlength=nx * ny)
@@ -219,7 +253,7 @@ def map_(a):
     import matplotlib.ticker
     from matplotlib.colors import LogNorm
 
-    x, y, c = read(a.output, [a.column, "CurvatureFlags"])
+    x, y, _, c = read(a.output, [a.column, "CurvatureFlags"])
     v = c[a.column]
     # Undefined and not-computed points hold the column's no-data value: left out.
     keep = np.isfinite(v) & ((c["CurvatureFlags"].astype(np.int64) & UNDEFINED) == 0)
@@ -267,6 +301,8 @@ def main():
     m.add_argument("--mode", required=True, choices=["fixed", "radius", "auto"])
     m.add_argument("--param", required=True)
     m.add_argument("--border", type=float, default=0.0)
+    m.add_argument("--torus-seam", type=float, default=0.0,
+                   help="torus with --orient outward: score away from the seams by this many m")
     m.add_argument("--times", nargs=3, required=True, metavar=("USER", "SYS", "WALL"))
     m.add_argument("output")
     m.set_defaults(f=measure)
@@ -275,6 +311,12 @@ def main():
     r.add_argument("--table", required=True)
     r.add_argument("--plot", required=True)
     r.set_defaults(f=report)
+    s = sub.add_parser("survey")
+    s.add_argument("--name", required=True)
+    s.add_argument("--mode", required=True)
+    s.add_argument("--times", nargs=3, required=True, metavar=("USER", "SYS", "WALL"))
+    s.add_argument("output")
+    s.set_defaults(f=survey)
     g = sub.add_parser("map")
     g.add_argument("--column", required=True)
     g.add_argument("--title", required=True)

@@ -7,6 +7,7 @@
 #   bash scripts/scale_study.sh            everything -> docs/scale/ (CSV, tables) + docs/img/
 #   bash scripts/scale_study.sh --quick    20k-point clouds, K in {20, 80, 320}, no maps ->
 #                                          target/scale-study-quick/ (a minute)
+#   bash scripts/scale_study.sh --surveys  only the real surveys' maps and their table
 #
 # Environment: CARGO_TARGET_DIR (where the release binary is built), STUDY_DIR (clouds and
 # outputs, default target/scale-study; about 40 MB at a time), THREADS (default 2), NICE
@@ -18,8 +19,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-quick=0
+quick=0 clouds=1
 [ "${1:-}" = --quick ] && quick=1
+[ "${1:-}" = --surveys ] && clouds=0
 THREADS=${THREADS:-2}
 NICE=${NICE:-10}
 TARGET=${CARGO_TARGET_DIR:-$PWD/target}
@@ -52,38 +54,48 @@ AUTO=0
 "$BIN" process --help | grep -qiw auto && AUTO=1
 
 CSV=$OUT/results.csv
-{
-    echo "date: $(date -u '+%Y-%m-%d %H:%M UTC')"
-    echo "commit: $(git rev-parse --short HEAD)$(git diff --quiet || echo ' (uncommitted changes)')"
-    echo "cpu: $(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -n1), $(nproc) cores (shared)"
-    echo "threads: $THREADS, nice $NICE"
-    echo "-k auto: $([ "$AUTO" = 1 ] && echo available || echo 'not in this build: skipped')"
-    echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
-} >"$OUT/machine.txt"
-$PY header >"$CSV"
+if [ "$clouds" = 1 ]; then
+    {
+        echo "date: $(date -u '+%Y-%m-%d %H:%M UTC')"
+        echo "commit: $(git rev-parse --short HEAD)$(git diff --quiet || echo ' (uncommitted changes)')"
+        echo "cpu: $(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -n1), $(nproc) cores (shared)"
+        echo "threads: $THREADS, nice $NICE"
+        echo "-k auto: $([ "$AUTO" = 1 ] && echo available || echo 'not in this build: skipped')"
+        echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
+    } >"$OUT/machine.txt"
+    $PY header >"$CSV"
 
-# name, generator arguments, --orient, border band (m) excluded from the scores, radii with the
-# -k cap of each (RADIUS:CAP). The radii hold about 30, 110 and 300 points at the full size's
-# density (terrain 4/m^2; torus 80k points over 474 m^2, 169/m^2; goursat 80k over ~1840 m^2,
-# 43/m^2); each cap is about 3x that, so it binds almost nowhere, and the run's cost (the cap's
-# k-NN query, then the cut) stays that of the radius.
-if [ "$quick" = 1 ]; then
-    TERRAIN_N=20k SHAPE_N=20k
-else
-    TERRAIN_N=100k SHAPE_N=80k
+    # name | generator arguments | --orient | what is scored | radii with the -k cap of each
+    # (RADIUS:CAP).
+    # Scoring: the terrain leaves out a border band of 11 m (one-sided neighbourhoods near the
+    # square's edges: -k auto at 4 pts/m^2 reaches r_320 + r_160 + r_64, about 11 m, algorithms.md
+    # section 9). The torus is processed with --orient outward, since -k auto refuses propagate
+    # (not yet supported on main): outward flips the normals where cos(theta) < -1/3, so H is
+    # scored with that known sign restored and away from the two seam circles by 1.2 m along the
+    # tube (r_320 = 0.78 m plus r_64 = 0.35 m at 80k points), about 2/3 of the points, outer
+    # (K > 0) and inner (K < 0) parts alike. The goursat is star-shaped: outward is exact, all
+    # points scored.
+    # Radii: about 30, 110 and 300 points at the full size's density (terrain 4/m^2; torus 80k
+    # points over 474 m^2, 169/m^2; goursat 80k over ~1840 m^2, 43/m^2); each cap is about 3x that,
+    # so it binds almost nowhere, and the run's cost (the cap's k-NN query, then the cut) stays that
+    # of the radius.
+    if [ "$quick" = 1 ]; then
+        TERRAIN_N=20k SHAPE_N=20k
+    else
+        TERRAIN_N=100k SHAPE_N=80k
 fi
 CLOUDS=(
-    "terrain_clean|terrain --density 4 --points $TERRAIN_N|up|11|1.5m:100 3m:350 5m:1000"
-    "terrain_noise2cm|terrain --density 4 --points $TERRAIN_N --noise 0.02|up|11|1.5m:100 3m:350 5m:1000"
-    "terrain_half5cm|terrain --density 4 --points $TERRAIN_N --noise 0:0.05|up|11|1.5m:100 3m:350 5m:1000"
-    "torus|torus --points $SHAPE_N|propagate|0|0.25m:100 0.45m:350 0.75m:1000"
-    "goursat|goursat --points $SHAPE_N|outward|0|0.5m:100 0.9m:350 1.5m:1000"
-    "torus_noise0.02|torus --points $SHAPE_N --noise 0.02|propagate|0|0.25m:100 0.45m:350 0.75m:1000"
+    "terrain_clean|terrain --density 4 --points $TERRAIN_N|up|--border 11|1.5m:100 3m:350 5m:1000"
+    "terrain_noise2cm|terrain --density 4 --points $TERRAIN_N --noise 0.02|up|--border 11|1.5m:100 3m:350 5m:1000"
+    "terrain_half5cm|terrain --density 4 --points $TERRAIN_N --noise 0:0.05|up|--border 11|1.5m:100 3m:350 5m:1000"
+    "torus|torus --points $SHAPE_N|outward|--torus-seam 1.2|0.25m:100 0.45m:350 0.75m:1000"
+    "goursat|goursat --points $SHAPE_N|outward||0.5m:100 0.9m:350 1.5m:1000"
+    "torus_noise0.02|torus --points $SHAPE_N --noise 0.02|outward|--torus-seam 1.2|0.25m:100 0.45m:350 0.75m:1000"
 )
 
-# run CLOUD INPUT ORIENT BORDER MODE PARAM ARGS...: one timed `process`, scored, output removed.
+# run CLOUD INPUT ORIENT SCORING MODE PARAM ARGS...: one timed `process`, scored, output removed.
 run() {
-    local cloud=$1 input=$2 orient=$3 border=$4 mode=$5 param=$6
+    local cloud=$1 input=$2 orient=$3 scoring=$4 mode=$5 param=$6
     shift 6
     local out=$DIR/out.las times
     rm -f "$out"
@@ -91,30 +103,31 @@ run() {
         --orient "$orient" --threads "$THREADS" -q "$@" 2>&1 >/dev/null; } | tail -n1)
     [ -f "$out" ] || { echo "scale_study.sh: process $input $* failed: $times" >&2; exit 1; }
     # shellcheck disable=SC2086
-    $PY measure --cloud "$cloud" --mode "$mode" --param "$param" --border "$border" \
+    $PY measure --cloud "$cloud" --mode "$mode" --param "$param" $scoring \
         --times $times "$out" >>"$CSV"
     echo "  $cloud $mode $param: $(tail -n1 "$CSV")"
     rm -f "$out"
 }
 
 for spec in "${CLOUDS[@]}"; do
-    IFS='|' read -r cloud gen orient border radii <<<"$spec"
+    IFS='|' read -r cloud gen orient scoring radii <<<"$spec"
     input=$DIR/$cloud.las
     # shellcheck disable=SC2086
     [ -f "$input" ] || "$BIN" generate $gen --seed 15 -q -o "$input"
     echo "$cloud ($gen, --orient $orient)"
     for k in "${KS[@]}"; do
-        run "$cloud" "$input" "$orient" "$border" fixed "$k" -k "$k"
+        run "$cloud" "$input" "$orient" "$scoring" fixed "$k" -k "$k"
     done
     for rc in $radii; do
-        run "$cloud" "$input" "$orient" "$border" radius "${rc%%:*}" --radius "${rc%%:*}" -k "${rc##*:}"
+        run "$cloud" "$input" "$orient" "$scoring" radius "${rc%%:*}" --radius "${rc%%:*}" -k "${rc##*:}"
     done
     if [ "$AUTO" = 1 ]; then
-        run "$cloud" "$input" "$orient" "$border" auto 20..320 -k auto
+        run "$cloud" "$input" "$orient" "$scoring" auto 20..320 -k auto
     fi
 done
 echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)" >>"$OUT/machine.txt"
 $PY report --csv "$CSV" --table "$OUT/table.md" --plot "$IMG/scale_h_rms_vs_k.png"
+fi
 
 # H maps of real surveys, bare earth: bcts_1 (forested, 12-15 pts/m^2: its ground class 2,
 # 48,729 of 531,662 points) and Topography (hilly terrain with water, multiple returns through
@@ -122,6 +135,11 @@ $PY report --csv "$CSV" --table "$OUT/table.md" --plot "$IMG/scale_h_rms_vs_k.pn
 # Neighbourhoods are formed among the selected points only.
 if [ "$quick" = 0 ]; then
     LAS=../shared/data/las
+    SURVEYS=$OUT/surveys.md
+    {
+        echo "| survey | mode | points computed | H p2 / p50 / p98 (1/m) | H sd | chosen K | saturated | CPU us per computed point (whole file read and written) |"
+        echo "|---|---|---:|---:|---:|---|---:|---:|"
+    } >"$SURVEYS"
     for spec in "bcts_1|$LAS/bcts_1.laz|--classes 2" "topography|$LAS/Topography.las|--classes 2,9"; do
         IFS='|' read -r name input select <<<"$spec"
         [ -f "$input" ] || { echo "scale_study.sh: $input is missing (shared data): no maps of it" >&2; continue; }
@@ -131,7 +149,11 @@ if [ "$quick" = 0 ]; then
             IFS='|' read -r tag args <<<"$m"
             out=$DIR/${name}_$tag.las
             # shellcheck disable=SC2086
-            nice -n "$NICE" "$BIN" process "$input" -o "$out" --threads "$THREADS" -q $select $args
+            times=$( { /usr/bin/time -f '%U %S %e' nice -n "$NICE" "$BIN" process "$input" -o "$out" \
+                --threads "$THREADS" -q $select $args 2>&1 >/dev/null; } | tail -n1)
+            [ -f "$out" ] || { echo "scale_study.sh: process $input $select $args failed: $times" >&2; exit 1; }
+            # shellcheck disable=SC2086
+            $PY survey --name "$name" --mode "$tag" --times $times "$out" >>"$SURVEYS"
             $PY map --column H --title "$name, H at $tag" --png "$IMG/${name}_H_$tag.png" "$out"
             if [ "$tag" = auto ]; then
                 $PY map --column ScaleK --title "$name, K chosen by -k auto" \
