@@ -295,34 +295,29 @@ def map_(a):
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
-    sub.add_parser("header").set_defaults(f=header)
-    m = sub.add_parser("measure")
-    m.add_argument("--cloud", required=True)
+
+    def command(name, f, required=(), output=True, times=False):
+        """A subcommand with required string options `required`, the output file argument and
+        GNU time's three numbers if asked."""
+        c = sub.add_parser(name)
+        for opt in required:
+            c.add_argument(opt, required=True)
+        if times:
+            c.add_argument("--times", nargs=3, required=True, metavar=("USER", "SYS", "WALL"))
+        if output:
+            c.add_argument("output")
+        c.set_defaults(f=f)
+        return c
+
+    command("header", header, output=False)
+    m = command("measure", measure, ["--cloud", "--param"], times=True)
     m.add_argument("--mode", required=True, choices=["fixed", "radius", "auto"])
-    m.add_argument("--param", required=True)
     m.add_argument("--border", type=float, default=0.0)
     m.add_argument("--torus-seam", type=float, default=0.0,
                    help="torus with --orient outward: score away from the seams by this many m")
-    m.add_argument("--times", nargs=3, required=True, metavar=("USER", "SYS", "WALL"))
-    m.add_argument("output")
-    m.set_defaults(f=measure)
-    r = sub.add_parser("report")
-    r.add_argument("--csv", required=True)
-    r.add_argument("--table", required=True)
-    r.add_argument("--plot", required=True)
-    r.set_defaults(f=report)
-    s = sub.add_parser("survey")
-    s.add_argument("--name", required=True)
-    s.add_argument("--mode", required=True)
-    s.add_argument("--times", nargs=3, required=True, metavar=("USER", "SYS", "WALL"))
-    s.add_argument("output")
-    s.set_defaults(f=survey)
-    g = sub.add_parser("map")
-    g.add_argument("--column", required=True)
-    g.add_argument("--title", required=True)
-    g.add_argument("--png", required=True)
-    g.add_argument("output")
-    g.set_defaults(f=map_)
+    command("report", report, ["--csv", "--table", "--plot"], output=False)
+    command("survey", survey, ["--name", "--mode"], times=True)
+    command("map", map_, ["--column", "--title", "--png"])
     args = p.parse_args()
     args.f(args)
 
