@@ -112,26 +112,28 @@ fn rank(a: &Cand, b: &Cand) -> Ordering {
     a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
 }
 
-/// Sorts `v` by [`rank`]. Up to 64 entries (the usual case) are sorted as integer keys, the
-/// squared distance's bits with the entry's position in the low 6 bits (branch-free and much
-/// faster than comparing tuples), then put in exact order by an insertion pass: the keys only
-/// misorder distances within 64 ulps of each other (ties among them), so that pass moves
-/// almost nothing.
+/// Sorts `v` by [`rank`] as integer keys: the squared distance's bits with the entry's position
+/// in the low bits (as many as the entries need, at least 6; branch-free and much faster than
+/// comparing tuples), then put in exact order by an insertion pass: the keys only misorder
+/// distances within 2^bits ulps of each other (relative 2^-36 at most: ties among them), so
+/// that pass moves almost nothing. Past 2^16 entries, a comparison sort.
 fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
-    if v.len() > 64 {
+    if v.len() > 1 << 16 {
         v.sort_unstable_by(rank);
         return;
     }
+    let bits = (usize::BITS - v.len().saturating_sub(1).leading_zeros()).max(6);
+    let low = (1u64 << bits) - 1;
     keys.clear();
     // Squared distances are >= +0.0, whose bit patterns order like the values.
     keys.extend(
         v.iter()
             .enumerate()
-            .map(|(e, r)| (r.0.to_bits() & !63) | e as u64),
+            .map(|(e, r)| (r.0.to_bits() & !low) | e as u64),
     );
     keys.sort_unstable();
     spare.clear();
-    spare.extend(keys.iter().map(|&key| v[(key & 63) as usize]));
+    spare.extend(keys.iter().map(|&key| v[(key & low) as usize]));
     for x in 1..spare.len() {
         let mut y = x;
         while y > 0 && rank(&spare[y], &spare[y - 1]).is_lt() {
@@ -337,7 +339,7 @@ mod tests {
             NeighbourIndex::build(&xyz, &ids, 8).map(|x| x.backend),
             Some(Backend::Grid(_))
         ));
-        check_both_backends(&xyz, &ids, &[1, 5, 8, 9, 13, 30]);
+        check_both_backends(&xyz, &ids, &[1, 5, 8, 9, 13, 30, 70, 130]);
     }
 
     /// Issue 12 item 13: large groups of exact duplicates are answered without a search, with
@@ -359,7 +361,7 @@ mod tests {
         xyz.extend(vec![[500_002.0, 4_100_000.5, 50.25]; 40]);
         xyz.extend(vec![[500_000.5, 4_100_002.0, 50.0]; 3]);
         let ids: Vec<u64> = (0..xyz.len() as u64).map(|i| (i * 7919) % 10_007).collect();
-        check_both_backends(&xyz, &ids, &[5, 30, 41, 60]);
+        check_both_backends(&xyz, &ids, &[5, 30, 41, 60, 100, 250]);
     }
 
     #[test]
