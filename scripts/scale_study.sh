@@ -62,7 +62,8 @@ if [ "$clouds" = 1 ]; then
         echo "threads: $THREADS, nice $NICE"
         echo "-k auto: $([ "$AUTO" = 1 ] && echo available || echo 'not in this build: skipped')"
         echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
-    } >"$OUT/machine.txt"
+    } >"$OUT/machine.txt.new"
+    mv "$OUT/machine.txt.new" "$OUT/machine.txt"
     $PY header >"$CSV"
 
     # name | generator arguments | --orient | what is scored | radii with the -k cap of each
