@@ -10,8 +10,6 @@ use crate::core::scale::Ladder;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnType, Group};
 
-use super::EXIT_HELP;
-
 impl clap::ValueEnum for EstimatorKind {
     fn value_variants<'a>() -> &'a [Self] {
         &EstimatorKind::ALL
@@ -20,58 +18,6 @@ impl clap::ValueEnum for EstimatorKind {
     fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
         Some(clap::builder::PossibleValue::new(self.name()).help(self.summary()))
     }
-}
-
-#[derive(clap::Args, Debug)]
-pub struct GenerateArgs {
-    #[command(subcommand)]
-    pub kind: GenerateKind,
-}
-
-#[derive(clap::Subcommand, Debug)]
-pub enum GenerateKind {
-    /// Aerial-LIDAR-like terrain (hills and hollows on a gentle slope) of any size, with the
-    /// closed-form curvature of every point. Streams: memory does not grow with --points.
-    ///
-    /// Units: coordinates in metres (WGS 84 / UTM zone 10N, EPSG:32610, declared by GeoTIFF
-    /// keys with metre units; scale 0.001 m) around easting 500000, northing 4100000. Points
-    /// are LAS 1.4 point format 1 (GPS time), ordered by flight strip (north-south, 250 m wide)
-    /// and scan row, classified as ground. Extra-bytes columns (f64): TrueH (mean curvature,
-    /// 1/m), TrueK (Gaussian curvature, 1/m^2), Truek1 <= Truek2 (principal curvatures, 1/m),
-    /// with the upward normal: positive on hilltops, the sign of `process`'s H, K, k1, k2.
-    #[command(after_help = EXIT_HELP)]
-    Terrain(TerrainArgs),
-}
-
-#[derive(clap::Args, Debug)]
-pub struct TerrainArgs {
-    /// Output file; the extension chooses the format: .las or .laz. Written to a temporary file
-    /// and renamed when complete.
-    #[arg(short, long)]
-    pub output: PathBuf,
-
-    /// Number of points: 2000000, 2M, 500k, 1e6 (k, M, G = powers of ten). At most 4294967295
-    /// (point format 1's 32-bit legacy count).
-    #[arg(long, value_parser = crate::tools::generate::parse_count)]
-    pub points: u64,
-
-    /// Points per square metre; the terrain covers a square of points/density square metres.
-    #[arg(long, default_value_t = 10.0)]
-    pub density: f64,
-
-    /// Seed of the terrain and of the sampling: the same options give the same file.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-
-    /// Standard deviation of Gaussian noise added to z, in metres: one value (0.02), or
-    /// WEST:EAST for the square's two halves (0:0.05: clean west of the middle, 5 cm of noise
-    /// east of it). The truth columns stay those of the noise-free surface at the point's x, y.
-    #[arg(long, default_value = "0", value_parser = crate::tools::generate::Noise::parse)]
-    pub noise: crate::tools::generate::Noise,
-
-    /// Print nothing on success.
-    #[arg(short, long)]
-    pub quiet: bool,
 }
 
 /// The options that change the output (stored in the work directory's manifest).

@@ -2,6 +2,7 @@
 //! the commands run, and the exit codes. The binary (`main.rs`) only calls [`main_with_args`].
 
 mod args;
+mod generate;
 mod info;
 
 use crate::progress::say;
@@ -12,10 +13,8 @@ use clap::{Parser, Subcommand};
 use crate::config::Config;
 use crate::error::{Error, ExitClass};
 use crate::progress::TermReporter;
-use args::{
-    AssembleArgs, BucketArgs, GenerateArgs, GenerateKind, InfoArgs, PlanArgs, ProcessArgs,
-    RunTileArgs, StatusArgs, TerrainArgs,
-};
+use args::{AssembleArgs, BucketArgs, InfoArgs, PlanArgs, ProcessArgs, RunTileArgs, StatusArgs};
+use generate::GenerateArgs;
 
 /// Exit codes, as documented in `--help` and the README.
 pub mod exit {
@@ -153,9 +152,7 @@ pub fn main_with_args() -> i32 {
     crate::io::limits::raise_open_files();
     crate::io::limits::fit_allocator_to_address_space();
     let r = match cli.command {
-        Command::Generate(GenerateArgs {
-            kind: GenerateKind::Terrain(args),
-        }) => generate(args),
+        Command::Generate(args) => generate::generate(args),
         Command::Process(args) => process(args),
         Command::Info(a) => info::info(a),
         Command::Plan(a) => stages::plan(a),
@@ -165,34 +162,6 @@ pub fn main_with_args() -> i32 {
         Command::Assemble(a) => stages::assemble(a),
     };
     r.unwrap_or_else(|code| code)
-}
-
-/// `tilecurv generate terrain`.
-fn generate(args: TerrainArgs) -> Result<i32, i32> {
-    let opts = crate::tools::generate::TerrainOptions {
-        points: args.points,
-        density_per_m2: args.density,
-        seed: args.seed,
-        noise: args.noise,
-    };
-    let s = crate::tools::generate::generate_terrain(&opts, &args.output, &CANCEL)
-        .map_err(|e| fail(&e))?;
-    if !args.quiet {
-        say!(
-            "done: {} points over {:.0} m x {:.0} m ({} strips, {} bumps, z {:.1}..{:.1} m) in {:.1} s ({:.0} points/s) -> {}",
-            s.points,
-            s.side_m,
-            s.side_m,
-            s.strips,
-            s.bumps,
-            s.z_range_m[0],
-            s.z_range_m[1],
-            s.seconds,
-            s.points as f64 / s.seconds.max(1e-9),
-            args.output.display()
-        );
-    }
-    Ok(exit::OK)
 }
 
 /// The `summary` event of `--progress-json`: the run's counts and outputs.

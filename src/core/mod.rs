@@ -12,6 +12,7 @@ pub mod plan;
 pub mod point;
 pub mod quantize;
 pub mod rng;
+pub mod sampling;
 pub mod scale;
 pub mod select;
 pub mod surface;

@@ -1,10 +1,12 @@
 //! Closed-form curvature of smooth surfaces that the library itself needs (algorithms.md
 //! sections 6.2 and 6.3): the curvature of a height field z = h(x, y) from its derivatives, used
-//! by the jet estimator to read its fit and by `generate terrain` for its truth columns. Pure
-//! numbers. Convention (section 0.1): k1 <= k2, H = (k1 + k2)/2, K = k1 k2.
+//! by the jet estimator to read its fit and by `generate terrain` for its truth columns, and the
+//! torus and goursat of the CNC paper (sections 6.1, 6.4, 6.5), the truth of `generate torus`
+//! and `generate goursat` and of the test kit. Pure numbers. Convention (section 0.1):
+//! k1 <= k2, H = (k1 + k2)/2, K = k1 k2.
 
 use crate::core::estimate::principal_from_tangent;
-use crate::core::geometry::{norm, normalize, scale, tangent_basis, M3, V3};
+use crate::core::geometry::{dot, norm, normalize, scale, tangent_basis, M3, V3};
 
 /// The exact curvature of a smooth surface at one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,7 +56,6 @@ pub fn plane_curvature() -> TrueCurvature {
     TrueCurvature::umbilic(0.0)
 }
 
-/// Cylinder of radius `r` around the z axis with outward normals, at the surface point `p`
 /// Curvature of the level set of F with gradient `g` and Hessian `hs` at a point, with normal
 /// g/|g| (section 6.3): the shape operator is the tangent block of Hess F / |g|. None when the
 /// gradient vanishes.
@@ -124,4 +125,86 @@ impl HeightJet {
 pub trait HeightField {
     /// Value and derivatives at (x, y).
     fn jet(&self, x: f64, y: f64) -> HeightJet;
+}
+
+/// Major and tube radius of the CNC paper's torus (sections 1.10 and 6.5): R = 6, r = 2.
+pub const PAPER_TORUS: (f64, f64) = (6.0, 2.0);
+
+/// The torus point and outward unit normal at angles (theta around the tube from the outer
+/// equator, phi around the z axis), major radius `big_r`, tube radius `r` (section 6.1).
+pub fn torus_point(big_r: f64, r: f64, theta: f64, phi: f64) -> (V3, V3) {
+    let (st, ct) = theta.sin_cos();
+    let (sp, cp) = phi.sin_cos();
+    let rho = big_r + r * ct;
+    ([rho * cp, rho * sp, r * st], [ct * cp, ct * sp, st])
+}
+
+/// Torus curvature from the parametrisation (section 6.1): k1 = cos(theta)/(R + r cos(theta))
+/// along the parallel (phi direction), k2 = 1/r along the meridian (theta direction). k1 <= k2
+/// holds for every theta because R > 0.
+pub fn torus_curvature(big_r: f64, r: f64, theta: f64, phi: f64) -> TrueCurvature {
+    let (st, ct) = theta.sin_cos();
+    let (sp, cp) = phi.sin_cos();
+    let k1 = ct / (big_r + r * ct);
+    let k2 = 1.0 / r;
+    let d1 = [-sp, cp, 0.0];
+    let d2 = [-st * cp, -st * sp, ct];
+    TrueCurvature {
+        k1,
+        k2,
+        h: 0.5 * (k1 + k2),
+        k: k1 * k2,
+        directions: Some((d1, d2)),
+    }
+}
+
+/// Torus curvature at a point `p` near the surface: the angles of its projection onto the
+/// tube (for points read from text files with a few digits).
+pub fn torus_curvature_at(big_r: f64, r: f64, p: V3) -> TrueCurvature {
+    let phi = p[1].atan2(p[0]);
+    let theta = p[2].atan2(p[0].hypot(p[1]) - big_r);
+    torus_curvature(big_r, r, theta, phi)
+}
+
+/// Gradient and Hessian of the implicit torus of section 6.5,
+/// F = (|x|^2 + R^2 - r^2)^2 - 4 R^2 (x^2 + y^2), negative inside.
+pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> (V3, M3) {
+    let s = dot(p, p) + big_r * big_r - r * r;
+    let c = 8.0 * big_r * big_r;
+    let g = [
+        4.0 * s * p[0] - c * p[0],
+        4.0 * s * p[1] - c * p[1],
+        4.0 * s * p[2],
+    ];
+    let mut hs = [[0.0; 3]; 3];
+    for a in 0..3 {
+        for b in 0..3 {
+            hs[a][b] = 8.0 * p[a] * p[b];
+        }
+        hs[a][a] += 4.0 * s - if a < 2 { c } else { 0.0 };
+    }
+    (g, hs)
+}
+
+/// The goursat function of section 6.4, F = 0.03 (x^4 + y^4 + z^4) - 2 |x|^2 - 8 (negative
+/// inside).
+pub fn goursat_value(p: V3) -> f64 {
+    let q: f64 = p.iter().map(|x| x.powi(4)).sum();
+    0.03 * q - 2.0 * dot(p, p) - 8.0
+}
+
+/// Gradient and Hessian of the goursat function (section 6.4).
+pub fn goursat_implicit(p: V3) -> (V3, M3) {
+    let g = p.map(|x| 0.12 * x * x * x - 4.0 * x);
+    let mut hs = [[0.0; 3]; 3];
+    for a in 0..3 {
+        hs[a][a] = 0.36 * p[a] * p[a] - 4.0;
+    }
+    (g, hs)
+}
+
+/// Goursat curvature at a surface point (outward normal = gradient direction).
+pub fn goursat_curvature(p: V3) -> Option<TrueCurvature> {
+    let (g, hs) = goursat_implicit(p);
+    implicit_curvature(g, &hs)
 }

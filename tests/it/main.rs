@@ -27,4 +27,5 @@ mod reference;
 mod rerun;
 mod sample;
 mod sampled;
+mod shapes;
 mod units;

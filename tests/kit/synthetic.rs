@@ -3,15 +3,21 @@
 //! estimators and the engine are tested against. Test kit only: never part of the shipped
 //! library. Everything uses the tool's convention (section 0.1): k1 <= k2, H = (k1 + k2)/2,
 //! K = k1 k2, a sphere with outward normals has H = +1/r. Random streams come from
-//! `tilecurv::core::rng::Rng`, so clouds are identical across releases for a given seed.
+//! `tilecurv::core::rng::Rng`, so clouds are identical across releases for a given seed. The torus
+//! and goursat formulas and samplers are the library's (`core::surface`, `core::sampling`, which
+//! `generate torus` and `generate goursat` use too), re-exported here.
 
 use std::f64::consts::{PI, TAU};
 use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood, Scratch};
 use tilecurv::core::geometry::{dot, normalize, scale, sub, M3, V3};
 use tilecurv::core::rng::Rng;
+pub use tilecurv::core::sampling::{
+    goursat_radial, sample_goursat, sample_torus, unit_vector, Cloud, GOURSAT_DENSITY_BOUND,
+};
 pub use tilecurv::core::surface::{
-    height_field_curvature, implicit_curvature, plane_curvature, HeightField, HeightJet,
-    TrueCurvature,
+    goursat_curvature, goursat_implicit, goursat_value, height_field_curvature, implicit_curvature,
+    plane_curvature, torus_curvature, torus_curvature_at, torus_implicit, torus_point, HeightField,
+    HeightJet, TrueCurvature,
 };
 
 /// Sphere of radius `r` with outward normals (section 6.1): k1 = k2 = 1/r, an umbilic.
@@ -19,6 +25,7 @@ pub fn sphere_curvature(r: f64) -> TrueCurvature {
     TrueCurvature::umbilic(1.0 / r)
 }
 
+/// Cylinder of radius `r` around the z axis with outward normals, at the surface point `p`
 /// (section 6.1): k1 = 0 along the axis, k2 = 1/r around it.
 pub fn cylinder_curvature(r: f64, p: V3) -> TrueCurvature {
     let around = normalize([-p[1], p[0], 0.0]).unwrap_or([0.0, 1.0, 0.0]);
@@ -29,85 +36,6 @@ pub fn cylinder_curvature(r: f64, p: V3) -> TrueCurvature {
         k: 0.0,
         directions: Some(([0.0, 0.0, 1.0], around)),
     }
-}
-
-/// The torus point and outward unit normal at angles (theta around the tube from the outer
-/// equator, phi around the z axis), major radius `big_r`, tube radius `r` (section 6.1).
-pub fn torus_point(big_r: f64, r: f64, theta: f64, phi: f64) -> (V3, V3) {
-    let (st, ct) = theta.sin_cos();
-    let (sp, cp) = phi.sin_cos();
-    let rho = big_r + r * ct;
-    ([rho * cp, rho * sp, r * st], [ct * cp, ct * sp, st])
-}
-
-/// Torus curvature from the parametrisation (section 6.1): k1 = cos(theta)/(R + r cos(theta))
-/// along the parallel (phi direction), k2 = 1/r along the meridian (theta direction). k1 <= k2
-/// holds for every theta because R > 0.
-pub fn torus_curvature(big_r: f64, r: f64, theta: f64, phi: f64) -> TrueCurvature {
-    let (st, ct) = theta.sin_cos();
-    let (sp, cp) = phi.sin_cos();
-    let k1 = ct / (big_r + r * ct);
-    let k2 = 1.0 / r;
-    let d1 = [-sp, cp, 0.0];
-    let d2 = [-st * cp, -st * sp, ct];
-    TrueCurvature {
-        k1,
-        k2,
-        h: 0.5 * (k1 + k2),
-        k: k1 * k2,
-        directions: Some((d1, d2)),
-    }
-}
-
-/// Torus curvature at a point `p` near the surface: the angles of its projection onto the
-/// tube (for points read from text files with a few digits).
-pub fn torus_curvature_at(big_r: f64, r: f64, p: V3) -> TrueCurvature {
-    let phi = p[1].atan2(p[0]);
-    let theta = p[2].atan2(p[0].hypot(p[1]) - big_r);
-    torus_curvature(big_r, r, theta, phi)
-}
-
-/// Gradient and Hessian of the implicit torus of section 6.5,
-/// F = (|x|^2 + R^2 - r^2)^2 - 4 R^2 (x^2 + y^2), negative inside.
-pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> (V3, M3) {
-    let s = dot(p, p) + big_r * big_r - r * r;
-    let c = 8.0 * big_r * big_r;
-    let g = [
-        4.0 * s * p[0] - c * p[0],
-        4.0 * s * p[1] - c * p[1],
-        4.0 * s * p[2],
-    ];
-    let mut hs = [[0.0; 3]; 3];
-    for a in 0..3 {
-        for b in 0..3 {
-            hs[a][b] = 8.0 * p[a] * p[b];
-        }
-        hs[a][a] += 4.0 * s - if a < 2 { c } else { 0.0 };
-    }
-    (g, hs)
-}
-
-/// The goursat function of section 6.4, F = 0.03 (x^4 + y^4 + z^4) - 2 |x|^2 - 8 (negative
-/// inside).
-pub fn goursat_value(p: V3) -> f64 {
-    let q: f64 = p.iter().map(|x| x.powi(4)).sum();
-    0.03 * q - 2.0 * dot(p, p) - 8.0
-}
-
-/// Gradient and Hessian of the goursat function (section 6.4).
-pub fn goursat_implicit(p: V3) -> (V3, M3) {
-    let g = p.map(|x| 0.12 * x * x * x - 4.0 * x);
-    let mut hs = [[0.0; 3]; 3];
-    for a in 0..3 {
-        hs[a][a] = 0.36 * p[a] * p[a] - 4.0;
-    }
-    (g, hs)
-}
-
-/// Goursat curvature at a surface point (outward normal = gradient direction).
-pub fn goursat_curvature(p: V3) -> Option<TrueCurvature> {
-    let (g, hs) = goursat_implicit(p);
-    implicit_curvature(g, &hs)
 }
 
 /// The saddle z = (x^2 - y^2)/2 (section 6.1: k = (-1, +1) at the origin, upward normal).
@@ -148,65 +76,6 @@ impl HeightField for Paraboloid {
     }
 }
 
-/// Sampled oriented points: positions and exact (or noisy) unit normals, same order.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Cloud {
-    /// Positions.
-    pub positions: Vec<V3>,
-    /// Unit normals.
-    pub normals: Vec<V3>,
-}
-
-impl Cloud {
-    fn with_capacity(n: usize) -> Self {
-        Cloud {
-            positions: Vec::with_capacity(n),
-            normals: Vec::with_capacity(n),
-        }
-    }
-
-    fn push(&mut self, p: V3, n: V3) {
-        self.positions.push(p);
-        self.normals.push(n);
-    }
-
-    /// Number of points.
-    pub fn len(&self) -> usize {
-        self.positions.len()
-    }
-
-    /// True if there are no points.
-    pub fn is_empty(&self) -> bool {
-        self.positions.is_empty()
-    }
-
-    /// Adds centred Gaussian noise of standard deviation `sigma_position` to every position
-    /// coordinate and `sigma_normal` to every normal coordinate, then renormalises the normals
-    /// (section 6.6, as in the CNC paper). A normal that the noise cancels exactly is left unchanged.
-    pub fn add_noise(&mut self, sigma_position: f64, sigma_normal: f64, seed: u64) {
-        let mut rng = Rng::new(seed);
-        for (p, n) in self.positions.iter_mut().zip(self.normals.iter_mut()) {
-            for c in p.iter_mut() {
-                *c += sigma_position * rng.normal();
-            }
-            let noisy = [
-                n[0] + sigma_normal * rng.normal(),
-                n[1] + sigma_normal * rng.normal(),
-                n[2] + sigma_normal * rng.normal(),
-            ];
-            *n = normalize(noisy).unwrap_or(*n);
-        }
-    }
-}
-
-/// A uniform random unit vector (uniform z and azimuth: Archimedes).
-pub fn unit_vector(rng: &mut Rng) -> V3 {
-    let z = 2.0 * rng.uniform() - 1.0;
-    let phi = TAU * rng.uniform();
-    let s = (1.0 - z * z).max(0.0).sqrt();
-    [s * phi.cos(), s * phi.sin(), z]
-}
-
 /// `n` points uniform in area on the sphere of radius `r` centred at the origin, outward
 /// normals.
 pub fn sample_sphere(n: usize, r: f64, seed: u64) -> Cloud {
@@ -229,57 +98,6 @@ pub fn sample_cylinder(n: usize, r: f64, length: f64, seed: u64) -> Cloud {
         let z = length * (rng.uniform() - 0.5);
         let (s, c) = (TAU * rng.uniform()).sin_cos();
         cloud.push([r * c, r * s, z], [c, s, 0.0]);
-    }
-    cloud
-}
-
-/// `n` points uniform in area on the torus (major radius `big_r`, tube radius `r`) with outward
-/// normals: uniform angles, theta accepted with probability (R + r cos theta)/(R + r), the
-/// area density (section 6.6).
-pub fn sample_torus(n: usize, big_r: f64, r: f64, seed: u64) -> Cloud {
-    let mut rng = Rng::new(seed);
-    let mut cloud = Cloud::with_capacity(n);
-    while cloud.len() < n {
-        let theta = TAU * rng.uniform();
-        let phi = TAU * rng.uniform();
-        if rng.uniform() * (big_r + r) <= big_r + r * theta.cos() {
-            let (p, nrm) = torus_point(big_r, r, theta, phi);
-            cloud.push(p, nrm);
-        }
-    }
-    cloud
-}
-
-/// Upper bound of the goursat area density per unit solid angle, t^2 / <d | n> over the
-/// radial projection (measured maximum 217.0 over 2e6 directions; checked in the tests).
-pub const GOURSAT_DENSITY_BOUND: f64 = 230.0;
-
-/// The goursat surface point on the ray from the origin in unit direction `d`. Along the ray
-/// F(t d) = a t^4 - 2 t^2 - 8 with a = 0.03 sum d_i^4 > 0, a quadratic in t^2 with one positive
-/// root, so the radial projection is closed form (no bisection needed): the surface is
-/// star-shaped around the origin.
-pub fn goursat_radial(d: V3) -> V3 {
-    let a = 0.03 * d.iter().map(|x| x.powi(4)).sum::<f64>();
-    let t2 = (1.0 + (1.0 + 8.0 * a).sqrt()) / a;
-    scale(d, t2.sqrt())
-}
-
-/// `n` points uniform in area on the goursat surface (section 6.4) with outward normals: radial
-/// projection of uniform directions, accepted with probability proportional to the area per
-/// solid angle t^2 / <d | n> (section 6.6).
-pub fn sample_goursat(n: usize, seed: u64) -> Cloud {
-    let mut rng = Rng::new(seed);
-    let mut cloud = Cloud::with_capacity(n);
-    while cloud.len() < n {
-        let d = unit_vector(&mut rng);
-        let p = goursat_radial(d);
-        let Some(nrm) = normalize(goursat_implicit(p).0) else {
-            continue;
-        };
-        let density = dot(p, p) / dot(d, nrm);
-        if rng.uniform() * GOURSAT_DENSITY_BOUND <= density {
-            cloud.push(p, nrm);
-        }
     }
     cloud
 }

@@ -11,7 +11,7 @@ use crate::core::rng::Rng;
 use crate::core::surface::HeightField;
 
 use super::terrain::Terrain;
-use super::{TerrainOptions, SCALE_M};
+use super::{Record, TerrainOptions, SCALE_M};
 
 /// Largest width of a flight strip in metres (the square is cut into equal strips).
 const STRIP_WIDTH_M: f64 = 250.0;
@@ -74,7 +74,7 @@ impl FlightPlan {
     }
 }
 
-/// Coordinate bounds (min, max) of the records written so far, in integer millimetres.
+/// Coordinate bounds (min, max) of the records written so far, in the file's integer units.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct IntBounds {
     /// Minimum x, y, z.
@@ -93,7 +93,7 @@ impl IntBounds {
     }
 
     /// Extends the bounds by one record.
-    fn add(&mut self, q: [i32; 3]) {
+    pub(super) fn add(&mut self, q: [i32; 3]) {
         self.merge(&IntBounds { lo: q, hi: q });
     }
 
@@ -161,28 +161,26 @@ pub(super) fn generate_row(
         let scan_angle = ((x - centre) / FLYING_HEIGHT_M).atan().to_degrees().round() as i8;
         let gps = strip as f64 * STRIP_INTERVAL_S
             + (first + i as u64 - strip_first) as f64 / PULSE_RATE_HZ;
-        for v in q {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
-        // Intensity: a Lambertian return from a sun-less sensor overhead.
-        out.extend_from_slice(&((nz * 40_000.0) as u16).to_le_bytes());
         // Return 1 of 1, scan direction by row, edge-of-flight-line on the first and last point.
-        let mut bits = 0x09u8;
+        let mut return_bits = 0x09u8;
         if in_strip.is_multiple_of(2) {
-            bits |= 0x40;
+            return_bits |= 0x40;
         }
         if i == 0 || i + 1 == n {
-            bits |= 0x80;
+            return_bits |= 0x80;
         }
-        out.push(bits);
-        out.push(2); // classification: ground
-        out.push(scan_angle as u8);
-        out.push(0); // user data
-        out.extend_from_slice(&((strip + 1) as u16).to_le_bytes());
-        out.extend_from_slice(&gps.to_le_bytes());
-        for v in [t.h, t.k, t.k1, t.k2] {
-            out.extend_from_slice(&v.to_le_bytes());
+        Record {
+            xyz: q,
+            // Intensity: a Lambertian return from a sun-less sensor overhead.
+            intensity: (nz * 40_000.0) as u16,
+            return_bits,
+            class: 2, // ground
+            scan_angle,
+            source: (strip + 1) as u16,
+            gps,
+            truth: [t.h, t.k, t.k1, t.k2],
         }
+        .encode(out);
     }
     bounds
 }

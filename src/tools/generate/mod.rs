@@ -1,11 +1,13 @@
 //! `tilecurv generate terrain`: synthetic aerial-LIDAR-like terrain of any size with closed-form
 //! curvature, written as LAS 1.4 / LAZ (point format 1) with the true H, K, k1, k2 of every point
 //! as f64 extra bytes `TrueH`, `TrueK`, `Truek1`, `Truek2`, so that the accuracy of `process` can
-//! be checked on clouds as large as the engine must handle.
+//! be checked on clouds as large as the engine must handle. `generate torus` and `generate
+//! goursat` ([`shape`]) write the CNC paper's two test shapes in the same layout.
 //!
 //! The surface is [`terrain`]'s, the sampling plan (flight strips, scan rows, batches)
-//! `flight`'s; this module is the command: options, the file's header and VLRs, and the loop
-//! that generates batches of rows in parallel and writes them in order.
+//! `flight`'s; this module is the command: options, the file's header and VLRs ([`FileLayout`],
+//! shared with [`shape`]), the record layout ([`Record`]), and the loop that generates batches
+//! of rows in parallel and writes them in order.
 //!
 //! This module must not hold the cloud: it writes as it generates. It produces the records and
 //! its own VLRs (GeoTIFF keys, the truth columns' descriptors); the file is written by the
@@ -27,7 +29,10 @@ use flight::{generate_row, FlightPlan, IntBounds};
 use terrain::Terrain;
 
 mod flight;
+pub mod shape;
 pub mod terrain;
+
+pub use shape::{generate_shape, Shape, ShapeOptions, ShapeSummary};
 
 /// Coordinate scale of the output (1 mm).
 pub const SCALE_M: f64 = 0.001;
@@ -205,14 +210,14 @@ pub struct TerrainSummary {
     pub seconds: f64,
 }
 
-/// The GeoTIFF key directory of WGS 84 / UTM zone 10N in metres: model type projected, raster
-/// type pixel-is-area, ProjectedCSTypeGeoKey 32610, ProjLinearUnitsGeoKey and VerticalUnitsGeoKey
-/// 9001 (metre), sorted by key id as GeoTIFF requires.
-fn geotiff_keys() -> Vec<u8> {
+/// The GeoTIFF key directory of the projected CRS `epsg` (32767: user-defined) in metres: model
+/// type projected, raster type pixel-is-area, ProjectedCSTypeGeoKey `epsg`, ProjLinearUnitsGeoKey
+/// and VerticalUnitsGeoKey 9001 (metre), sorted by key id as GeoTIFF requires.
+fn geotiff_keys(epsg: u16) -> Vec<u8> {
     let keys: [[u16; 4]; 5] = [
         [1024, 0, 1, 1],
         [1025, 0, 1, 1],
-        [3072, 0, 1, EPSG],
+        [3072, 0, 1, epsg],
         [3076, 0, 1, 9001],
         [4099, 0, 1, 9001],
     ];
@@ -238,25 +243,6 @@ fn truth_descriptors() -> Vec<u8> {
         .collect()
 }
 
-/// The LAS 1.4 header of the output (375 bytes, so that PDAL shows the truth columns from the
-/// extra-bytes VLR as it does for `process` outputs; the layout fields are the writer's). The
-/// bounds are known only once every point is written: until [`LasFileWriter::set_bounds`] they
-/// are those of the origin.
-fn new_header(points: u64, software: &str) -> NewHeader<'_> {
-    NewHeader {
-        minor: 4,
-        system: "SYNTHETIC TERRAIN",
-        software,
-        point_format: POINT_FORMAT,
-        record_length: RECORD_LENGTH as u16,
-        points,
-        scale: [SCALE_M; 3],
-        offset: OFFSETS_M,
-        min: OFFSETS_M,
-        max: OFFSETS_M,
-    }
-}
-
 /// The text of the provenance VLR: the options and the units of the truth columns.
 fn provenance(opts: &TerrainOptions) -> String {
     format!(
@@ -279,40 +265,20 @@ pub fn generate_terrain(
 ) -> Result<TerrainSummary> {
     let started = Instant::now();
     opts.validate()?;
-    let software = format!("tilecurv {} generate", env!("CARGO_PKG_VERSION"));
-    let geotiff = [Vlr::new(
-        "LASF_Projection",
-        34735,
-        "GeoKeyDirectoryTag",
-        geotiff_keys(),
-    )];
-    let provenance = provenance(opts);
-    let spec = LasFileSpec {
-        origin: None,
-        header: HeaderStart::New(new_header(opts.points, &software)),
-        record_length: RECORD_LENGTH as u16,
-        vlrs: &geotiff,
-        evlrs: &[],
-        extra_bytes: truth_descriptors(),
-        provenance: &provenance,
+    let layout = FileLayout {
+        system: "SYNTHETIC TERRAIN",
+        epsg: EPSG,
+        scale: SCALE_M,
+        offset: OFFSETS_M,
+        points: opts.points,
+        provenance: provenance(opts),
     };
-    let mut writer = LasFileWriter::create(output, spec)?;
     let side_m = opts.side_m();
     let terrain = Terrain::new(side_m, opts.seed);
     let plan = FlightPlan::new(side_m, opts.points);
-    let bounds = match write_rows(&terrain, &plan, opts, &mut writer, cancel) {
-        Ok(b) => b,
-        Err(e) => {
-            writer.abandon();
-            return Err(e);
-        }
-    };
-    let at = |a: usize, v: i32| OFFSETS_M[a] + f64::from(v) * SCALE_M;
-    writer.set_bounds(
-        [0, 1, 2].map(|a| at(a, bounds.lo[a])),
-        [0, 1, 2].map(|a| at(a, bounds.hi[a])),
-    );
-    writer.finish()?;
+    let bounds = layout.write(output, |writer| {
+        write_rows(&terrain, &plan, opts, writer, cancel)
+    })?;
     Ok(TerrainSummary {
         points: opts.points,
         side_m,
@@ -324,6 +290,122 @@ pub fn generate_terrain(
         ],
         seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// The header fields and VLRs of a generated file (terrain or shape): LAS 1.4 point format 1
+/// with the truth columns, GeoTIFF keys in metres, the provenance text.
+struct FileLayout<'a> {
+    /// System identifier of the header.
+    system: &'a str,
+    /// ProjectedCSTypeGeoKey (32767: user-defined, metres).
+    epsg: u16,
+    /// Coordinate scale of x, y and z.
+    scale: f64,
+    /// Header offsets of x, y and z.
+    offset: [f64; 3],
+    /// Number of records the file will hold.
+    points: u64,
+    /// The provenance VLR's text.
+    provenance: String,
+}
+
+impl FileLayout<'_> {
+    /// Creates `output`, lets `fill` write every record and return their integer bounds, then
+    /// sets the header's bounds and renames the file into place; on any error the temporary
+    /// file is removed and nothing appears.
+    fn write(
+        &self,
+        output: &Path,
+        fill: impl FnOnce(&mut LasFileWriter) -> Result<IntBounds>,
+    ) -> Result<IntBounds> {
+        let software = format!("tilecurv {} generate", env!("CARGO_PKG_VERSION"));
+        let geotiff = [Vlr::new(
+            "LASF_Projection",
+            34735,
+            "GeoKeyDirectoryTag",
+            geotiff_keys(self.epsg),
+        )];
+        // LAS 1.4 (375-byte header), so that PDAL shows the truth columns from the extra-bytes
+        // VLR as it does for `process` outputs; the layout fields are the writer's. The bounds
+        // are known only once every point is written: until `set_bounds` they are the offsets.
+        let header = NewHeader {
+            minor: 4,
+            system: self.system,
+            software: &software,
+            point_format: POINT_FORMAT,
+            record_length: RECORD_LENGTH as u16,
+            points: self.points,
+            scale: [self.scale; 3],
+            offset: self.offset,
+            min: self.offset,
+            max: self.offset,
+        };
+        let spec = LasFileSpec {
+            origin: None,
+            header: HeaderStart::New(header),
+            record_length: RECORD_LENGTH as u16,
+            vlrs: &geotiff,
+            evlrs: &[],
+            extra_bytes: truth_descriptors(),
+            provenance: &self.provenance,
+        };
+        let mut writer = LasFileWriter::create(output, spec)?;
+        let bounds = match fill(&mut writer) {
+            Ok(b) => b,
+            Err(e) => {
+                writer.abandon();
+                return Err(e);
+            }
+        };
+        let at = |a: usize, v: i32| self.offset[a] + f64::from(v) * self.scale;
+        writer.set_bounds(
+            [0, 1, 2].map(|a| at(a, bounds.lo[a])),
+            [0, 1, 2].map(|a| at(a, bounds.hi[a])),
+        );
+        writer.finish()?;
+        Ok(bounds)
+    }
+}
+
+/// One generated record: point format 1 followed by the four f64 truth columns
+/// ([`RECORD_LENGTH`] bytes).
+#[derive(Debug, Clone, Copy)]
+struct Record {
+    /// Integer coordinates (the header's scale and offset).
+    xyz: [i32; 3],
+    /// Intensity.
+    intensity: u16,
+    /// Return number and count, scan direction, edge of flight line (LAS bit layout).
+    return_bits: u8,
+    /// Classification.
+    class: u8,
+    /// Scan angle rank in degrees.
+    scan_angle: i8,
+    /// Point source ID.
+    source: u16,
+    /// GPS time in seconds.
+    gps: f64,
+    /// TrueH, TrueK, Truek1, Truek2.
+    truth: [f64; 4],
+}
+
+impl Record {
+    /// Appends the record's bytes to `out`.
+    fn encode(&self, out: &mut Vec<u8>) {
+        for v in self.xyz {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&self.intensity.to_le_bytes());
+        out.push(self.return_bits);
+        out.push(self.class);
+        out.push(self.scan_angle as u8);
+        out.push(0); // user data
+        out.extend_from_slice(&self.source.to_le_bytes());
+        out.extend_from_slice(&self.gps.to_le_bytes());
+        for v in self.truth {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
 }
 
 /// Generates the rows of `plan` in batches (in parallel within a batch) and writes them in
