@@ -7,33 +7,16 @@
 
 use std::path::Path;
 
-use crate::common::{column, column_bytes, process, run_process, tilecurv, xs, COLUMNS};
+use crate::common::{
+    column, column_bytes, generate_terrain_with, process, run_process, xs, COLUMNS,
+};
 
 /// Points per square metre, as algorithms.md §9's terrain (r_320 is about 5 m).
-const DENSITY: &str = "4";
+const DENSITY: f64 = 4.0;
 
 /// Writes the half-noisy terrain of `points` points: clean west of the middle, 5 cm east.
 fn half_noisy(path: &Path, points: &str) {
-    let out = tilecurv(&[
-        "generate",
-        "terrain",
-        "-q",
-        "-o",
-        path.to_str().expect("utf-8 path"),
-        "--points",
-        points,
-        "--density",
-        DENSITY,
-        "--noise",
-        "0:0.05",
-        "--seed",
-        "21",
-    ]);
-    assert!(
-        out.status.success(),
-        "generate failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    generate_terrain_with(path, points, 21, DENSITY, &["--noise", "0:0.05"]);
 }
 
 /// H RMS against TrueH over the defined points, west half and east half, and the fraction of

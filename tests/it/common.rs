@@ -59,8 +59,13 @@ pub fn tilecurv(args: &[&str]) -> Output {
 /// (`200k`, `1M` or a plain count) at `density` points per square metre; .las or .laz by the
 /// extension, the same points in both.
 pub fn generate_terrain(path: &Path, points: &str, seed: u64, density: f64) {
+    generate_terrain_with(path, points, seed, density, &[]);
+}
+
+/// [`generate_terrain`] with more `generate terrain` options (`--noise 0:0.05`).
+pub fn generate_terrain_with(path: &Path, points: &str, seed: u64, density: f64, more: &[&str]) {
     let (seed, density) = (seed.to_string(), density.to_string());
-    let out = tilecurv(&[
+    let mut args = vec![
         "generate",
         "terrain",
         "-q",
@@ -72,7 +77,9 @@ pub fn generate_terrain(path: &Path, points: &str, seed: u64, density: f64) {
         &density,
         "--seed",
         &seed,
-    ]);
+    ];
+    args.extend_from_slice(more);
+    let out = tilecurv(&args);
     assert!(
         out.status.success(),
         "generate {} failed: {}",

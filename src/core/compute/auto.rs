@@ -14,13 +14,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use super::{
-    estimate_one, mark, neighbour_lists, Cancelled, ComputeParams, NeighbourhoodBuf, PointResult,
-    Reach, TileBuffers, TileOutcome, NO_PATCH,
+    estimate_one, mark, neighbour_lists, stopped, tile_normals, Cancelled, ComputeParams,
+    NeighbourhoodBuf, PointResult, Reach, TileBuffers, TileOutcome, NO_PATCH,
 };
 use crate::core::estimate::{flags, Curvature, MAX_EXTRA};
 use crate::core::geometry::V3;
 use crate::core::neighbors::NeighbourIndex;
-use crate::core::normals::{orient, pca_normal};
 use crate::core::plan::Rect;
 use crate::core::scale::{choose, Ladder, SMOOTH};
 use crate::core::tile::TilePoints;
@@ -39,10 +38,7 @@ pub(super) fn compute_auto(
     bufs: &mut TileBuffers,
     cancel: &AtomicBool,
 ) -> Result<TileOutcome, Cancelled> {
-    let stop = || match cancel.load(Ordering::Relaxed) {
-        true => Err(Cancelled),
-        false => Ok(()),
-    };
+    let stop = || stopped(cancel);
     let (n, k, n_core) = (t.xyz.len(), ladder.max, t.n_core);
     let reach = Reach {
         k,
@@ -137,24 +133,7 @@ fn rung_normals(
     cancel: &AtomicBool,
 ) -> Vec<Vec<Option<V3>>> {
     (0..ladder.rungs())
-        .map(|s| {
-            (0..t.xyz.len())
-                .into_par_iter()
-                .map(|i| {
-                    if bufs.info[i].len == 0 || cancel.load(Ordering::Relaxed) {
-                        return None;
-                    }
-                    if p.use_file_normals {
-                        if let Some(fnorm) = t.file_normals[i] {
-                            return crate::core::geometry::normalize(fnorm);
-                        }
-                    }
-                    let l = bufs.list(i, ladder.max);
-                    pca_normal(&t.xyz, &l[..l.len().min(ladder.normal_k(s))])
-                        .map(|nrm| orient(nrm, t.xyz[i], p.orientation))
-                })
-                .collect()
-        })
+        .map(|s| tile_normals(t, p, bufs, ladder.normal_k(s), cancel))
         .collect()
 }
 

@@ -128,6 +128,14 @@ impl PointResult {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Cancelled;
 
+/// `Err(Cancelled)` once `cancel` is set: checked between the steps of a pass.
+fn stopped(cancel: &AtomicBool) -> Result<(), Cancelled> {
+    match cancel.load(Ordering::Relaxed) {
+        true => Err(Cancelled),
+        false => Ok(()),
+    }
+}
+
 /// The patch of a point outside any propagation patch.
 pub const NO_PATCH: u32 = u32::MAX;
 
@@ -374,11 +382,14 @@ impl TileBuffers {
     }
 }
 
-/// Step 3: the normal of every point with a neighbour list: the file's, or PCA oriented.
+/// Step 3: the normal of every point with a neighbour list: the file's, or PCA over the first
+/// `prefix` entries of its list (all of them for one k; half a rung's K under `-k auto`),
+/// oriented.
 fn tile_normals(
     t: &TilePoints,
     p: &ComputeParams<'_>,
     bufs: &TileBuffers,
+    prefix: usize,
     cancel: &AtomicBool,
 ) -> Vec<Option<V3>> {
     (0..t.xyz.len())
@@ -392,7 +403,9 @@ fn tile_normals(
                     return crate::core::geometry::normalize(fnorm);
                 }
             }
-            pca_normal(&t.xyz, bufs.list(i, p.k)).map(|nrm| orient(nrm, t.xyz[i], p.orientation))
+            let l = bufs.list(i, p.k);
+            pca_normal(&t.xyz, &l[..l.len().min(prefix)])
+                .map(|nrm| orient(nrm, t.xyz[i], p.orientation))
         })
         .collect()
 }
@@ -483,15 +496,17 @@ pub fn compute_tile(
     bufs: &mut TileBuffers,
     cancel: &AtomicBool,
 ) -> Result<TileOutcome, Cancelled> {
-    let stop = || match cancel.load(Ordering::Relaxed) {
-        true => Err(Cancelled),
-        false => Ok(()),
-    };
+    let stop = || stopped(cancel);
     let Some(index) = NeighbourIndex::build(&t.xyz, &t.ids, p.k) else {
         return Ok(TileOutcome::default());
     };
     if let Some(ladder) = p.ladder {
-        return auto::compute_auto(t, scene, p, ladder, &index, bufs, cancel);
+        // The lists hold the top rung (the configuration already makes k that).
+        let p = ComputeParams {
+            k: ladder.max,
+            ..*p
+        };
+        return auto::compute_auto(t, scene, &p, ladder, &index, bufs, cancel);
     }
     let (n, k, n_core) = (t.xyz.len(), p.k, t.n_core);
     stop()?;
@@ -503,7 +518,7 @@ pub fn compute_tile(
     neighbour_lists(t, &index, scene, reach, &[k], bufs, cancel);
     stop()?;
     let bufs = &*bufs;
-    let mut normals = tile_normals(t, p, bufs, cancel);
+    let mut normals = tile_normals(t, p, bufs, k, cancel);
     stop()?;
     // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.
     let orientation = p.propagate.filter(|_| !p.use_file_normals).map(|centre| {

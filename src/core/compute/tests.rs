@@ -2,6 +2,25 @@
 
 use super::*;
 
+/// Parameters with upward PCA normals, no extra values, no propagation.
+fn params(
+    estimator: &dyn crate::core::estimate::Estimator,
+    k: usize,
+    radius: Option<f64>,
+    ladder: Option<crate::core::scale::Ladder>,
+) -> ComputeParams<'_> {
+    ComputeParams {
+        k,
+        radius,
+        orientation: Orientation::Up,
+        use_file_normals: false,
+        estimator,
+        extra: 0,
+        propagate: None,
+        ladder,
+    }
+}
+
 /// A 40 x 40 patch of the paraboloid z = (x^2 + y^2) / 2 (|H| = 1 at the apex), loaded as a
 /// whole scene.
 fn paraboloid() -> (TilePoints, Rect) {
@@ -82,16 +101,7 @@ fn sharper_than_the_neighbourhood_is_the_sphere_bound() {
 fn a_set_cancel_flag_stops_the_pass() {
     let (t, scene) = paraboloid();
     let est = crate::core::estimate::EstimatorKind::CncAvgHexagram.build(&Default::default());
-    let p = ComputeParams {
-        k: 30,
-        radius: None,
-        orientation: Orientation::Up,
-        use_file_normals: false,
-        estimator: est.as_ref(),
-        extra: 0,
-        propagate: None,
-        ladder: None,
-    };
+    let p = params(est.as_ref(), 30, None, None);
     let mut bufs = TileBuffers::default();
     let all = Shared::All;
     let stop = AtomicBool::new(true);
@@ -129,16 +139,7 @@ fn radius_lists_are_verified_against_the_loaded_region() {
     for (radius, cap, done_from, retried_below) in
         [(0.04, 200, 0.085, 0.075), (0.1, 30, 0.07, 0.025)]
     {
-        let p = ComputeParams {
-            k: cap,
-            radius: Some(radius),
-            orientation: Orientation::Up,
-            use_file_normals: false,
-            estimator: est.as_ref(),
-            extra: 0,
-            propagate: None,
-            ladder: None,
-        };
+        let p = params(est.as_ref(), cap, Some(radius), None);
         let out = compute_tile(&t, &scene, &p, 0, Shared::All, &mut bufs, &go).expect("runs");
         assert_eq!(out.done.len() + out.retry.len(), t.xyz.len());
         let done: std::collections::HashSet<u64> = out.done.iter().map(|r| r.id).collect();
@@ -183,16 +184,7 @@ fn auto_scale_results_do_not_depend_on_the_loaded_region() {
     let (whole, scene) = paraboloid();
     let est = crate::core::estimate::EstimatorKind::CncAvgHexagram.build(&Default::default());
     let ladder = crate::core::scale::Ladder { min: 16, max: 128 };
-    let p = ComputeParams {
-        k: ladder.max,
-        radius: None,
-        orientation: Orientation::Up,
-        use_file_normals: false,
-        estimator: est.as_ref(),
-        extra: 0,
-        propagate: None,
-        ladder: Some(ladder),
-    };
+    let p = params(est.as_ref(), ladder.max, None, Some(ladder));
     let (mut bufs, go) = (TileBuffers::default(), AtomicBool::new(false));
     let full = compute_tile(&whole, &scene, &p, 0, Shared::All, &mut bufs, &go).expect("runs");
     assert_eq!(full.done.len(), whole.xyz.len());
