@@ -69,23 +69,30 @@ pub(super) fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
     (at == b.len()).then_some(stats)
 }
 
-/// Most result files merged at once (one decoded block each, about 64 KiB: 64 MiB in all);
-/// more are first
-/// partly merged into runs. Lowered to what the open-file limit allows (see [`fan_in`]).
-pub const MAX_FAN_IN: usize = 1024;
+/// Most result files merged at once; more are first partly merged into runs (which the work
+/// directory then holds beside the tile files). Lowered to what the open-file limit and the
+/// memory budget allow (see [`fan_in`]).
+pub const MAX_FAN_IN: usize = 8192;
+
+/// Memory one result file takes in a merge: a decoded block (64 KiB of records) with its ids
+/// (the frame and planes of a block being decoded are freed once it is).
+pub const READER_BYTES: usize = 96 << 10;
 
 /// How many result files one merge may open: [`MAX_FAN_IN`], or less when the process's
 /// open-file limit is low (the CLI raised its soft limit to the hard one at start): what the
 /// limit leaves beside the descriptors open now, less a reserve (64, or a quarter of a small
-/// limit) for the output, a run file and everything else; at least 2. A limit too low even
-/// for that makes the open fail with EMFILE, an error that says to raise `ulimit -n`.
-pub fn fan_in() -> usize {
+/// limit) for the output, a run file and everything else; and at most what half of
+/// `memory_bytes` (the run's budget, free once the tiles are done) holds of [`READER_BYTES`];
+/// at least 2. A limit too low even for that makes the open fail with EMFILE, an error that
+/// says to raise `ulimit -n`.
+pub fn fan_in(memory_bytes: usize) -> usize {
+    let by_memory = (memory_bytes / 2 / READER_BYTES).clamp(2, MAX_FAN_IN);
     let Some(soft) = crate::io::limits::open_files_limit() else {
-        return 64;
+        return 64.min(by_memory);
     };
     let in_use = crate::io::limits::open_descriptors().unwrap_or(16);
     let reserve = (soft / 4).min(64);
-    (soft.saturating_sub(in_use).saturating_sub(reserve)).clamp(2, MAX_FAN_IN as u64) as usize
+    (soft.saturating_sub(in_use).saturating_sub(reserve)).clamp(2, by_memory as u64) as usize
 }
 
 /// The result file of a tile.
@@ -207,9 +214,15 @@ pub struct Merger {
 }
 
 impl Merger {
-    /// Opens a merge over `files`, at most [`fan_in`] open at once.
-    pub fn open(dir: &Path, files: &[PathBuf], cols: &ColumnSet) -> Result<Self> {
-        Self::open_with_fan_in(dir, files, cols, fan_in())
+    /// Opens a merge over `files`, at most [`fan_in`] open at once (for a budget of
+    /// `memory_bytes`).
+    pub fn open(
+        dir: &Path,
+        files: &[PathBuf],
+        cols: &ColumnSet,
+        memory_bytes: usize,
+    ) -> Result<Self> {
+        Self::open_with_fan_in(dir, files, cols, fan_in(memory_bytes))
     }
 
     /// Opens a merge over `files` with at most `fan_in` (>= 2) files open at once: while there
