@@ -5,7 +5,8 @@
 //! (u32 LE) and a zstd frame with a checksum ([`crate::io::pack`]) holding the ids as varints
 //! (the first id of the file, then each one's distance past the one before, less 1: ids
 //! strictly increase, so a tile's consecutive points take a zero byte), then the byte planes of
-//! the records (the global patch as u64 if stored, then the columns). Blocks hold about 64 KiB
+//! the records (the global patch as u64 if stored, then the columns, H exclusive-ored with its
+//! prediction from k1 and k2: [`HPrediction`]). Blocks hold about 64 KiB
 //! of records, the memory one reader of a merge keeps. A file is whole only if every block
 //! decodes, the ids increase and the count and the file's end agree ([`TileResults::verify`]).
 
@@ -17,7 +18,7 @@ use super::{parse_stats, stats_bytes};
 use crate::core::orient::GlobalPatch;
 use crate::core::quantize::CurvatureStats;
 use crate::error::{Error, Result};
-use crate::io::columns::ColumnSet;
+use crate::io::columns::{ColumnSet, Value};
 use crate::io::pack::{compress, decompress_into, get_planes, put_planes, put_varint, Cursor};
 use crate::io::workdir::tmp_name;
 
@@ -43,6 +44,60 @@ pub fn record_size(cols: &ColumnSet) -> usize {
     8 + cols.result_size()
 }
 
+/// The stored H exclusive-ored with `(k1 + k2) / 2` computed from the stored k1 and k2 (as the
+/// estimators mostly compute it: the two agree to the bit for about half the points, and to the
+/// low bits for most others), which leaves zeros where the value's mantissa was noise. Its own
+/// inverse, since k1 and k2 are stored as they are; no prediction (0) when it is NaN, whose
+/// bits IEEE leaves to the processor.
+#[derive(Debug, Clone, Copy)]
+struct HPrediction {
+    /// Offsets of H, k1 and k2 in the columns.
+    h: usize,
+    k1: usize,
+    k2: usize,
+    /// f64 values (else f32).
+    wide: bool,
+}
+
+impl HPrediction {
+    /// The prediction for a column set that stores H, k1 and k2.
+    fn of(cols: &ColumnSet) -> Option<Self> {
+        Some(HPrediction {
+            h: cols.stored_offset(Value::H)?,
+            k1: cols.stored_offset(Value::K1)?,
+            k2: cols.stored_offset(Value::K2)?,
+            wide: cols.wide,
+        })
+    }
+
+    /// Applies (or undoes) the prediction on one record's columns.
+    fn apply(&self, columns: &mut [u8]) {
+        let w = if self.wide { 8 } else { 4 };
+        let get = |at: usize| -> Option<f64> {
+            let b = columns.get(at..at + w)?;
+            Some(match self.wide {
+                true => f64::from_le_bytes(b.try_into().ok()?),
+                false => f32::from_le_bytes(b.try_into().ok()?) as f64,
+            })
+        };
+        let (Some(k1), Some(k2)) = (get(self.k1), get(self.k2)) else {
+            return;
+        };
+        let mean = (k1 + k2) / 2.0;
+        if mean.is_nan() {
+            return;
+        }
+        let mut bits = [0u8; 8];
+        match self.wide {
+            true => bits = mean.to_le_bytes(),
+            false => bits[..4].copy_from_slice(&(mean as f32).to_le_bytes()),
+        }
+        if let Some(h) = columns.get_mut(self.h..self.h + w) {
+            h.iter_mut().zip(bits).for_each(|(b, p)| *b ^= p);
+        }
+    }
+}
+
 /// Writes a result file under its temporary name: records pushed in increasing id order.
 pub struct ResultWriter {
     path: PathBuf,
@@ -55,6 +110,7 @@ pub struct ResultWriter {
     count: u64,
     written: u64,
     prev: Option<u64>,
+    predict: Option<HPrediction>,
     ids: Vec<u8>,
     rows: Vec<u8>,
     raw: Vec<u8>,
@@ -93,6 +149,7 @@ impl ResultWriter {
             count,
             written: 0,
             prev: None,
+            predict: HPrediction::of(cols),
             ids: Vec::new(),
             rows: Vec::new(),
             raw: Vec::new(),
@@ -115,8 +172,12 @@ impl ResultWriter {
             )));
         };
         put_varint(&mut self.ids, gap);
+        let start = self.rows.len() + if self.patched { 8 } else { 0 };
         self.rows
             .extend_from_slice(if self.patched { record } else { columns });
+        if let Some(p) = &self.predict {
+            p.apply(&mut self.rows[start..]);
+        }
         self.prev = Some(id);
         self.written += 1;
         if self.rows.len() + self.row > BLOCK_BYTES {
@@ -172,6 +233,7 @@ pub struct TileResults {
     patched: bool,
     /// Column bytes a record.
     columns: usize,
+    predict: Option<HPrediction>,
     /// The statistics of the file's points.
     pub stats: CurvatureStats,
     /// The current block: ids, records as stored, and the next one to return.
@@ -213,6 +275,7 @@ impl TileResults {
             count: word(8),
             patched: word(24) == 1,
             columns,
+            predict: HPrediction::of(cols),
             stats,
             ids: Vec::new(),
             rows: Vec::new(),
@@ -263,6 +326,12 @@ impl TileResults {
         let planes = planes.ok_or_else(|| bad("has a damaged block"))?;
         self.rows.clear();
         get_planes(&mut self.rows, planes, n, row);
+        if let Some(p) = &self.predict {
+            let skip = row - self.columns;
+            self.rows
+                .chunks_exact_mut(row)
+                .for_each(|r| p.apply(&mut r[skip..]));
+        }
         self.next = 0;
         Ok(())
     }

@@ -136,3 +136,86 @@ fn damaged_truncated_and_old_result_files_are_refused() {
     old[..8].copy_from_slice(b"TCRES004");
     check(&old, "the previous format");
 }
+
+#[test]
+fn the_h_prediction_is_exact_and_pays() {
+    use crate::core::compute::{PointResult, NO_PATCH};
+    use crate::core::estimate::{Curvature, MAX_EXTRA};
+    let dir = tempfile::tempdir().expect("temp dir");
+    for wide in [false, true] {
+        let cols = ColumnSet { wide, ..cols() };
+        let p = HPrediction::of(&cols).expect("H, k1 and k2 are stored");
+        // k1, k2 noisy; H their mean (as most estimators give it) or not; NaN and infinities.
+        let special = [f64::NAN, f64::INFINITY, -f64::INFINITY, 0.0, -0.0];
+        let results: Vec<PointResult> = (0..6000u64)
+            .map(|i| {
+                let k1 = ((i * 2_654_435_761) % 1_000_003) as f64 * 1e-9 - 5e-4;
+                let k2 = k1 + ((i * 40_503) % 65_537) as f64 * 1e-9;
+                let h = match i % 4 {
+                    0 => (k1 + k2) / 2.0,
+                    1 => (k1 + k2) / 2.0 * (1.0 + 1e-7),
+                    _ => (k1 as f32 as f64 + k2 as f32 as f64) / 2.0,
+                };
+                let (k1, h) = if i % 97 == 0 {
+                    (
+                        special[(i / 97) as usize % 5],
+                        special[(i / 3) as usize % 5],
+                    )
+                } else {
+                    (k1, h)
+                };
+                PointResult {
+                    id: i,
+                    normal: [0.0, 0.6, 0.8],
+                    curvature: Curvature {
+                        h,
+                        k: k1 * k2,
+                        k1,
+                        k2,
+                        ..Curvature::undefined(0)
+                    },
+                    extra: [f64::NAN; MAX_EXTRA],
+                    patch: NO_PATCH,
+                }
+            })
+            .collect();
+        let encoded: Vec<Vec<u8>> = results
+            .iter()
+            .map(|r| {
+                let mut b = GlobalPatch::NONE.0.to_le_bytes().to_vec();
+                cols.encode_result(r, &mut b);
+                b
+            })
+            .collect();
+        // Applied twice, the identity; applied once, H's bits mostly cleared.
+        let mut cleared = 0;
+        for e in &encoded {
+            let mut c = e[8..].to_vec();
+            p.apply(&mut c);
+            let h = cols.stored_offset(Value::H).expect("H");
+            cleared += c[h..h + if wide { 8 } else { 4 }].iter().all(|&b| b == 0) as usize;
+            p.apply(&mut c);
+            assert_eq!(c, e[8..]);
+        }
+        assert!(
+            cleared > encoded.len() / 5,
+            "{cleared} of {} predicted exactly",
+            encoded.len()
+        );
+        let path = dir.path().join(format!("h_{wide}.res"));
+        let stats = CurvatureStats::default();
+        let mut w = ResultWriter::create(&path, encoded.len() as u64, &cols, false, &stats)
+            .expect("create");
+        for (i, e) in encoded.iter().enumerate() {
+            w.push(i as u64, e).expect("push");
+        }
+        std::fs::rename(w.finish().expect("finish"), &path).expect("rename");
+        let mut r = TileResults::open(&path, &cols).expect("open");
+        let mut rec = Vec::new();
+        for e in &encoded {
+            r.next(&mut rec).expect("next").expect("a record");
+            assert_eq!(rec, *e);
+        }
+        assert!(r.next(&mut rec).expect("end").is_none());
+    }
+}
