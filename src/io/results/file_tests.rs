@@ -45,7 +45,7 @@ fn read_all(path: &Path) -> Result<Vec<(u64, Vec<u8>)>> {
 fn result_files_round_trip_over_many_blocks() {
     let dir = tempfile::tempdir().expect("temp dir");
     let cols = cols();
-    // Runs of consecutive ids with jumps, over several blocks (64 KiB is ~2300 records here).
+    // Runs of consecutive ids with jumps, over several blocks (32 KiB is ~1100 records here).
     let ids: Vec<u64> = (0..10_000u64)
         .map(|i| i + (i / 1000) * 50_000 + 5)
         .collect();
