@@ -1,16 +1,23 @@
 #!/usr/bin/env bash
-# Scaling run: generated terrains of 1M, 10M and 100M points through `tilecurv process` with a
-# fixed memory budget; prints time, points/s, peak RSS and the peak disk used by the work
-# directory for each size. Peak RSS should stay flat (about the budget plus ~60 MiB) while the
-# points grow a hundredfold; the work directory should peak at roughly the bucket spill plus
-# the result files (about 45 + 37 bytes per point) and be gone at the end.
+# Scaling run: generated terrains of 1M, 10M and 100M points through `tilecurv process` (or the
+# cluster stages one after the other) with a fixed memory budget; prints time, CPU time, peak
+# RSS and the peak disk of the work directory in bytes a point: all of it, and its buckets/ and
+# results/ apart (each their own peak), sampled with `du -sb` every 0.5 s. Peak RSS should stay
+# flat (about the budget plus ~60 MiB) while the points grow a hundredfold; the work directory
+# peaks once the tiles are done (the buckets, if they spilled, plus the result files: about 5 +
+# 19 bytes a point on the terrain), or while assemble merges more result files than it may
+# open at once (run files, up to as much again as the results), and is gone at the end.
 #
 # usage: scripts/scale.sh [SIZE...]        (default: 1M 10M 100M; sizes as `generate --points`)
 #
 # Environment: TILECURV_SCALE_DIR (inputs, outputs and work directories; default
 # /tmp/tilecurv-scale; 100M points need about 6 GB of input, 9 GB of output and a few GB of
-# work directory), MEMORY (default 2G), THREADS (default: all cores), FORMAT (las or laz,
-# default las), SEED (default 1), KEEP_OUTPUTS=1 to keep the outputs. Inputs are cached.
+# work directory), MEMORY (default 2G; 1G makes the buckets of 10M points spill), THREADS
+# (default: all cores), FORMAT (las or laz, default las), SEED (default 1), STAGES (process, the
+# default, or split: plan, bucket, run-tile and assemble as separate commands, whose buckets
+# always go to disk), TILECURV (the binary; default: built here with cargo build --release, in
+# CARGO_TARGET_DIR if set), KEEP_OUTPUTS=1 to keep the outputs. Inputs are cached. Compare two
+# binaries with the same script, input and settings: TILECURV=old/tilecurv scripts/scale.sh 2M.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -18,6 +25,7 @@ DIR=${TILECURV_SCALE_DIR:-/tmp/tilecurv-scale}
 MEMORY=${MEMORY:-2G}
 FORMAT=${FORMAT:-las}
 SEED=${SEED:-1}
+STAGES=${STAGES:-process}
 SIZES=("$@")
 [ ${#SIZES[@]} -gt 0 ] || SIZES=(1M 10M 100M)
 THREAD_ARGS=()
@@ -25,40 +33,68 @@ THREAD_ARGS=()
 
 command -v /usr/bin/time >/dev/null || { echo "scale.sh: /usr/bin/time is required (apt-get install time)" >&2; exit 2; }
 mkdir -p "$DIR"
-cargo build --release --locked --quiet
-BIN=$PWD/target/release/tilecurv
+if [ -z "${TILECURV:-}" ]; then
+    cargo build --release --locked --quiet
+    TILECURV=${CARGO_TARGET_DIR:-$PWD/target}/release/tilecurv
+fi
+BIN=$TILECURV
+
+# Runs "$@" under /usr/bin/time, appending "wall cpu rss_kib" to $1's time file.
+timed() {
+    local file=$1
+    shift
+    /usr/bin/time -f '%e %U %S %M' -a -o "$file" "$@"
+}
+
+# The work directory's stages as `process` or as the cluster commands, all timed into $1.
+run_stages() {
+    local tfile=$1 in=$2 out=$3 work=$4
+    if [ "$STAGES" = split ]; then
+        timed "$tfile" "$BIN" plan "$in" --work "$work" --tiles-per-task 1000000 -q >/dev/null
+        timed "$tfile" "$BIN" bucket --work "$work" --memory "$MEMORY" "${THREAD_ARGS[@]}" -q
+        timed "$tfile" "$BIN" run-tile --work "$work" --task 0 --memory "$MEMORY" "${THREAD_ARGS[@]}" -q
+        timed "$tfile" "$BIN" assemble --work "$work" -o "$out" --memory "$MEMORY" "${THREAD_ARGS[@]}" -q
+        rm -rf "$work" # the cluster stages keep it
+    else
+        timed "$tfile" "$BIN" process "$in" -o "$out" --memory "$MEMORY" --work-dir "$work" \
+            "${THREAD_ARGS[@]}" -q
+    fi
+}
 
 summary="$DIR/summary.txt"
-printf '%-6s %12s %10s %12s %10s %14s\n' size points "time (s)" "points/s" "RSS (MiB)" "work disk (MiB)" >"$summary"
+printf '%-6s %11s %9s %9s %9s %11s %11s %11s\n' size points "wall (s)" "CPU (s)" "RSS (MiB)" \
+    "work B/pt" "buckets" "results" >"$summary"
 for size in "${SIZES[@]}"; do
     in="$DIR/terrain_${size}_seed${SEED}.$FORMAT"
     if [ ! -f "$in" ]; then
-        "$BIN" generate terrain -o "$in" --points "$size" --seed "$SEED"
+        "$BIN" generate terrain -o "$in" --points "$size" --seed "$SEED" -q
     fi
     out="$DIR/out_$size.$FORMAT"
     work="$DIR/work_$size"
     rm -rf "$out" "$work"
 
-    # Peak disk of the work directory: poll du in the background while the run lasts.
+    # Peak disk of the work directory and of its two folders: poll du in the background.
     peak_file="$DIR/du_peak_$size.txt"
-    echo 0 >"$peak_file"
+    echo "0 0 0" >"$peak_file"
     (
-        peak=0
+        peak=(0 0 0)
         while true; do
-            b=$(du -sb "$work" 2>/dev/null | cut -f1 || true)
-            if [ -n "$b" ] && [ "$b" -gt "$peak" ]; then
-                peak=$b
-                echo "$peak" >"$peak_file"
-            fi
-            sleep 1
+            i=0
+            for d in "$work" "$work/buckets" "$work/results"; do
+                b=$(du -sb "$d" 2>/dev/null | cut -f1 || true)
+                if [ -n "$b" ] && [ "$b" -gt "${peak[$i]}" ]; then peak[i]=$b; fi
+                i=$((i + 1))
+            done
+            echo "${peak[*]}" >"$peak_file"
+            sleep 0.5
         done
     ) &
     poller=$!
 
     time_file="$DIR/time_$size.txt"
+    : >"$time_file"
     status=0
-    /usr/bin/time -v -o "$time_file" "$BIN" process "$in" -o "$out" --memory "$MEMORY" \
-        --work-dir "$work" "${THREAD_ARGS[@]}" || status=$?
+    run_stages "$time_file" "$in" "$out" "$work" || status=$?
     kill "$poller" 2>/dev/null || true
     wait "$poller" 2>/dev/null || true
     if [ "$status" -ne 0 ]; then
@@ -66,16 +102,17 @@ for size in "${SIZES[@]}"; do
         exit "$status"
     fi
 
-    # The point count of the generated LAS 1.2 header (u32 at byte 107).
+    # The point count of the generated header (the legacy u32 at byte 107).
     points=$(od -An -t u4 -j 107 -N 4 "$in" | tr -d ' ')
-    secs=$(awk -F': ' '/Elapsed \(wall clock\)/ { n = split($2, p, ":"); s = 0; for (i = 1; i <= n; i++) s = s * 60 + p[i]; print s }' "$time_file")
-    rss=$(awk -F': ' '/Maximum resident set size/ { printf "%.0f", $2 / 1024 }' "$time_file")
-    disk=$(awk '{ printf "%.0f", $1 / 1048576 }' "$peak_file")
-    awk -v size="$size" -v n="$points" -v t="$secs" -v rss="$rss" -v disk="$disk" 'BEGIN {
-        printf "%-6s %12d %10.1f %12.0f %10d %14d\n", size, n, t, n / t, rss, disk
-    }' >>"$summary"
+    awk -v size="$size" -v n="$points" -v peaks="$(cat "$peak_file")" '
+        { wall += $1; cpu += $2 + $3; if ($4 > rss) rss = $4 }
+        END {
+            split(peaks, p, " ")
+            printf "%-6s %11d %9.1f %9.1f %9.0f %11.2f %11.2f %11.2f\n", size, n, wall, cpu,
+                rss / 1024, p[1] / n, p[2] / n, p[3] / n
+        }' "$time_file" >>"$summary"
     [ "${KEEP_OUTPUTS:-0}" = 1 ] || rm -f "$out"
     [ ! -e "$work" ] || echo "scale.sh: warning: the work directory $work was left behind" >&2
 done
-echo "--memory $MEMORY, $(nproc) cores${THREADS:+, --threads $THREADS}, $FORMAT input"
+echo "$BIN: $STAGES, --memory $MEMORY, $(nproc) cores${THREADS:+, --threads $THREADS}, $FORMAT input"
 cat "$summary"

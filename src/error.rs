@@ -176,6 +176,17 @@ impl Error {
             hint,
         }
     }
+
+    /// A file of the work directory (tilecurv's own) that is damaged, truncated or of another
+    /// version of tilecurv: never bad input, exit 4, with what to do. `what` says what is
+    /// wrong with it.
+    pub fn damaged_work(path: &std::path::Path, what: &str) -> Self {
+        Error::ReadFailed {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, what.to_string()),
+            hint: " (a file of the work directory is damaged or was written by another version of tilecurv: delete the work directory and run again)",
+        }
+    }
 }
 
 /// The hint for an error that says the process ran out of a resource, not that a file is bad:

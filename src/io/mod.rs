@@ -9,6 +9,7 @@ pub mod info;
 pub mod las;
 pub mod limits;
 pub mod output;
+pub mod pack;
 pub mod ply;
 pub mod results;
 pub mod sink;

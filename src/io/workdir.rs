@@ -12,6 +12,12 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 
+/// The version of the work directory's file formats (bucket frames, result files), in every
+/// manifest and its fingerprint: work left by a tilecurv that wrote other formats is discarded
+/// by `process` and refused by the cluster stages, never misread. Each file also starts with
+/// its own magic and version.
+pub const FORMAT_VERSION: u32 = 2;
+
 /// File name of the manifest inside the work directory.
 const MANIFEST: &str = "manifest.txt";
 /// File name of the lock inside the work directory.

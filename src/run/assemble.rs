@@ -57,7 +57,7 @@ pub fn assemble_outputs(
         ));
     }
     let encoding = Encoding::new(spec.column_type, steps);
-    let mut merger = Merger::open(&results_dir, &files, &spec.cols)?;
+    let mut merger = Merger::open(&results_dir, &files, &spec.cols, exec.memory.budget_bytes)?;
     exec.reporter.phase("write", spec.total_points);
     let chunk = chunk_points(spec, exec);
     let mut undefined = 0;

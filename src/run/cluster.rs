@@ -108,7 +108,7 @@ fn attach(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result<Att
     let spec = open_inputs(&cfg, reporter)?;
     if spec.manifest() != manifest {
         return Err(Error::Usage(format!(
-            "{}: the inputs changed since `tilecurv plan` (size, time or points differ); run `tilecurv plan` again",
+            "{}: the inputs changed since `tilecurv plan` (size, time or points differ), or another version of tilecurv planned it; run `tilecurv plan` again",
             path.display()
         )));
     }

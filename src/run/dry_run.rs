@@ -84,10 +84,12 @@ fn estimate(scratch: &WorkDir, spec: &RunSpec, exec: &Exec<'_>, work_path: &Path
     } else {
         m.bucket_cache_bytes + tiles_mem
     };
-    // Spilled buckets take about 45 bytes a point compressed; results an id, a patch and the
-    // columns.
-    let result_bytes = crate::io::results::record_size(&spec.cols) + 8;
-    let disk = if in_memory { 0.0 } else { n * 45.0 } + n * result_bytes as f64;
+    // Spilled buckets of LAS input take about 5 bytes a point (integer coordinates, zstd; raw
+    // f64 float inputs up to 25); result files about 3/4 of their f32 columns (the values'
+    // low bits are noise; ids and the flags compress to almost nothing).
+    let bucket_bytes = if in_memory { 0.0 } else { 5.0 };
+    let result_bytes = 0.75 * spec.cols.result_size() as f64;
+    let disk = n * (bucket_bytes + result_bytes);
     let est = 2.0 * scan_s + n * us_per_point * 1e-6;
     out!("plan: {} points in {} tiles of {:.3} (file units); points per tile: min {}, median {median}, max {}", scan.stats.count, tplan.tiles.len(), spec.grid.size, counts[0], counts[counts.len() - 1]);
     out!(

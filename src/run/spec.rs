@@ -163,6 +163,9 @@ impl RunSpec {
         let mut fp = Fingerprint::default();
         let mut text = String::new();
         fp.text(env!("CARGO_PKG_VERSION"));
+        let format = format!("work format {}\n", crate::io::workdir::FORMAT_VERSION);
+        fp.text(&format);
+        text.push_str(&format);
         for s in &self.sources {
             let p = s.path();
             let meta = std::fs::metadata(p).ok();

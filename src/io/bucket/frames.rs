@@ -1,5 +1,12 @@
-//! The bucket files: one zstd frame per spill of a tile's points (id, x, y, z in f64, a
-//! normal flag and the normal), appended to `b_<x>_<y>.zst` in a bucket task's directory.
+//! The bucket files: one zstd frame per spill of a tile's points, appended to `b_<x>_<y>.zst`
+//! in a bucket task's directory. A frame's content is [`MAGIC`] (the format's version), the
+//! number of runs, then runs of consecutive points of one input. A run stores its ids as zigzag
+//! varints of their differences (buckets are filled in scan order: mostly +1), then each
+//! coordinate as a column: the integers the input decoded it from, relative to the run's
+//! smallest (`(q * scale + offset) * z factor` gives back the f64 bits, checked when the run is
+//! written), or f32 where every value is one, else raw f64; then the file normals if any (f32
+//! or f64 columns). Columns are stored as byte planes ([`crate::io::pack`]). Whatever the
+//! encoding chosen, the decoded points are the bits that were scanned.
 
 use std::fs::OpenOptions;
 use std::io::Write;
@@ -10,83 +17,281 @@ use rayon::prelude::*;
 use crate::core::plan::TileKey;
 use crate::core::point::SourcePoint;
 use crate::error::{Error, Result};
+use crate::io::pack::{get_planes, put_planes, put_varint, unzigzag, zigzag, Cursor};
+
+/// The first bytes of every decoded frame: the bucket format and its version.
+const MAGIC: &[u8; 4] = b"TCB2";
+
+/// How an input's coordinate on one axis was decoded from an integer `q`:
+/// `(q * scale + offset) * post`, `post` being the z factor of the input's vertical unit (1 for
+/// x and y).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisGrid {
+    /// The file's scale.
+    pub scale: f64,
+    /// The file's offset.
+    pub offset: f64,
+    /// The factor applied after (the z unit's).
+    pub post: f64,
+}
+
+impl AxisGrid {
+    /// The value of integer `q`.
+    fn value(&self, q: i64) -> f64 {
+        (q as f64 * self.scale + self.offset) * self.post
+    }
+
+    /// The integer whose value is exactly `v` (bit for bit), if there is one.
+    fn integer(&self, v: f64) -> Option<i64> {
+        let q = ((v / self.post - self.offset) / self.scale).round();
+        if !q.is_finite() || q.abs() >= (1u64 << 53) as f64 {
+            return None;
+        }
+        let q = q as i64;
+        [q, q - 1, q + 1]
+            .into_iter()
+            .find(|&c| self.value(c).to_bits() == v.to_bits())
+    }
+}
+
+/// The inputs of a scan by id range, with the grids their coordinates decode from.
+#[derive(Debug, Clone, Default)]
+pub struct Grids {
+    /// (first id, grids of x, y and z or None) per input, in id order.
+    inputs: Vec<(u64, Option<[AxisGrid; 3]>)>,
+}
+
+impl Grids {
+    /// Adds the next input: its first global id, and its coordinates' grids if it has some.
+    pub fn push(&mut self, first_id: u64, axes: Option<[AxisGrid; 3]>) {
+        self.inputs.push((first_id, axes));
+    }
+
+    /// The index of the input that point `id` comes from.
+    fn input_of(&self, id: u64) -> usize {
+        self.inputs
+            .partition_point(|(first, _)| *first <= id)
+            .max(1)
+            - 1
+    }
+
+    /// The grid of input `i` on `axis`.
+    fn axis(&self, i: usize, axis: usize) -> Option<AxisGrid> {
+        self.inputs.get(i).and_then(|(_, a)| a.map(|a| a[axis]))
+    }
+}
 
 /// The bucket file of a tile in a bucket task's directory.
 pub fn bucket_file(dir: &Path, key: TileKey) -> PathBuf {
     dir.join(format!("b_{}_{}.zst", key.0, key.1))
 }
 
-/// Encodes points as a zstd frame: per point id, x, y, z and a normal flag (+ normal).
-pub fn encode_frame(points: &[SourcePoint]) -> std::io::Result<Vec<u8>> {
-    let mut raw = Vec::with_capacity(points.len() * 57);
-    for p in points {
-        raw.extend_from_slice(&p.id.to_le_bytes());
-        for c in p.xyz {
-            raw.extend_from_slice(&c.to_le_bytes());
-        }
-        match p.normal {
-            Some(n) => {
-                raw.push(1);
-                for c in n {
-                    raw.extend_from_slice(&c.to_le_bytes());
-                }
+/// Column encodings (the first byte of a column).
+const RAW_F64: u8 = 0;
+const EXACT_F32: u8 = 1;
+const INTEGERS: u8 = 2;
+
+/// Appends one column of values, in the most compact encoding that gives back their bits.
+fn put_column(out: &mut Vec<u8>, values: &[f64], grid: Option<AxisGrid>) {
+    if let Some(g) = grid {
+        let q: Option<Vec<i64>> = values.iter().map(|&v| g.integer(v)).collect();
+        if let Some(q) = q {
+            let base = q.iter().copied().min().unwrap_or(0);
+            let span = q.iter().map(|&v| v.abs_diff(base)).max().unwrap_or(0);
+            let width = (8 - span.leading_zeros() as usize / 8).min(8);
+            out.push(INTEGERS);
+            for f in [g.scale, g.offset, g.post] {
+                out.extend_from_slice(&f.to_le_bytes());
             }
-            None => raw.push(0),
+            out.extend_from_slice(&base.to_le_bytes());
+            out.push(width as u8);
+            let rows: Vec<u8> = q
+                .iter()
+                .flat_map(|&v| v.abs_diff(base).to_le_bytes().into_iter().take(width))
+                .collect();
+            put_planes(out, &rows, width);
+            return;
         }
     }
-    zstd::bulk::compress(&raw, 1)
+    if values
+        .iter()
+        .all(|&v| (v as f32 as f64).to_bits() == v.to_bits())
+    {
+        out.push(EXACT_F32);
+        let rows: Vec<u8> = values
+            .iter()
+            .flat_map(|&v| (v as f32).to_le_bytes())
+            .collect();
+        put_planes(out, &rows, 4);
+    } else {
+        out.push(RAW_F64);
+        let rows: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        put_planes(out, &rows, 8);
+    }
 }
 
-pub fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Vec<SourcePoint>> {
-    let bad = |what: &str| {
-        Error::Internal(format!(
-            "{}: spill file {what}; delete the work directory and run again",
-            path.display()
-        ))
+/// Reads one column of `n` values ([`put_column`]).
+fn get_column(c: &mut Cursor<'_>, n: usize) -> Option<Vec<f64>> {
+    let tag = c.u8()?;
+    let f64_at = |c: &mut Cursor<'_>| c.u64().map(f64::from_bits);
+    let (width, grid, base) = match tag {
+        INTEGERS => {
+            let g = AxisGrid {
+                scale: f64_at(c)?,
+                offset: f64_at(c)?,
+                post: f64_at(c)?,
+            };
+            let base = c.u64()? as i64;
+            (c.u8()? as usize, Some(g), base)
+        }
+        EXACT_F32 => (4, None, 0),
+        RAW_F64 => (8, None, 0),
+        _ => return None,
     };
-    let raw = zstd::stream::decode_all(bytes).map_err(|_| bad("is corrupt"))?;
-    let mut out = Vec::with_capacity(raw.len() / 33);
-    let mut pos = 0;
-    let f = |b: &[u8], at: usize| -> Option<f64> {
-        Some(f64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
+    if width > 8 {
+        return None;
+    }
+    let planes = c.take(n.checked_mul(width)?)?;
+    let mut rows = Vec::new();
+    get_planes(&mut rows, planes, n, width);
+    let word = |i: usize| {
+        let mut w = [0u8; 8];
+        w[..width].copy_from_slice(&rows[i * width..(i + 1) * width]);
+        u64::from_le_bytes(w)
     };
-    while pos < raw.len() {
-        let id = u64::from_le_bytes(
-            raw.get(pos..pos + 8)
-                .and_then(|s| s.try_into().ok())
-                .ok_or_else(|| bad("is truncated"))?,
-        );
-        let xyz = [f(&raw, pos + 8), f(&raw, pos + 16), f(&raw, pos + 24)];
-        let [Some(x), Some(y), Some(z)] = xyz else {
-            return Err(bad("is truncated"));
-        };
-        let has_normal = *raw.get(pos + 32).ok_or_else(|| bad("is truncated"))?;
-        pos += 33;
-        let normal = if has_normal == 1 {
-            let n = [f(&raw, pos), f(&raw, pos + 8), f(&raw, pos + 16)];
-            pos += 24;
-            match n {
-                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                _ => return Err(bad("is truncated")),
-            }
-        } else {
-            None
-        };
+    // A zero-width column (every integer the same) decodes every value from `base` alone.
+    let value = |w: u64| match (tag, grid) {
+        (INTEGERS, Some(g)) => g.value(base.wrapping_add(w as i64)),
+        (EXACT_F32, _) => f32::from_bits(w as u32) as f64,
+        _ => f64::from_bits(w),
+    };
+    Some((0..n).map(|i| value(word(i))).collect())
+}
+
+/// Appends one run: points of one input (`grids` input `input`).
+fn put_run(out: &mut Vec<u8>, points: &[SourcePoint], grids: &Grids, input: usize) {
+    out.extend_from_slice(&(points.len() as u32).to_le_bytes());
+    let mut prev = 0u64;
+    for p in points {
+        put_varint(out, zigzag(p.id.wrapping_sub(prev) as i64));
+        prev = p.id;
+    }
+    for axis in 0..3 {
+        let v: Vec<f64> = points.iter().map(|p| p.xyz[axis]).collect();
+        put_column(out, &v, grids.axis(input, axis));
+    }
+    let with = points.iter().filter(|p| p.normal.is_some()).count();
+    match with {
+        0 => out.push(0),
+        n if n == points.len() => out.push(1),
+        _ => {
+            out.push(2);
+            out.extend(points.iter().map(|p| p.normal.is_some() as u8));
+        }
+    }
+    if with > 0 {
+        for axis in 0..3 {
+            let v: Vec<f64> = points
+                .iter()
+                .filter_map(|p| Some(p.normal?[axis]))
+                .collect();
+            put_column(out, &v, None);
+        }
+    }
+}
+
+/// Reads one run ([`put_run`]), appending its points to `out`.
+fn get_run(c: &mut Cursor<'_>, out: &mut Vec<SourcePoint>) -> Option<()> {
+    let n = c.u32()? as usize;
+    // Every point takes at least its id's byte: a larger count is damage, not an allocation.
+    if n > c.remaining() {
+        return None;
+    }
+    let mut ids = Vec::with_capacity(n);
+    let mut prev = 0u64;
+    for _ in 0..n {
+        prev = prev.wrapping_add(unzigzag(c.varint()?) as u64);
+        ids.push(prev);
+    }
+    let xyz = [get_column(c, n)?, get_column(c, n)?, get_column(c, n)?];
+    let has: Vec<bool> = match c.u8()? {
+        0 => vec![false; n],
+        1 => vec![true; n],
+        2 => c.take(n)?.iter().map(|&b| b == 1).collect(),
+        _ => return None,
+    };
+    let with = has.iter().filter(|&&h| h).count();
+    let normals = if with > 0 {
+        [
+            get_column(c, with)?,
+            get_column(c, with)?,
+            get_column(c, with)?,
+        ]
+    } else {
+        Default::default()
+    };
+    let mut k = 0;
+    for (i, id) in ids.into_iter().enumerate() {
+        let normal = has[i].then(|| {
+            k += 1;
+            [normals[0][k - 1], normals[1][k - 1], normals[2][k - 1]]
+        });
         out.push(SourcePoint {
             id,
-            xyz: [x, y, z],
+            xyz: [xyz[0][i], xyz[1][i], xyz[2][i]],
             normal,
         });
+    }
+    Some(())
+}
+
+/// Encodes points (in scan order) as one frame: runs of one input each.
+pub fn encode_frame(points: &[SourcePoint], grids: &Grids) -> std::io::Result<Vec<u8>> {
+    let mut runs = Vec::new();
+    let mut start = 0;
+    while start < points.len() {
+        let input = grids.input_of(points[start].id);
+        let len = points[start..]
+            .iter()
+            .take_while(|p| grids.input_of(p.id) == input)
+            .count();
+        runs.push((start..start + len, input));
+        start += len;
+    }
+    let mut raw = Vec::with_capacity(points.len() * 12 + 16);
+    raw.extend_from_slice(MAGIC);
+    raw.extend_from_slice(&(runs.len() as u32).to_le_bytes());
+    for (range, input) in runs {
+        put_run(&mut raw, &points[range], grids, input);
+    }
+    crate::io::pack::compress(&raw)
+}
+
+/// Decodes every frame of a bucket file (`bytes`, read from `path`). A damaged or truncated
+/// file, or one of another format, is an error that names it.
+pub fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Vec<SourcePoint>> {
+    let bad = |what: &str| Error::damaged_work(path, &format!("bucket file {what}"));
+    let raw = zstd::stream::decode_all(bytes).map_err(|_| bad("is damaged or truncated"))?;
+    let mut c = Cursor::new(&raw);
+    let mut out = Vec::new();
+    while !c.is_done() {
+        if c.take(MAGIC.len()) != Some(&MAGIC[..]) {
+            return Err(bad("is not of this version of tilecurv"));
+        }
+        let runs = c.u32().ok_or_else(|| bad("is truncated"))?;
+        for _ in 0..runs {
+            get_run(&mut c, &mut out).ok_or_else(|| bad("is damaged"))?;
+        }
     }
     Ok(out)
 }
 
 /// Appends one frame per bucket of `buckets` to its bucket file. The frames are compressed in
 /// parallel (on the caller's rayon pool), then appended in the given order.
-pub fn spill(dir: &Path, buckets: Vec<(TileKey, Vec<SourcePoint>)>) -> Result<()> {
+pub fn spill(dir: &Path, buckets: Vec<(TileKey, Vec<SourcePoint>)>, grids: &Grids) -> Result<()> {
     let frames: Vec<(TileKey, std::io::Result<Vec<u8>>)> = buckets
         .into_par_iter()
-        .map(|(key, points)| (key, encode_frame(&points)))
+        .map(|(key, points)| (key, encode_frame(&points, grids)))
         .collect();
     for (key, frame) in frames {
         let path = bucket_file(dir, key);
@@ -102,26 +307,5 @@ pub fn spill(dir: &Path, buckets: Vec<(TileKey, Vec<SourcePoint>)>) -> Result<()
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn frames_round_trip() {
-        let pts = vec![
-            SourcePoint {
-                id: 7,
-                xyz: [1.5, -2.25, 1e6 + 0.125],
-                normal: None,
-            },
-            SourcePoint {
-                id: u64::MAX,
-                xyz: [0.1, 0.2, 0.3],
-                normal: Some([0.0, 0.6, 0.8]),
-            },
-        ];
-        let mut bytes = encode_frame(&pts).expect("encode");
-        bytes.extend(encode_frame(&pts[..1]).expect("encode"));
-        let back = decode_frames(Path::new("x"), &bytes).expect("decode");
-        assert_eq!(back, [pts[0], pts[1], pts[0]]);
-    }
-}
+#[path = "frames_tests.rs"]
+mod tests;

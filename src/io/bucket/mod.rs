@@ -10,7 +10,7 @@ mod frames;
 mod scan;
 mod stats;
 
-use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -25,10 +25,10 @@ pub use stats::{parse_stats, stats_text};
 /// Name of the file that marks a bucket task's directory complete, with its statistics.
 pub const DONE: &str = "buckets.done";
 
-/// A complete bucket task directory and the tiles it holds points of.
+/// A complete bucket task directory and the tiles it holds points of, with their counts.
 struct TaskDir {
     path: PathBuf,
-    tiles: BTreeSet<TileKey>,
+    tiles: BTreeMap<TileKey, u64>,
 }
 
 /// The points of every tile core.
@@ -86,7 +86,7 @@ impl Buckets {
                     stats.merge(&s);
                     tasks.push(TaskDir {
                         path: d.clone(),
-                        tiles: s.per_tile.keys().copied().collect(),
+                        tiles: s.per_tile.clone(),
                     });
                 }
                 None => missing.push(i),
@@ -129,10 +129,21 @@ impl Buckets {
         }
         // The task directories in task order: the points in scan order, as one scan gives them.
         let mut all = Vec::new();
-        for dir in self.dirs.iter().filter(|d| d.tiles.contains(&key)) {
+        for dir in &self.dirs {
+            let Some(&count) = dir.tiles.get(&key) else {
+                continue;
+            };
             let path = bucket_file(&dir.path, key);
             let bytes = std::fs::read(&path).map_err(|e| Error::read_work(&path, e))?;
-            all.extend(decode_frames(&path, &bytes)?);
+            let points = decode_frames(&path, &bytes)?;
+            // A file cut at a frame's end decodes: the task's statistics tell.
+            if points.len() as u64 != count {
+                return Err(Error::damaged_work(
+                    &path,
+                    &format!("bucket file holds {} points, not {count}", points.len()),
+                ));
+            }
+            all.extend(points);
         }
         let points = Arc::new(all);
         if let Ok(mut c) = self.cache.lock() {

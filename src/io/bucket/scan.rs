@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use super::frames::{bucket_file, spill};
+use super::frames::{bucket_file, spill, AxisGrid, Grids};
 use super::stats::stats_text;
 use super::{Buckets, TaskDir, DONE};
 use crate::core::plan::{computable, MemoryPlan, ScanStats, TileGrid, TileKey, MAX_COORDINATE};
@@ -48,6 +48,8 @@ struct Held {
     bytes: usize,
     tmp: PathBuf,
     spilled: bool,
+    /// The inputs' coordinate grids, for the spilled frames.
+    grids: Grids,
 }
 
 impl Held {
@@ -68,7 +70,7 @@ impl Held {
                 self.bytes -= len * POINT_BYTES;
             }
         }
-        spill(&self.tmp, out)
+        spill(&self.tmp, out, &self.grids)
     }
 }
 
@@ -91,6 +93,7 @@ pub fn scan(
         bytes: 0,
         tmp: tmp_name(task_dir),
         spilled: false,
+        grids: grids_of(inputs),
     };
     let mut stats = ScanStats::empty();
     for input in inputs {
@@ -134,6 +137,22 @@ pub fn scan(
         .map(|(k, v)| (k, Arc::new(v)))
         .collect();
     Ok((Buckets::in_memory(grid, mem), stats))
+}
+
+/// The coordinate grids of the inputs (LAS scale and offset, z times the z factor), by id.
+fn grids_of(inputs: &[ScanInput<'_>]) -> Grids {
+    let mut grids = Grids::default();
+    for input in inputs {
+        let axes = input.source.integer_coordinates().map(|so| {
+            [0, 1, 2].map(|a| AxisGrid {
+                scale: so[a].0,
+                offset: so[a].1,
+                post: if a == 2 { input.z_scale } else { 1.0 },
+            })
+        });
+        grids.push(input.first_id, axes);
+    }
+    grids
 }
 
 /// Refuses a decoded point that cannot be computed on: a non-finite or absurdly large
@@ -184,7 +203,7 @@ fn publish(
     }
     let dir = TaskDir {
         path: task_dir.to_path_buf(),
-        tiles: stats.per_tile.keys().copied().collect(),
+        tiles: stats.per_tile.clone(),
     };
     Ok((Buckets::on_disk(grid, vec![dir]), stats))
 }

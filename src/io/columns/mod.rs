@@ -427,6 +427,14 @@ impl ColumnSet {
         self.value_size() * self.stored().count() + 1
     }
 
+    /// Where the stored value `v` starts in a record of [`ColumnSet::encode_result`], if it is
+    /// stored (the result files' H prediction reads k1 and k2 there).
+    pub fn stored_offset(&self, v: Value) -> Option<usize> {
+        self.stored()
+            .position(|s| s == v)
+            .map(|i| i * self.value_size())
+    }
+
     /// Appends the stored values of one point to `out` (f64 or f32 little-endian, then the
     /// flags).
     pub fn encode_result(&self, r: &PointResult, out: &mut Vec<u8>) {

@@ -363,6 +363,11 @@ impl PointSource for LasSource {
         Some(crate::core::select::PointClass { class, withheld })
     }
 
+    fn integer_coordinates(&self) -> Option<[(f64, f64); 3]> {
+        let h = &self.header;
+        Some([0, 1, 2].map(|a| (h.scale[a], h.offset[a])))
+    }
+
     /// Decodes one raw record into a [`SourcePoint`].
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
         let xyz = self.xyz(rec);

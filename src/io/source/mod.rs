@@ -59,6 +59,12 @@ pub trait PointSource: Send + Sync {
     ) -> Result<()>;
     /// Decodes one raw record.
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
+    /// The (scale, offset) of x, y and z when [`PointSource::decode`] gives every coordinate
+    /// as `integer * scale + offset` (LAS records), None otherwise: the buckets then store the
+    /// integers (the f64 bits they give back are checked when a bucket is written).
+    fn integer_coordinates(&self) -> Option<[(f64, f64); 3]> {
+        None
+    }
     /// The LAS classification and withheld flag of one raw record (None: the format has
     /// none, only LAS records do).
     fn class_of(&self, _rec: &[u8]) -> Option<crate::core::select::PointClass> {

@@ -1,45 +1,35 @@
 //! Per-tile result files: each finished tile writes its core points' encoded columns, sorted by
 //! original point id, to `tile_<x>_<y>.res` in the work directory (temporary name, fsync,
-//! rename, directory fsync). A tile is done if and only if its result file exists and holds the
-//! plan's number of points: this is the resume journal. [`Merger`] reads them back in id order
-//! with a bounded fan-in. Header: magic, point count, record size, then the tile's
-//! [`CurvatureStats`] (the magnitudes the outputs' scaled columns take their steps from,
-//! core::quantize), so that assemble learns them without reading every record twice. Record:
-//! id (u64 LE), the point's global patch (u64), the column values ([`ColumnSet::encode_result`]).
+//! rename, directory fsync). A tile is done if and only if its result file exists and is whole
+//! (every block decodes and the count is the plan's, [`is_complete`]): this is the resume
+//! journal. [`Merger`] reads them back in id order with a bounded fan-in. The format
+//! ([`file`]): a header with the tile's [`CurvatureStats`] (the magnitudes the outputs' scaled
+//! columns take their steps from, core::quantize, so that assemble learns them without reading
+//! every record twice), then zstd blocks of ids (varint gaps) and records (the global patch
+//! only with `--orient propagate`, the column values of [`ColumnSet::encode_result`]) as byte
+//! planes. The orientation sidecars are in [`sidecar`].
+
+mod file;
+mod sidecar;
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
-use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
-use crate::core::compute::PointResult;
+use crate::core::compute::{PointResult, NO_PATCH};
 use crate::core::orient::GlobalPatch;
 use crate::core::plan::TileKey;
 use crate::core::quantize::{CurvatureStats, Magnitudes};
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
-use crate::io::workdir::tmp_name;
-
-const MAGIC: &[u8; 8] = b"TCRES004";
-const ORIENT_MAGIC: &[u8; 8] = b"TCORI002";
-
-/// Bytes of one record after the id: the point's global patch (u64, `--orient propagate`) and
-/// the encoded columns.
-pub fn record_size(cols: &ColumnSet) -> usize {
-    8 + cols.result_size()
-}
-
-/// Bytes of a result file's header before its statistics: magic, count, record size, and the
-/// statistics' length.
-const HEAD: usize = 32;
-
-/// Largest statistics block a result file may declare (three full histograms are 61 KiB).
-const MAX_STATS: u64 = 1 << 20;
+use file::ResultWriter;
+pub use file::{record_size, TileResults};
+use sidecar::write_sidecar;
+pub use sidecar::{orientation_path, read_sidecar, TileSidecar};
 
 /// The statistics block: for H, K and the principal curvatures, the largest magnitude (f64),
 /// the number of non-empty bins (u16) and each as its biased exponent (u16) and count (u64).
-fn stats_bytes(s: &CurvatureStats) -> Vec<u8> {
+pub(super) fn stats_bytes(s: &CurvatureStats) -> Vec<u8> {
     let mut b = Vec::new();
     for m in [&s.h, &s.k, &s.principal] {
         b.extend_from_slice(&m.max().to_le_bytes());
@@ -54,7 +44,7 @@ fn stats_bytes(s: &CurvatureStats) -> Vec<u8> {
 }
 
 /// Parses [`stats_bytes`]; None when damaged.
-fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
+pub(super) fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
     let mut at = 0usize;
     let mut take = |n: usize| {
         let s = b.get(at..at + n);
@@ -79,117 +69,30 @@ fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
     (at == b.len()).then_some(stats)
 }
 
-/// The orientation sidecar of a tile (`--orient propagate`): its patch anchors and the normals
-/// it shares with other tiles, for the cross-tile sign resolution.
-pub fn orientation_path(dir: &Path, key: TileKey) -> PathBuf {
-    dir.join(format!("tile_{}_{}.ori", key.0, key.1))
-}
+/// Most result files merged at once; more are first partly merged into runs (which the work
+/// directory then holds beside the tile files). Lowered to what the open-file limit and the
+/// memory budget allow (see [`fan_in`]).
+pub const MAX_FAN_IN: usize = 8192;
 
-/// What a tile's passes contribute to the cross-tile orientation.
-#[derive(Debug, Clone, Default)]
-pub struct TileSidecar {
-    /// One anchor per patch (patches numbered within the tile).
-    pub anchors: Vec<crate::core::orient::PatchAnchor>,
-    /// Normals of points other passes also orient.
-    pub shared: Vec<crate::core::orient::SharedNormal>,
-}
-
-/// Bytes of one anchor in a sidecar: patch (u32), dist2 (f64), position (3 f64), id (u64),
-/// outward (u8), little-endian.
-const ANCHOR_BYTES: usize = 4 + 8 + 24 + 8 + 1;
-
-fn write_sidecar(path: &Path, s: &TileSidecar) -> Result<PathBuf> {
-    let tmp = tmp_name(path);
-    let mut b = Vec::with_capacity(24 + ANCHOR_BYTES * s.anchors.len() + 36 * s.shared.len());
-    b.extend_from_slice(ORIENT_MAGIC);
-    b.extend_from_slice(&(s.anchors.len() as u64).to_le_bytes());
-    b.extend_from_slice(&(s.shared.len() as u64).to_le_bytes());
-    for a in &s.anchors {
-        b.extend_from_slice(&a.patch.to_le_bytes());
-        b.extend_from_slice(&a.dist2.to_le_bytes());
-        for c in a.pos {
-            b.extend_from_slice(&c.to_le_bytes());
-        }
-        b.extend_from_slice(&a.id.to_le_bytes());
-        b.push(a.outward as u8);
-    }
-    for n in &s.shared {
-        b.extend_from_slice(&n.id.to_le_bytes());
-        b.extend_from_slice(&n.patch.to_le_bytes());
-        for c in n.normal {
-            b.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    std::fs::write(&tmp, &b).map_err(|e| Error::write(&tmp, e))?;
-    Ok(tmp)
-}
-
-/// Reads a tile's orientation sidecar.
-pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
-    let bad = || {
-        Error::Internal(format!(
-            "{}: orientation sidecar is damaged; delete the work directory and run again",
-            path.display()
-        ))
-    };
-    let b = std::fs::read(path).map_err(|e| Error::read_work(path, e))?;
-    let u64_at = |o: usize| {
-        b.get(o..o + 8)
-            .and_then(|s| s.try_into().ok())
-            .map(u64::from_le_bytes)
-            .ok_or_else(bad)
-    };
-    let u32_at = |o: usize| {
-        b.get(o..o + 4)
-            .and_then(|s| s.try_into().ok())
-            .map(u32::from_le_bytes)
-            .ok_or_else(bad)
-    };
-    let f64_at = |o: usize| u64_at(o).map(f64::from_bits);
-    if b.get(..8) != Some(&ORIENT_MAGIC[..]) {
-        return Err(bad());
-    }
-    let (na, ns) = (u64_at(8)? as usize, u64_at(16)? as usize);
-    let mut out = TileSidecar::default();
-    let mut o = 24;
-    for _ in 0..na {
-        let outward = *b.get(o + 44).ok_or_else(bad)? == 1;
-        out.anchors.push(crate::core::orient::PatchAnchor {
-            patch: u32_at(o)?,
-            dist2: f64_at(o + 4)?,
-            pos: [f64_at(o + 12)?, f64_at(o + 20)?, f64_at(o + 28)?],
-            id: u64_at(o + 36)?,
-            outward,
-        });
-        o += ANCHOR_BYTES;
-    }
-    for _ in 0..ns {
-        out.shared.push(crate::core::orient::SharedNormal {
-            id: u64_at(o)?,
-            patch: u32_at(o + 8)?,
-            normal: [f64_at(o + 12)?, f64_at(o + 20)?, f64_at(o + 28)?],
-        });
-        o += 36;
-    }
-    Ok(out)
-}
-/// Most result files merged at once (one read buffer each: 64 MiB in all); more are first
-/// partly merged into runs. Lowered to what the open-file limit allows (see [`fan_in`]).
-pub const MAX_FAN_IN: usize = 1024;
-const READ_BUFFER: usize = 64 << 10;
+/// Memory one result file takes in a merge: a decoded block (32 KiB of records) with its ids
+/// (the frame and planes of a block being decoded are freed once it is).
+pub const READER_BYTES: usize = 48 << 10;
 
 /// How many result files one merge may open: [`MAX_FAN_IN`], or less when the process's
 /// open-file limit is low (the CLI raised its soft limit to the hard one at start): what the
 /// limit leaves beside the descriptors open now, less a reserve (64, or a quarter of a small
-/// limit) for the output, a run file and everything else; at least 2. A limit too low even
-/// for that makes the open fail with EMFILE, an error that says to raise `ulimit -n`.
-pub fn fan_in() -> usize {
+/// limit) for the output, a run file and everything else; and at most what a quarter of
+/// `memory_bytes` (the run's budget, free once the tiles are done) holds of [`READER_BYTES`];
+/// at least 2. A limit too low even for that makes the open fail with EMFILE, an error that
+/// says to raise `ulimit -n`.
+pub fn fan_in(memory_bytes: usize) -> usize {
+    let by_memory = (memory_bytes / 4 / READER_BYTES).clamp(2, MAX_FAN_IN);
     let Some(soft) = crate::io::limits::open_files_limit() else {
-        return 64;
+        return 64.min(by_memory);
     };
     let in_use = crate::io::limits::open_descriptors().unwrap_or(16);
     let reserve = (soft / 4).min(64);
-    (soft.saturating_sub(in_use).saturating_sub(reserve)).clamp(2, MAX_FAN_IN as u64) as usize
+    (soft.saturating_sub(in_use).saturating_sub(reserve)).clamp(2, by_memory as u64) as usize
 }
 
 /// The result file of a tile.
@@ -197,33 +100,8 @@ pub fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
     dir.join(format!("tile_{}_{}.res", key.0, key.1))
 }
 
-/// Writes a result file under its temporary name and returns that name; the caller renames it.
-fn write_file(
-    path: &Path,
-    count: u64,
-    cols: &ColumnSet,
-    stats: &CurvatureStats,
-    mut body: impl FnMut(&mut BufWriter<File>) -> Result<()>,
-) -> Result<PathBuf> {
-    let tmp = tmp_name(path);
-    let file = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
-    let mut w = BufWriter::with_capacity(1 << 20, file);
-    let stats = stats_bytes(stats);
-    let head = [
-        &MAGIC[..],
-        &count.to_le_bytes(),
-        &(record_size(cols) as u64).to_le_bytes(),
-        &(stats.len() as u64).to_le_bytes(),
-        &stats,
-    ]
-    .concat();
-    w.write_all(&head).map_err(|e| Error::write(&tmp, e))?;
-    body(&mut w)?;
-    w.flush().map_err(|e| Error::write(&tmp, e))?;
-    Ok(tmp)
-}
-
-/// Writes one tile's results (sorted here by id) under a temporary name; returns it.
+/// Writes one tile's results (sorted here by id) under a temporary name; returns it. Patches are
+/// stored only if some point has one (`--orient propagate`).
 fn write_tile_tmp(
     dir: &Path,
     key: TileKey,
@@ -232,20 +110,19 @@ fn write_tile_tmp(
     cols: &ColumnSet,
 ) -> Result<PathBuf> {
     results.sort_unstable_by_key(|r| r.id);
-    let path = tile_path(dir, key);
-    let mut buf = Vec::with_capacity(8 + record_size(cols));
     let mut stats = CurvatureStats::default();
     results.iter().for_each(|r| stats.add(&r.curvature));
-    write_file(&path, results.len() as u64, cols, &stats, |w| {
-        for r in results.iter() {
-            buf.clear();
-            buf.extend_from_slice(&r.id.to_le_bytes());
-            buf.extend_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
-            cols.encode_result(r, &mut buf);
-            w.write_all(&buf).map_err(|e| Error::write(&path, e))?;
-        }
-        Ok(())
-    })
+    let patched = results.iter().any(|r| r.patch != NO_PATCH);
+    let count = results.len() as u64;
+    let mut w = ResultWriter::create(&tile_path(dir, key), count, cols, patched, &stats)?;
+    let mut buf = Vec::with_capacity(record_size(cols));
+    for r in results.iter() {
+        buf.clear();
+        buf.extend_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
+        cols.encode_result(r, &mut buf);
+        w.push(r.id, &buf)?;
+    }
+    w.finish()
 }
 
 /// The resume journal: finished tiles' result files, made durable in batches. A batch is
@@ -310,16 +187,13 @@ impl Journal {
 }
 
 /// Whether the result file of a tile is complete: it exists, its header matches the column
-/// set, its count is `expected`, and its length is exactly that many records.
+/// set, its count is `expected`, and it is whole ([`TileResults::verify`]). A damaged file is
+/// not complete: its tile is computed again.
 pub fn is_complete(path: &Path, expected: u64, cols: &ColumnSet) -> bool {
-    let Ok(meta) = std::fs::metadata(path) else {
-        return false;
-    };
-    let Ok(r) = TileResults::open(path, cols) else {
-        return false;
-    };
-    r.remaining == expected
-        && meta.len() == r.header_len + expected * (8 + record_size(cols) as u64)
+    match TileResults::open(path, cols) {
+        Ok(r) => r.count == expected && r.verify().is_ok(),
+        Err(_) => false,
+    }
 }
 
 /// The curvature statistics of all the tiles whose result files are `files`: the sum of
@@ -332,84 +206,6 @@ pub fn scene_stats(files: &[PathBuf], cols: &ColumnSet) -> Result<CurvatureStats
     Ok(all)
 }
 
-/// Reads one result file in id order.
-pub struct TileResults {
-    path: PathBuf,
-    reader: BufReader<File>,
-    remaining: u64,
-    record: usize,
-    /// Bytes before the first record.
-    header_len: u64,
-    /// The statistics of the file's points.
-    stats: CurvatureStats,
-}
-
-impl TileResults {
-    /// Opens a result file written with the same column set.
-    pub fn open(path: &Path, cols: &ColumnSet) -> Result<Self> {
-        let bad = |what: String| {
-            Error::Internal(format!(
-                "{}: {what}; delete the work directory and run again",
-                path.display()
-            ))
-        };
-        let file = File::open(path).map_err(|e| Error::read_work(path, e))?;
-        let mut reader = BufReader::with_capacity(READ_BUFFER, file);
-        let mut head = [0u8; HEAD];
-        reader
-            .read_exact(&mut head)
-            .map_err(|e| bad(format!("result header unreadable: {e}")))?;
-        let word = |i: usize| u64::from_le_bytes(head[i..i + 8].try_into().unwrap_or([0; 8]));
-        if &head[..8] != MAGIC {
-            return Err(bad("not a tilecurv result file".into()));
-        }
-        let record = word(16) as usize;
-        if record != record_size(cols) {
-            return Err(bad(format!(
-                "records of {record} bytes, expected {}",
-                record_size(cols)
-            )));
-        }
-        let stats_len = word(24);
-        if stats_len > MAX_STATS {
-            return Err(bad(format!("statistics of {stats_len} bytes")));
-        }
-        let mut stats = vec![0u8; stats_len as usize];
-        reader
-            .read_exact(&mut stats)
-            .map_err(|e| bad(format!("result statistics unreadable: {e}")))?;
-        let stats = parse_stats(&stats).ok_or_else(|| bad("result statistics damaged".into()))?;
-        Ok(TileResults {
-            path: path.to_path_buf(),
-            reader,
-            remaining: word(8),
-            record,
-            header_len: HEAD as u64 + stats_len,
-            stats,
-        })
-    }
-
-    /// Reads the next record's id and column bytes into `cols`; None at the end.
-    pub fn next(&mut self, cols: &mut Vec<u8>) -> Result<Option<u64>> {
-        if self.remaining == 0 {
-            return Ok(None);
-        }
-        let mut id = [0u8; 8];
-        cols.resize(self.record, 0);
-        self.reader
-            .read_exact(&mut id)
-            .and_then(|_| self.reader.read_exact(cols))
-            .map_err(|e| {
-                Error::Internal(format!(
-                    "{}: result file ends early: {e}",
-                    self.path.display()
-                ))
-            })?;
-        self.remaining -= 1;
-        Ok(Some(u64::from_le_bytes(id)))
-    }
-}
-
 /// A k-way merge of result files by point id.
 pub struct Merger {
     readers: Vec<TileResults>,
@@ -418,9 +214,15 @@ pub struct Merger {
 }
 
 impl Merger {
-    /// Opens a merge over `files`, at most [`fan_in`] open at once.
-    pub fn open(dir: &Path, files: &[PathBuf], cols: &ColumnSet) -> Result<Self> {
-        Self::open_with_fan_in(dir, files, cols, fan_in())
+    /// Opens a merge over `files`, at most [`fan_in`] open at once (for a budget of
+    /// `memory_bytes`).
+    pub fn open(
+        dir: &Path,
+        files: &[PathBuf],
+        cols: &ColumnSet,
+        memory_bytes: usize,
+    ) -> Result<Self> {
+        Self::open_with_fan_in(dir, files, cols, fan_in(memory_bytes))
     }
 
     /// Opens a merge over `files` with at most `fan_in` (>= 2) files open at once: while there
@@ -441,21 +243,17 @@ impl Merger {
             let group: Vec<PathBuf> = files.drain(..take).collect();
             let run = dir.join(format!("run_{}.res", runs.len()));
             let mut m = Merger::open_direct(&group, cols)?;
-            let count = group
-                .iter()
-                .map(|f| TileResults::open(f, cols).map(|r| r.remaining))
-                .sum::<Result<u64>>()?;
+            let count = m.readers.iter().map(|r| r.count).sum();
+            let patched = m.readers.iter().any(TileResults::patched);
             let mut rec = Vec::new();
             // Runs only serve this assemble pass: no need to make them durable, nor to hold
             // statistics (scene_stats reads the tile files).
-            let tmp = write_file(&run, count, cols, &CurvatureStats::default(), |w| {
-                while let Some(id) = m.next(&mut rec)? {
-                    w.write_all(&id.to_le_bytes())
-                        .and_then(|_| w.write_all(&rec))
-                        .map_err(|e| Error::write(&run, e))?;
-                }
-                Ok(())
-            })?;
+            let stats = CurvatureStats::default();
+            let mut w = ResultWriter::create(&run, count, cols, patched, &stats)?;
+            while let Some(id) = m.next(&mut rec)? {
+                w.push(id, &rec)?;
+            }
+            let tmp = w.finish()?;
             std::fs::rename(&tmp, &run).map_err(|e| Error::write(&run, e))?;
             // Tile files are the journal and stay until the output exists; merged runs go.
             for f in group.iter().filter(|f| runs.contains(*f)) {

@@ -1,0 +1,192 @@
+//! Byte packing for the work directory's binary files (bucket frames, result blocks): LEB128
+//! varints, the transposition of fixed-width records into byte planes (byte j of every record,
+//! then byte j + 1, ...: the high bytes of similar numbers line up and compress to little), a
+//! bounds-checked reader, and zstd frames that carry a checksum of their content, so that a
+//! damaged frame fails to decode instead of decoding to other numbers. Functions of bytes; the
+//! callers own the files.
+
+/// zstd level of every work-directory frame: the fastest, since a frame is written once and
+/// read once or twice.
+const LEVEL: i32 = 1;
+
+/// Appends `v` as an LEB128 varint (7 bits a byte, low first; 1 byte below 128).
+pub fn put_varint(out: &mut Vec<u8>, mut v: u64) {
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+/// A signed difference as an unsigned number, small for small magnitudes (zigzag).
+pub fn zigzag(v: i64) -> u64 {
+    ((v << 1) ^ (v >> 63)) as u64
+}
+
+/// The inverse of [`zigzag`].
+pub fn unzigzag(v: u64) -> i64 {
+    ((v >> 1) as i64) ^ -((v & 1) as i64)
+}
+
+/// Appends the byte planes of `rows`, records of `width` bytes: byte 0 of every record, then
+/// byte 1, and so on. `rows.len()` must be a multiple of `width`.
+pub fn put_planes(out: &mut Vec<u8>, rows: &[u8], width: usize) {
+    if width == 0 {
+        return;
+    }
+    let n = rows.len() / width;
+    let start = out.len();
+    out.resize(start + n * width, 0);
+    let planes = &mut out[start..];
+    for (i, row) in rows.chunks_exact(width).enumerate() {
+        for (j, &b) in row.iter().enumerate() {
+            planes[j * n + i] = b;
+        }
+    }
+}
+
+/// The inverse of [`put_planes`]: `n` records of `width` bytes from their planes, appended to
+/// `out`. `planes` must hold `n * width` bytes.
+pub fn get_planes(out: &mut Vec<u8>, planes: &[u8], n: usize, width: usize) {
+    let start = out.len();
+    out.resize(start + n * width, 0);
+    let rows = &mut out[start..];
+    for (j, plane) in planes.chunks_exact(n.max(1)).take(width).enumerate() {
+        for (i, &b) in plane.iter().enumerate() {
+            rows[i * width + j] = b;
+        }
+    }
+}
+
+/// A cursor over decoded bytes whose every read is checked: `None` past the end.
+pub struct Cursor<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Cursor<'a> {
+    /// A cursor at the start of `bytes`.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Cursor { bytes, at: 0 }
+    }
+
+    /// How many bytes are left.
+    pub fn remaining(&self) -> usize {
+        self.bytes.len() - self.at
+    }
+
+    /// Whether every byte was read.
+    pub fn is_done(&self) -> bool {
+        self.at == self.bytes.len()
+    }
+
+    /// The next `n` bytes.
+    pub fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
+        self.at += n;
+        Some(s)
+    }
+
+    /// The next byte.
+    pub fn u8(&mut self) -> Option<u8> {
+        self.take(1).map(|b| b[0])
+    }
+
+    /// The next little-endian u32.
+    pub fn u32(&mut self) -> Option<u32> {
+        Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
+    }
+
+    /// The next little-endian u64.
+    pub fn u64(&mut self) -> Option<u64> {
+        Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+
+    /// The next LEB128 varint ([`put_varint`]); None if it runs past the end or past 64 bits.
+    pub fn varint(&mut self) -> Option<u64> {
+        let mut v = 0u64;
+        for shift in (0..64).step_by(7) {
+            let b = self.u8()?;
+            v |= ((b & 0x7f) as u64).checked_shl(shift)?;
+            if b & 0x80 == 0 {
+                return Some(v);
+            }
+        }
+        None
+    }
+}
+
+/// `raw` as one zstd frame with a checksum of its content.
+pub fn compress(raw: &[u8]) -> std::io::Result<Vec<u8>> {
+    let mut c = zstd::bulk::Compressor::new(LEVEL)?;
+    c.set_parameter(zstd::zstd_safe::CParameter::ChecksumFlag(true))?;
+    c.compress(raw)
+}
+
+/// Decodes one frame of [`compress`] into `out` (cleared first), which must come to exactly
+/// `len` bytes; false if the frame is damaged (its checksum, its structure) or of another size.
+pub fn decompress_into(frame: &[u8], len: usize, out: &mut Vec<u8>) -> bool {
+    out.clear();
+    out.reserve(len);
+    let Ok(mut d) = zstd::bulk::Decompressor::new() else {
+        return false;
+    };
+    matches!(d.decompress_to_buffer(frame, out), Ok(n) if n == len && out.len() == len)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn varints_and_zigzag_round_trip() {
+        let values = [0, 1, 127, 128, 300, u32::MAX as u64, u64::MAX];
+        let mut b = Vec::new();
+        values.iter().for_each(|&v| put_varint(&mut b, v));
+        assert_eq!(b[..4], [0, 1, 127, 0x80]);
+        let mut c = Cursor::new(&b);
+        let back: Vec<u64> = values.iter().map(|_| c.varint().expect("varint")).collect();
+        assert_eq!(back, values);
+        assert!(c.is_done() && c.varint().is_none());
+        // A varint cut short, or longer than 64 bits, is refused.
+        assert!(Cursor::new(&[0x80, 0x80]).varint().is_none());
+        assert!(Cursor::new(&[0xff; 11]).varint().is_none());
+        for v in [0, 1, -1, 63, -64, i64::MAX, i64::MIN] {
+            assert_eq!(unzigzag(zigzag(v)), v);
+        }
+        assert_eq!((zigzag(0), zigzag(-1), zigzag(1)), (0, 1, 2));
+    }
+
+    #[test]
+    fn planes_round_trip() {
+        let rows: Vec<u8> = (0..30u8).collect();
+        let mut planes = Vec::new();
+        put_planes(&mut planes, &rows, 3);
+        assert_eq!(planes[..4], [0, 3, 6, 9]);
+        assert_eq!(planes[10], 1);
+        let mut back = vec![42];
+        get_planes(&mut back, &planes, 10, 3);
+        assert_eq!(back[1..], rows[..]);
+    }
+
+    #[test]
+    fn frames_detect_damage() {
+        let raw: Vec<u8> = (0..10_000u32).flat_map(|v| (v / 7).to_le_bytes()).collect();
+        let frame = compress(&raw).expect("compress");
+        let mut out = Vec::new();
+        assert!(decompress_into(&frame, raw.len(), &mut out));
+        assert_eq!(out, raw);
+        assert!(!decompress_into(&frame, raw.len() + 1, &mut out));
+        assert!(!decompress_into(
+            &frame[..frame.len() - 1],
+            raw.len(),
+            &mut out
+        ));
+        // One flipped bit anywhere in the frame: refused (the checksum, if nothing else).
+        for at in [frame.len() / 2, frame.len() - 2] {
+            let mut bad = frame.clone();
+            bad[at] ^= 0x10;
+            assert!(!decompress_into(&bad, raw.len(), &mut out), "bit at {at}");
+        }
+    }
+}

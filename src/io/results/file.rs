@@ -1,0 +1,389 @@
+//! The result file format, written and read in id order. Header: [`MAGIC`] (the format and its
+//! version), the point count, the column bytes a point ([`ColumnSet::result_size`]), whether
+//! patches are stored (only when some point has one: `--orient propagate`), then the tile's
+//! [`CurvatureStats`]. Then blocks of records, each `records`, `raw length`, `frame length`
+//! (u32 LE) and a zstd frame with a checksum ([`crate::io::pack`]) holding the ids as varints
+//! (the first id of the file, then each one's distance past the one before, less 1: ids
+//! strictly increase, so a tile's consecutive points take a zero byte), then the byte planes of
+//! the records (the global patch as u64 if stored, then the columns, H exclusive-ored with its
+//! prediction from k1 and k2: [`HPrediction`]). Blocks hold about 32 KiB
+//! of records, the memory one reader of a merge keeps. A file is whole only if every block
+//! decodes, the ids increase and the count and the file's end agree ([`TileResults::verify`]).
+
+use std::fs::File;
+use std::io::{BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use super::{parse_stats, stats_bytes};
+use crate::core::orient::GlobalPatch;
+use crate::core::quantize::CurvatureStats;
+use crate::error::{Error, Result};
+use crate::io::columns::{ColumnSet, Value};
+use crate::io::pack::{compress, decompress_into, get_planes, put_planes, put_varint, Cursor};
+use crate::io::workdir::tmp_name;
+
+/// The first bytes of a result file: its format and version.
+const MAGIC: &[u8; 8] = b"TCRES005";
+
+/// Bytes of the header before the statistics: magic, count, column bytes, patches stored,
+/// statistics' length.
+const HEAD: usize = 40;
+
+/// Largest statistics block a result file may declare (three full histograms are 61 KiB).
+const MAX_STATS: u64 = 1 << 20;
+
+/// Bytes of records a block holds at most (the records of a merge's reader in memory: 4000
+/// tiles of 100M points merged at once take 160 MiB).
+const BLOCK_BYTES: usize = 32 << 10;
+
+/// Largest raw or compressed block a reader accepts (a damaged length is refused before any
+/// allocation).
+const MAX_BLOCK: usize = 16 << 20;
+
+/// Bytes of one record in memory: the global patch (u64) then the columns.
+pub fn record_size(cols: &ColumnSet) -> usize {
+    8 + cols.result_size()
+}
+
+/// The stored H exclusive-ored with `(k1 + k2) / 2` computed from the stored k1 and k2 (as the
+/// estimators mostly compute it: the two agree to the bit for about half the points, and to the
+/// low bits for most others), which leaves zeros where the value's mantissa was noise. Its own
+/// inverse, since k1 and k2 are stored as they are; no prediction (0) when it is NaN, whose
+/// bits IEEE leaves to the processor.
+#[derive(Debug, Clone, Copy)]
+struct HPrediction {
+    /// Offsets of H, k1 and k2 in the columns.
+    h: usize,
+    k1: usize,
+    k2: usize,
+    /// f64 values (else f32).
+    wide: bool,
+}
+
+impl HPrediction {
+    /// The prediction for a column set that stores H, k1 and k2.
+    fn of(cols: &ColumnSet) -> Option<Self> {
+        Some(HPrediction {
+            h: cols.stored_offset(Value::H)?,
+            k1: cols.stored_offset(Value::K1)?,
+            k2: cols.stored_offset(Value::K2)?,
+            wide: cols.wide,
+        })
+    }
+
+    /// Applies (or undoes) the prediction on one record's columns.
+    fn apply(&self, columns: &mut [u8]) {
+        let w = if self.wide { 8 } else { 4 };
+        let get = |at: usize| -> Option<f64> {
+            let b = columns.get(at..at + w)?;
+            Some(match self.wide {
+                true => f64::from_le_bytes(b.try_into().ok()?),
+                false => f32::from_le_bytes(b.try_into().ok()?) as f64,
+            })
+        };
+        let (Some(k1), Some(k2)) = (get(self.k1), get(self.k2)) else {
+            return;
+        };
+        let mean = (k1 + k2) / 2.0;
+        if mean.is_nan() {
+            return;
+        }
+        let mut bits = [0u8; 8];
+        match self.wide {
+            true => bits = mean.to_le_bytes(),
+            false => bits[..4].copy_from_slice(&(mean as f32).to_le_bytes()),
+        }
+        if let Some(h) = columns.get_mut(self.h..self.h + w) {
+            h.iter_mut().zip(bits).for_each(|(b, p)| *b ^= p);
+        }
+    }
+}
+
+/// Writes a result file under its temporary name: records pushed in increasing id order.
+pub struct ResultWriter {
+    path: PathBuf,
+    tmp: PathBuf,
+    w: BufWriter<File>,
+    /// Whether the patches are stored (else every pushed patch must be none).
+    patched: bool,
+    /// Bytes of a stored record (patch if stored, then the columns).
+    row: usize,
+    count: u64,
+    written: u64,
+    prev: Option<u64>,
+    predict: Option<HPrediction>,
+    ids: Vec<u8>,
+    rows: Vec<u8>,
+    raw: Vec<u8>,
+}
+
+impl ResultWriter {
+    /// Starts the file for `path` (under a temporary name) for `count` records of `cols`, with
+    /// the patches stored or not, and `stats` in its header.
+    pub fn create(
+        path: &Path,
+        count: u64,
+        cols: &ColumnSet,
+        patched: bool,
+        stats: &CurvatureStats,
+    ) -> Result<Self> {
+        let tmp = tmp_name(path);
+        let file = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
+        let mut w = BufWriter::with_capacity(1 << 20, file);
+        let stats = stats_bytes(stats);
+        let head = [
+            &MAGIC[..],
+            &count.to_le_bytes(),
+            &(cols.result_size() as u64).to_le_bytes(),
+            &(patched as u64).to_le_bytes(),
+            &(stats.len() as u64).to_le_bytes(),
+            &stats,
+        ]
+        .concat();
+        w.write_all(&head).map_err(|e| Error::write(&tmp, e))?;
+        Ok(ResultWriter {
+            path: path.to_path_buf(),
+            tmp,
+            w,
+            patched,
+            row: cols.result_size() + if patched { 8 } else { 0 },
+            count,
+            written: 0,
+            prev: None,
+            predict: HPrediction::of(cols),
+            ids: Vec::new(),
+            rows: Vec::new(),
+            raw: Vec::new(),
+        })
+    }
+
+    /// Adds the record of point `id` (greater than the last one): `record` is the patch (u64
+    /// LE) then the columns, [`record_size`] bytes.
+    pub fn push(&mut self, id: u64, record: &[u8]) -> Result<()> {
+        let (patch, columns) = record.split_at(8.min(record.len()));
+        let gap = match self.prev {
+            None => Some(id),
+            Some(p) => id.checked_sub(p).and_then(|d| d.checked_sub(1)),
+        };
+        let unpatched = patch == GlobalPatch::NONE.0.to_le_bytes();
+        let (Some(gap), true) = (gap, self.patched || unpatched) else {
+            return Err(Error::Internal(format!(
+                "{}: result records out of order or with an unexpected patch (point {id})",
+                self.path.display()
+            )));
+        };
+        put_varint(&mut self.ids, gap);
+        let start = self.rows.len() + if self.patched { 8 } else { 0 };
+        self.rows
+            .extend_from_slice(if self.patched { record } else { columns });
+        if let Some(p) = &self.predict {
+            p.apply(&mut self.rows[start..]);
+        }
+        self.prev = Some(id);
+        self.written += 1;
+        if self.rows.len() + self.row > BLOCK_BYTES {
+            self.flush_block()?;
+        }
+        Ok(())
+    }
+
+    fn flush_block(&mut self) -> Result<()> {
+        if self.rows.is_empty() {
+            return Ok(());
+        }
+        let n = self.rows.len() / self.row;
+        self.raw.clear();
+        self.raw.extend_from_slice(&self.ids);
+        put_planes(&mut self.raw, &self.rows, self.row);
+        let frame = compress(&self.raw).map_err(|e| Error::write(&self.tmp, e))?;
+        let head = [n as u32, self.raw.len() as u32, frame.len() as u32];
+        let head: Vec<u8> = head.iter().flat_map(|v| v.to_le_bytes()).collect();
+        self.w
+            .write_all(&head)
+            .and_then(|_| self.w.write_all(&frame))
+            .map_err(|e| Error::write(&self.tmp, e))?;
+        self.ids.clear();
+        self.rows.clear();
+        Ok(())
+    }
+
+    /// Writes the last block and flushes; returns the temporary name (the caller renames it).
+    pub fn finish(mut self) -> Result<PathBuf> {
+        self.flush_block()?;
+        if self.written != self.count {
+            return Err(Error::Internal(format!(
+                "{}: {} results written where the header says {}",
+                self.path.display(),
+                self.written,
+                self.count
+            )));
+        }
+        self.w.flush().map_err(|e| Error::write(&self.tmp, e))?;
+        Ok(self.tmp)
+    }
+}
+
+/// Reads one result file in id order, a block at a time.
+pub struct TileResults {
+    path: PathBuf,
+    file: File,
+    /// Records not yet returned.
+    remaining: u64,
+    /// The header's count.
+    pub count: u64,
+    patched: bool,
+    /// Column bytes a record.
+    columns: usize,
+    predict: Option<HPrediction>,
+    /// The statistics of the file's points.
+    pub stats: CurvatureStats,
+    /// The current block: ids, records as stored, and the next one to return.
+    ids: Vec<u64>,
+    rows: Vec<u8>,
+    next: usize,
+    prev: Option<u64>,
+}
+
+impl TileResults {
+    /// Opens a result file written with the same column set and reads its header.
+    pub fn open(path: &Path, cols: &ColumnSet) -> Result<Self> {
+        let bad = |what: String| Error::damaged_work(path, &format!("result file {what}"));
+        let mut file = File::open(path).map_err(|e| Error::read_work(path, e))?;
+        let mut head = [0u8; HEAD];
+        read_exact(&mut file, path, &mut head)?;
+        let word = |i: usize| u64::from_le_bytes(head[i..i + 8].try_into().unwrap_or([0; 8]));
+        if &head[..8] != MAGIC {
+            return Err(bad("is not of this version of tilecurv".into()));
+        }
+        let columns = word(16) as usize;
+        if columns != cols.result_size() {
+            return Err(bad(format!(
+                "has records of {columns} bytes, not {}",
+                cols.result_size()
+            )));
+        }
+        let stats_len = word(32);
+        if word(24) > 1 || stats_len > MAX_STATS {
+            return Err(bad("has a damaged header".into()));
+        }
+        let mut stats = vec![0u8; stats_len as usize];
+        read_exact(&mut file, path, &mut stats)?;
+        let stats = parse_stats(&stats).ok_or_else(|| bad("has damaged statistics".into()))?;
+        Ok(TileResults {
+            path: path.to_path_buf(),
+            file,
+            remaining: word(8),
+            count: word(8),
+            patched: word(24) == 1,
+            columns,
+            predict: HPrediction::of(cols),
+            stats,
+            ids: Vec::new(),
+            rows: Vec::new(),
+            next: 0,
+            prev: None,
+        })
+    }
+
+    /// Whether the file stores patches.
+    pub fn patched(&self) -> bool {
+        self.patched
+    }
+
+    fn row(&self) -> usize {
+        self.columns + if self.patched { 8 } else { 0 }
+    }
+
+    /// Reads and decodes the next block.
+    fn refill(&mut self) -> Result<()> {
+        let bad = |what: &str| Error::damaged_work(&self.path, &format!("result file {what}"));
+        let mut head = [0u8; 12];
+        read_exact(&mut self.file, &self.path, &mut head)?;
+        let word = |i: usize| u32::from_le_bytes(head[i..i + 4].try_into().unwrap_or([0; 4]));
+        let (n, raw_len, frame_len) = (word(0) as usize, word(4) as usize, word(8) as usize);
+        if n == 0 || n as u64 > self.remaining || raw_len > MAX_BLOCK || frame_len > MAX_BLOCK {
+            return Err(bad("has a damaged block"));
+        }
+        let mut frame = vec![0u8; frame_len];
+        read_exact(&mut self.file, &self.path, &mut frame)?;
+        let mut raw = Vec::new();
+        if !decompress_into(&frame, raw_len, &mut raw) {
+            return Err(bad("has a damaged block"));
+        }
+        let mut c = Cursor::new(&raw);
+        self.ids.clear();
+        for _ in 0..n {
+            let gap = c.varint().ok_or_else(|| bad("has damaged ids"))?;
+            let id = match self.prev {
+                None => Some(gap),
+                Some(p) => p.checked_add(gap).and_then(|v| v.checked_add(1)),
+            };
+            let id = id.ok_or_else(|| bad("has damaged ids"))?;
+            self.ids.push(id);
+            self.prev = Some(id);
+        }
+        let row = self.row();
+        let planes = c.take(n * row).filter(|_| c.is_done());
+        let planes = planes.ok_or_else(|| bad("has a damaged block"))?;
+        self.rows.clear();
+        get_planes(&mut self.rows, planes, n, row);
+        if let Some(p) = &self.predict {
+            let skip = row - self.columns;
+            self.rows
+                .chunks_exact_mut(row)
+                .for_each(|r| p.apply(&mut r[skip..]));
+        }
+        self.next = 0;
+        Ok(())
+    }
+
+    /// Reads the next record's id, with its patch (u64 LE, none if not stored) and column bytes
+    /// in `record` ([`record_size`] bytes); None at the end.
+    pub fn next(&mut self, record: &mut Vec<u8>) -> Result<Option<u64>> {
+        if self.remaining == 0 {
+            return Ok(None);
+        }
+        if self.next == self.ids.len() {
+            self.refill()?;
+        }
+        let row = self.row();
+        let stored = &self.rows[self.next * row..(self.next + 1) * row];
+        record.clear();
+        if !self.patched {
+            record.extend_from_slice(&GlobalPatch::NONE.0.to_le_bytes());
+        }
+        record.extend_from_slice(stored);
+        let id = self.ids[self.next];
+        self.next += 1;
+        self.remaining -= 1;
+        Ok(Some(id))
+    }
+
+    /// Reads every record, checking that the file is whole: every block decodes with its
+    /// checksum, the ids increase, and the file ends with the header's count.
+    pub fn verify(mut self) -> Result<()> {
+        let mut rec = Vec::new();
+        while self.next(&mut rec)?.is_some() {}
+        let mut rest = [0u8; 1];
+        match self.file.read(&mut rest) {
+            Ok(0) => Ok(()),
+            Ok(_) => Err(Error::damaged_work(
+                &self.path,
+                "result file goes on past its records",
+            )),
+            Err(e) => Err(Error::read_work(&self.path, e)),
+        }
+    }
+}
+
+/// `read_exact`, a short file being damage (not an I/O failure).
+fn read_exact(file: &mut File, path: &Path, buf: &mut [u8]) -> Result<()> {
+    file.read_exact(buf).map_err(|e| match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => Error::damaged_work(path, "result file ends early"),
+        _ => Error::read_work(path, e),
+    })
+}
+
+#[cfg(test)]
+#[path = "file_tests.rs"]
+mod tests;
