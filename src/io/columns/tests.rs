@@ -1,0 +1,131 @@
+//! Tests of the column definitions (mod.rs).
+
+use super::*;
+use crate::core::estimate::{EstimatorKind, EstimatorParams};
+
+pub(super) fn vcm_columns() -> ColumnSet {
+    let vcm = EstimatorKind::Vcm.build(&EstimatorParams::default());
+    ColumnSet {
+        choice: ColumnChoice::default()
+            .with(Group::Directions)
+            .with(Group::Features),
+        extra: vcm.extra_columns().to_vec(),
+        unit: "m".into(),
+        wide: true,
+    }
+}
+
+/// `--columns` takes names in any order and case and writes them in record order; an
+/// unknown name lists the valid ones.
+#[test]
+fn column_lists_parse_in_record_order() {
+    let c = ColumnChoice::parse("flags, h,K2").expect("valid");
+    assert_eq!(c.to_string(), "H,k2,flags");
+    assert_eq!(
+        ColumnChoice::default().to_string(),
+        "normals,H,K,k1,k2,flags"
+    );
+    assert_eq!(
+        ColumnChoice::parse(&ColumnChoice::default().to_string()),
+        Ok(ColumnChoice::default())
+    );
+    let e = ColumnChoice::parse("H,curvedness").expect_err("unknown");
+    assert!(
+        e.contains("\"curvedness\"")
+            && e.contains("normals, H, K, k1, k2, directions, features, scale, flags"),
+        "{e}"
+    );
+    assert!(ColumnChoice::parse("").is_err() && ColumnChoice::parse("H,").is_err());
+}
+
+/// Features follow the curvature and directions, the flags come last; a result file keeps
+/// k1 and k2 together.
+#[test]
+fn columns_in_record_order() {
+    let mut cols = vcm_columns();
+    cols.choice = cols
+        .choice
+        .without(Group::Directions)
+        .without(Group::Normals);
+    let names: Vec<&str> = cols.columns().iter().map(|c| c.name).collect();
+    assert_eq!(
+        names,
+        [
+            "H",
+            "K",
+            "k1",
+            "k2",
+            "SharpFeature",
+            "VcmNormalX",
+            "VcmNormalY",
+            "VcmNormalZ",
+            FLAGS_NAME
+        ]
+    );
+    assert!(cols.columns().iter().all(|c| c.description.len() <= 32));
+    assert_eq!(cols.columns()[5].description, "VCM unit normal x");
+    cols.choice = ColumnChoice::parse("k2").expect("valid");
+    let stored: Vec<Value> = cols.stored().take(3).collect();
+    assert_eq!(stored, [Value::K1, Value::K2, Value::Extra(0)]);
+    assert_eq!(cols.result_size(), 8 * 6 + 1);
+}
+
+/// The one flip, on decoded results: normal, H and the VCM normal negated, k1' = -k2,
+/// k2' = -k1, directions swapped, K, the feature score and the flags kept; NaN stays the
+/// same NaN; twice is the identity, byte for byte.
+#[test]
+fn flipping_decoded_results_is_exact() {
+    let cols = vcm_columns();
+    let r = PointResult {
+        id: 0,
+        normal: [0.0, 0.6, 0.8],
+        curvature: Curvature {
+            h: 0.5,
+            k: 0.06,
+            k1: 0.2,
+            k2: 0.3,
+            d1: [1.0, 0.0, 0.0],
+            d2: [0.0, 0.8, -0.6],
+            flags: 16,
+        },
+        extra: [0.125, f64::NAN, -0.6, 0.8],
+        patch: NO_PATCH,
+        scale: 0,
+        scale_flags: 0,
+    };
+    let mut rec = Vec::new();
+    cols.encode_result(&r, &mut rec);
+    assert_eq!(rec.len(), cols.result_size());
+    assert_eq!(cols.decode_result(&rec).curvature, r.curvature);
+    let f = cols.decode_result(&rec).flipped(&cols.extra);
+    assert_eq!(f.normal, [-0.0, -0.6, -0.8]);
+    let c = f.curvature;
+    assert_eq!((c.h, c.k, c.k1, c.k2), (-0.5, 0.06, -0.3, -0.2));
+    assert_eq!((c.d1, c.d2, c.flags), (r.curvature.d2, r.curvature.d1, 16));
+    assert_eq!(f.extra[0], 0.125);
+    assert!(f.extra[1].is_nan());
+    assert_eq!(f.extra[2..], [0.6, -0.8]);
+    let mut flipped = Vec::new();
+    cols.encode_result(&f, &mut flipped);
+    let mut back = Vec::new();
+    cols.encode_result(
+        &cols.decode_result(&flipped).flipped(&cols.extra),
+        &mut back,
+    );
+    assert_eq!(back, rec);
+    // Narrow result files (every encoding but --f64): f32 values, half the bytes, the
+    // same values as an f32 rounding of the f64 ones.
+    let narrow = ColumnSet {
+        wide: false,
+        ..cols.clone()
+    };
+    let mut small = Vec::new();
+    narrow.encode_result(&r, &mut small);
+    assert_eq!(small.len(), narrow.result_size());
+    assert_eq!(narrow.result_size() - 1, (cols.result_size() - 1) / 2);
+    let d = narrow.decode_result(&small);
+    assert_eq!(d.curvature.h, 0.5f32 as f64);
+    assert_eq!(d.curvature.k, 0.06f32 as f64);
+    assert_eq!(d.normal, r.normal.map(|v| v as f32 as f64));
+    assert!(d.extra[1].is_nan() && d.curvature.flags == 16);
+}
