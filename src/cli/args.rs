@@ -38,8 +38,9 @@ pub struct ResultArgs {
     ///
     /// `-k auto` chooses K per point among the rungs of --k-range (default 20..320) by the
     /// stability of H across scales (docs/scale.md): for noisy or unevenly noisy scans, where
-    /// no single K suits every region. About 10-20x the time of -k 30; writes the chosen K
-    /// (ScaleK) and ScaleFlags (1: the top rung was chosen while the error was still falling).
+    /// no single K suits every region. About 9-13x the CPU time of -k 30 (1.5x -k 320); writes
+    /// the chosen K (ScaleK) and ScaleFlags (1: the top rung was chosen while the error was
+    /// still falling).
     #[arg(short = 'k', long = "neighbours", alias = "neighbors", value_parser = KArg::parse, value_name = "K|auto")]
     k: Option<KArg>,
 
