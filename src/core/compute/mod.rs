@@ -289,12 +289,13 @@ fn knn_into(
         far <= room
     };
     // A prefix of the k nearest is the true nearest of its size when its farthest is within
-    // `room` (recomputed here, hence the margin).
+    // `room` (recomputed here, hence the margin); the whole list's prefix is the list.
     let prefix = complete
-        || list.get(reach.prefix.wrapping_sub(1)).is_some_and(|&j| {
-            let d = sub(t.xyz[j as usize], p);
-            within(dot(d, d).sqrt())
-        });
+        || reach.prefix < reach.k
+            && list.get(reach.prefix.wrapping_sub(1)).is_some_and(|&j| {
+                let d = sub(t.xyz[j as usize], p);
+                within(dot(d, d).sqrt())
+            });
     ListInfo {
         len: list.len() as u32,
         complete,
