@@ -109,7 +109,15 @@ impl TaskLayout {
                 _ => return None,
             }
         }
-        let (lo, hi) = grid?;
+        let (lo, hi): (TileKey, TileKey) = grid?;
+        // The file is read back by every task: a grid upside down (which `clamp` in
+        // [`Self::task_of`] would panic on) or too wide for its width to be computed, or an
+        // input range backwards, is damage.
+        let spans = hi.0.checked_sub(lo.0).zip(hi.1.checked_sub(lo.1));
+        if spans.is_none_or(|(w, h)| w < 0 || h < 0) || bucket_tasks.iter().any(|r| r.start > r.end)
+        {
+            return None;
+        }
         Some(TaskLayout {
             bucket_tasks,
             grid_lo: lo,
@@ -172,5 +180,19 @@ mod tests {
         assert_eq!(array_syntax(&[9, 3, 7, 8, 3]), "3,7-9");
         assert_eq!(array_syntax(&[0, 1, 2, 5]), "0-2,5");
         assert_eq!(array_syntax(&[]), "");
+    }
+
+    #[test]
+    fn a_damaged_layout_is_refused_not_panicked_on() {
+        let good = "tiles_per_task 2\ngrid -2 3 2 5\nbucket_task 0 1\n";
+        assert!(TaskLayout::parse(good).is_some());
+        for bad in [
+            "tiles_per_task 2\ngrid 2 3 -2 5\n",
+            "tiles_per_task 2\ngrid -2 5 2 3\n",
+            "tiles_per_task 2\ngrid -9223372036854775808 0 9223372036854775807 0\n",
+            "tiles_per_task 2\ngrid 0 0 0 0\nbucket_task 3 1\n",
+        ] {
+            assert_eq!(TaskLayout::parse(bad), None, "{bad}");
+        }
     }
 }

@@ -116,6 +116,8 @@ fn attach(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result<Att
     let layout = std::fs::read_to_string(&tasks)
         .ok()
         .and_then(|t| TaskLayout::parse(&t))
+        // Its input ranges index the inputs: one past them is damage, not a panic.
+        .filter(|l| l.bucket_tasks.iter().all(|r| r.end <= spec.sources.len()))
         .ok_or_else(|| {
             Error::Usage(format!(
                 "{}: no task layout; run `tilecurv plan` again",

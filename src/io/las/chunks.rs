@@ -96,6 +96,12 @@ pub fn read_chunk_table(
         if variable && points > n - first_point.min(n) {
             return Err(bad(table_at, format!("LAZ chunk {i} of {count} is declared with {points} points, but only {} of the header's {n} points are left for it; the chunk table is corrupt", n - first_point.min(n))));
         }
+        // The chunk must end before the chunk table, checked before its layer sizes are read
+        // from it (a chunk starting at the table with a large byte count would read them past
+        // the end of the file).
+        if offset + e.byte_count > table_at {
+            return Err(bad(table_at, format!("LAZ chunk {i} of {count} ends at byte {}, past the chunk table at byte {table_at}: the chunk sizes are corrupt", offset + e.byte_count)));
+        }
         if let Some(layers) = layers {
             check_layers(file, offset, e.byte_count, vlr.items_size(), layers).map_err(|what| {
                 bad(
@@ -110,9 +116,6 @@ pub fn read_chunk_table(
         });
         offset += e.byte_count;
         first_point = first_point.saturating_add(points);
-        if offset > table_at {
-            return Err(bad(table_at, format!("LAZ chunk {i} of {count} ends at byte {offset}, past the chunk table at byte {table_at}: the chunk sizes are corrupt")));
-        }
     }
     if first_point < n {
         return Err(bad(table_at, format!("the LAZ chunk table holds {first_point} points but the header says {n}; the file is truncated or its point count is wrong")));
