@@ -92,6 +92,11 @@ impl<'a> Cursor<'a> {
         self.take(1).map(|b| b[0])
     }
 
+    /// The next little-endian u16.
+    pub fn u16(&mut self) -> Option<u16> {
+        Some(u16::from_le_bytes(self.take(2)?.try_into().ok()?))
+    }
+
     /// The next little-endian u32.
     pub fn u32(&mut self) -> Option<u32> {
         Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
@@ -100,6 +105,11 @@ impl<'a> Cursor<'a> {
     /// The next little-endian u64.
     pub fn u64(&mut self) -> Option<u64> {
         Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+
+    /// The next little-endian f64 (its bits as written).
+    pub fn f64(&mut self) -> Option<f64> {
+        self.u64().map(f64::from_bits)
     }
 
     /// The next LEB128 varint ([`put_varint`]); None if it runs past the end or past 64 bits.

@@ -298,8 +298,6 @@ impl WorkDir {
         };
         if resume != Resume::Resumed {
             clear_except_lock(path)?;
-        }
-        if resume != Resume::Resumed {
             write_durably(&mpath, manifest.as_bytes())?;
         }
         Ok(WorkDir {

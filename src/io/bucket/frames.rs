@@ -133,13 +133,12 @@ fn put_column(out: &mut Vec<u8>, values: &[f64], grid: Option<AxisGrid>) {
 /// Reads one column of `n` values ([`put_column`]).
 fn get_column(c: &mut Cursor<'_>, n: usize) -> Option<Vec<f64>> {
     let tag = c.u8()?;
-    let f64_at = |c: &mut Cursor<'_>| c.u64().map(f64::from_bits);
     let (width, grid, base) = match tag {
         INTEGERS => {
             let g = AxisGrid {
-                scale: f64_at(c)?,
-                offset: f64_at(c)?,
-                post: f64_at(c)?,
+                scale: c.f64()?,
+                offset: c.f64()?,
+                post: c.f64()?,
             };
             let base = c.u64()? as i64;
             (c.u8()? as usize, Some(g), base)

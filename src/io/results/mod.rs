@@ -22,6 +22,7 @@ use crate::core::plan::TileKey;
 use crate::core::quantize::{CurvatureStats, Magnitudes};
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
+use crate::io::pack::Cursor;
 use file::ResultWriter;
 pub use file::{record_size, TileResults};
 use sidecar::write_sidecar;
@@ -45,19 +46,13 @@ pub(super) fn stats_bytes(s: &CurvatureStats) -> Vec<u8> {
 
 /// Parses [`stats_bytes`]; None when damaged.
 pub(super) fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
-    let mut at = 0usize;
-    let mut take = |n: usize| {
-        let s = b.get(at..at + n);
-        at += n;
-        s
-    };
+    let mut c = Cursor::new(b);
     let mut one = || -> Option<Magnitudes> {
-        let max = f64::from_le_bytes(take(8)?.try_into().ok()?);
-        let n = u16::from_le_bytes(take(2)?.try_into().ok()?);
+        let max = c.f64()?;
+        let n = c.u16()?;
         let mut bins = Vec::with_capacity(n as usize);
         for _ in 0..n {
-            let bin = u16::from_le_bytes(take(2)?.try_into().ok()?);
-            bins.push((bin, u64::from_le_bytes(take(8)?.try_into().ok()?)));
+            bins.push((c.u16()?, c.u64()?));
         }
         Magnitudes::from_bins(bins, max)
     };
@@ -66,7 +61,7 @@ pub(super) fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
         k: one()?,
         principal: one()?,
     };
-    (at == b.len()).then_some(stats)
+    c.is_done().then_some(stats)
 }
 
 /// Most result files merged at once; more are first partly merged into runs (which the work

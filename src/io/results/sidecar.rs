@@ -104,14 +104,13 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
     let mut out = TileSidecar::default();
     for r in anchors.chunks_exact(ANCHOR_BYTES) {
         let mut c = Cursor::new(r);
-        let f = |c: &mut Cursor<'_>| c.u64().map(f64::from_bits);
         out.anchors.push(crate::core::orient::PatchAnchor {
             patch: c.u32().ok_or_else(bad)?,
-            dist2: f(&mut c).ok_or_else(bad)?,
+            dist2: c.f64().ok_or_else(bad)?,
             pos: [
-                f(&mut c).ok_or_else(bad)?,
-                f(&mut c).ok_or_else(bad)?,
-                f(&mut c).ok_or_else(bad)?,
+                c.f64().ok_or_else(bad)?,
+                c.f64().ok_or_else(bad)?,
+                c.f64().ok_or_else(bad)?,
             ],
             id: c.u64().ok_or_else(bad)?,
             outward: c.u8().ok_or_else(bad)? == 1,
@@ -119,14 +118,13 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
     }
     for r in shared.chunks_exact(SHARED_BYTES) {
         let mut c = Cursor::new(r);
-        let f = |c: &mut Cursor<'_>| c.u64().map(f64::from_bits);
         out.shared.push(crate::core::orient::SharedNormal {
             id: c.u64().ok_or_else(bad)?,
             patch: c.u32().ok_or_else(bad)?,
             normal: [
-                f(&mut c).ok_or_else(bad)?,
-                f(&mut c).ok_or_else(bad)?,
-                f(&mut c).ok_or_else(bad)?,
+                c.f64().ok_or_else(bad)?,
+                c.f64().ok_or_else(bad)?,
+                c.f64().ok_or_else(bad)?,
             ],
         });
     }
