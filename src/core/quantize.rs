@@ -68,15 +68,16 @@ impl Magnitudes {
 
     /// Adds the counts of `other`.
     pub fn merge(&mut self, other: &Magnitudes) {
+        // Saturating: counts come from result-file headers, which a damaged file may inflate.
         for (a, b) in self.counts.iter_mut().zip(&other.counts) {
-            *a += b;
+            *a = a.saturating_add(*b);
         }
         self.max = self.max.max(other.max);
     }
 
     /// Values counted.
     pub fn count(&self) -> u64 {
-        self.counts.iter().sum()
+        self.counts.iter().fold(0, |n, &c| n.saturating_add(c))
     }
 
     /// The largest |v| counted (0 when none).
@@ -94,7 +95,8 @@ impl Magnitudes {
     }
 
     /// Rebuilds counts from [`Magnitudes::bins`] and [`Magnitudes::max`]; None when a bin is
-    /// out of range or the maximum is not a finite non-negative number.
+    /// out of range, a bin's counts overflow, or the maximum is not a finite non-negative
+    /// number.
     pub fn from_bins(bins: impl IntoIterator<Item = (u16, u64)>, max: f64) -> Option<Self> {
         let mut m = Magnitudes::default();
         if !(max.is_finite() && max >= 0.0) {
@@ -102,7 +104,8 @@ impl Magnitudes {
         }
         m.max = max;
         for (b, c) in bins {
-            *m.counts.get_mut(b as usize)? += c;
+            let slot = m.counts.get_mut(b as usize)?;
+            *slot = slot.checked_add(c)?;
         }
         Some(m)
     }
