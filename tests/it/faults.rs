@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::common::{generate_terrain, root, tilecurv};
+use crate::common::{generate_terrain, process, root, tilecurv};
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
@@ -126,20 +126,7 @@ fn write_failures_are_output_failures_that_resume() {
             let out = dir.path().join(format!("out/{stem}.{ext}"));
             std::fs::create_dir_all(out.parent().expect("parent")).expect("output dir");
             let args = ["process", s(input), "-o", s(&out), "--tile", "50m"];
-            let clean = tilecurv(&[
-                "process",
-                s(input),
-                "-o",
-                s(&reference),
-                "--tile",
-                "50m",
-                "-q",
-            ]);
-            assert!(
-                clean.status.success(),
-                "{}",
-                String::from_utf8_lossy(&clean.stderr)
-            );
+            process(input, &reference, &["--tile", "50m"]);
             let failed = tilecurv_limited(&format!("-f {blocks}"), &args);
             let work = tilecurv::io::workdir::default_path(&out);
             failed_then_resumed(&failed, &args, &out, &work, "ulimit -f", &reference);
@@ -262,20 +249,7 @@ fn a_full_disk_while_writing_laz_keeps_the_work_and_resumes() {
         }
     };
     let reference = dir.path().join("reference.laz");
-    let clean = tilecurv(&[
-        "process",
-        s(&sample()),
-        "-o",
-        s(&reference),
-        "--tile",
-        "50m",
-        "-q",
-    ]);
-    assert!(
-        clean.status.success(),
-        "{}",
-        String::from_utf8_lossy(&clean.stderr)
-    );
+    process(&sample(), &reference, &["--tile", "50m"]);
     let out = mnt.0.join("out.laz");
     let work = dir.path().join("work");
     let input = sample();
@@ -565,20 +539,7 @@ fn too_many_open_files_is_a_resource_error_not_bad_input() {
     let dir = tempfile::tempdir().expect("temp dir");
     let input = sample();
     let reference = dir.path().join("reference.las");
-    let clean = tilecurv(&[
-        "process",
-        s(&input),
-        "-o",
-        s(&reference),
-        "--tile",
-        "20m",
-        "-q",
-    ]);
-    assert!(
-        clean.status.success(),
-        "{}",
-        String::from_utf8_lossy(&clean.stderr)
-    );
+    process(&input, &reference, &["--tile", "20m"]);
     let out = dir.path().join("out.las");
     let work = tilecurv::io::workdir::default_path(&out);
     let args = ["process", s(&input), "-o", s(&out), "--tile", "20m"];
@@ -637,12 +598,7 @@ fn an_address_space_limit_lowers_the_budget_or_refuses_cleanly() {
     let input = dir.path().join("terrain.las");
     generate_terrain(&input, "500k", 4, 10.0);
     let reference = dir.path().join("reference.las");
-    let clean = tilecurv(&["process", s(&input), "-o", s(&reference), "-q"]);
-    assert!(
-        clean.status.success(),
-        "{}",
-        String::from_utf8_lossy(&clean.stderr)
-    );
+    process(&input, &reference, &[]);
     let out = dir.path().join("out.las");
     let args = ["process", s(&input), "-o", s(&out), "--memory", "4G"];
     // Room for the program and the mapped input, not for a budget.
