@@ -32,6 +32,36 @@ fn tilecurv_limited(limit: &str, args: &[&str]) -> Output {
         .expect("sh runs")
 }
 
+/// Runs `tilecurv args` and asserts success.
+fn run_ok(args: &[&str]) {
+    let o = tilecurv(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// Runs every tile task of the bucketed work directory `work` (their number from `status`).
+fn run_every_tile(work: &Path) {
+    let tasks = String::from_utf8_lossy(&tilecurv(&["status", "--work", s(work)]).stdout)
+        .split(" of ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|n| n.parse::<u64>().ok())
+        .expect("status names the tasks");
+    for t in 0..tasks {
+        run_ok(&[
+            "run-tile",
+            "--work",
+            s(work),
+            "--task",
+            &t.to_string(),
+            "-q",
+        ]);
+    }
+}
+
 /// Temporary outputs (`.<name>.tilecurv-<host>-<pid>.tmp`) left in `dir`.
 fn temp_outputs(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
@@ -136,15 +166,7 @@ fn write_failures_are_output_failures_that_resume() {
     // cluster stages never remove it), and assembling again gives the same bytes.
     let work = dir.path().join("work");
     let out = dir.path().join("cluster/sample.laz");
-    let run = |args: &[&str]| {
-        let o = tilecurv(args);
-        assert!(
-            o.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-    };
-    run(&[
+    run_ok(&[
         "plan",
         s(&sample()),
         "--work",
@@ -153,23 +175,8 @@ fn write_failures_are_output_failures_that_resume() {
         "50m",
         "-q",
     ]);
-    run(&["bucket", "--work", s(&work), "-q"]);
-    let tasks = String::from_utf8_lossy(&tilecurv(&["status", "--work", s(&work)]).stdout)
-        .split(" of ")
-        .nth(1)
-        .and_then(|t| t.split(' ').next())
-        .and_then(|n| n.parse::<u64>().ok())
-        .expect("status names the tasks");
-    for t in 0..tasks {
-        run(&[
-            "run-tile",
-            "--work",
-            s(&work),
-            "--task",
-            &t.to_string(),
-            "-q",
-        ]);
-    }
+    run_ok(&["bucket", "--work", s(&work), "-q"]);
+    run_every_tile(&work);
     std::fs::create_dir_all(out.parent().expect("parent")).expect("output dir");
     let failed = tilecurv_limited("-f 400", &["assemble", "--work", s(&work), "-o", s(&out)]);
     let err = String::from_utf8_lossy(&failed.stderr);
@@ -183,7 +190,7 @@ fn write_failures_are_output_failures_that_resume() {
         work.join("manifest.txt").exists(),
         "assemble removed the work directory"
     );
-    run(&["assemble", "--work", s(&work), "-o", s(&out), "-q"]);
+    run_ok(&["assemble", "--work", s(&work), "-o", s(&out), "-q"]);
     assert!(
         std::fs::read(&out).expect("output")
             == std::fs::read(dir.path().join("Haystack_Rock_ref.laz")).expect("reference"),
@@ -302,16 +309,8 @@ fn reruns_sweep_the_temporary_files_of_dead_processes() {
     let (dead, live) = (dead_pid(), std::process::id());
     let work = dir.path().join("work");
     let input = sample();
-    let run = |args: &[&str]| {
-        let o = tilecurv(args);
-        assert!(
-            o.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-    };
     let plan = ["plan", s(&input), "--work", s(&work), "--tile", "50m", "-q"];
-    run(&plan);
+    run_ok(&plan);
     let plant = |dir: &Path, name: &str, is_dir: bool| {
         let p = dir.join(name);
         if is_dir {
@@ -359,26 +358,10 @@ fn reruns_sweep_the_temporary_files_of_dead_processes() {
     }
     // The cluster stages: plan again (it reopens the work directory), bucket, every tile task,
     // assemble; then `process`, which writes beside its output too.
-    run(&plan);
-    run(&["bucket", "--work", s(&work), "-q"]);
-    let status = tilecurv(&["status", "--work", s(&work)]);
-    let tasks = String::from_utf8_lossy(&status.stdout)
-        .split(" of ")
-        .nth(1)
-        .and_then(|t| t.split(' ').next())
-        .and_then(|n| n.parse::<u64>().ok())
-        .expect("status names the tasks");
-    for t in 0..tasks {
-        run(&[
-            "run-tile",
-            "--work",
-            s(&work),
-            "--task",
-            &t.to_string(),
-            "-q",
-        ]);
-    }
-    run(&[
+    run_ok(&plan);
+    run_ok(&["bucket", "--work", s(&work), "-q"]);
+    run_every_tile(&work);
+    run_ok(&[
         "assemble",
         "--work",
         s(&work),
@@ -386,7 +369,7 @@ fn reruns_sweep_the_temporary_files_of_dead_processes() {
         s(&outdir.join("a.laz")),
         "-q",
     ]);
-    run(&[
+    run_ok(&[
         "process",
         s(&input),
         "-o",
