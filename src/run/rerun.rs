@@ -47,7 +47,7 @@ pub fn open_input(path: &Path) -> Result<(Box<dyn PointSource>, Option<String>)>
                 None => Ok((source::ply::from_bytes(path, map)?, None)),
             }
         }
-        _ => Ok((source::open(path)?, None)),
+        format => Ok((source::open_format(path, format)?, None)),
     }
 }
 
