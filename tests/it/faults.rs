@@ -6,15 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::common::{generate_terrain, process, root, tilecurv};
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-fn under_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-}
+use crate::common::{generate_terrain, process, root, s, tilecurv, under_ci};
 
 /// The shipped sample.
 fn sample() -> PathBuf {

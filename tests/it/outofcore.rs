@@ -15,18 +15,10 @@ use std::time::{Duration, Instant};
 use tilecurv::io::las::header::OutputLayout;
 use tilecurv::io::source::PointSource;
 
-use crate::common::{column, process, records, shared, tilecurv, COLUMNS};
+use crate::common::{column, process, records, s, shared, tilecurv, under_ci, COLUMNS};
 
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_tilecurv")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-fn under_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
 }
 
 /// Writes a noise-free generated terrain of `points` points (10 per square metre).
