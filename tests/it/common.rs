@@ -98,6 +98,19 @@ pub fn generate_terrain_with(path: &Path, points: &str, seed: u64, density: f64,
     );
 }
 
+/// Runs `tilecurv args` again after an interrupted or failed run: asserts it succeeds and
+/// says it resumes; returns its stderr.
+pub fn resume(args: &[&str]) -> String {
+    let o = tilecurv(args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "the rerun failed: {err}");
+    assert!(
+        err.contains("resuming the interrupted run"),
+        "the rerun resumes: {err}"
+    );
+    err
+}
+
 /// Runs `tilecurv process` and asserts success.
 pub fn process(input: &Path, output: &Path, extra: &[&str]) {
     let mut quiet = vec!["-q"];

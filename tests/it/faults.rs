@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::common::{generate_terrain, process, root, s, tilecurv, under_ci};
+use crate::common::{generate_terrain, process, resume, root, s, tilecurv, under_ci};
 
 /// The shipped sample.
 fn sample() -> PathBuf {
@@ -105,13 +105,7 @@ fn failed_then_resumed(
         err.contains("the finished work is kept in"),
         "the message says the work is kept: {err}"
     );
-    let again = tilecurv(args);
-    let err = String::from_utf8_lossy(&again.stderr);
-    assert!(again.status.success(), "the rerun failed: {err}");
-    assert!(
-        err.contains("resuming the interrupted run"),
-        "the rerun resumes: {err}"
-    );
+    resume(args);
     assert!(
         std::fs::read(out).expect("output") == std::fs::read(ref_).expect("reference"),
         "{}: the resumed output differs from a clean run's",
@@ -476,10 +470,7 @@ fn the_summary_counts_undefined_points_of_resumed_tiles() {
     );
     let journalled = finished_tiles(&work);
     assert!(journalled < 1024, "every tile was done before the kill");
-    let resumed = tilecurv(&args);
-    let err = String::from_utf8_lossy(&resumed.stderr);
-    assert!(resumed.status.success(), "{err}");
-    assert!(err.contains("resuming the interrupted run"), "{err}");
+    let err = resume(&args);
     let (nan, flagged) = undefined_in(&out);
     assert_eq!(nan, flagged, "NaN H and the undefined flags disagree");
     assert!(
