@@ -13,6 +13,7 @@ use crate::config::Config;
 use crate::error::{Error, Result};
 use crate::io::columns::{every_name, Column, ColumnSet};
 use crate::io::las::provenance::{self, is_process_record, PreviousRun};
+use crate::io::las::vlr::Vlr;
 use crate::io::ply::PlyNames;
 use crate::io::sink::{output_format, OutputFormat};
 use crate::io::source::{self, Format, LasSource, PointSource, SourceLayout};
@@ -24,7 +25,7 @@ pub fn open_input(path: &Path) -> Result<(Box<dyn PointSource>, Option<String>)>
     match source::detect(path)? {
         Format::Las => {
             let mut s = LasSource::from_bytes(path, source::map_file(path)?)?;
-            let texts = provenance::texts(s.vlrs.iter().chain(s.evlrs.iter().map(|(_, v)| v)));
+            let texts = record_texts(&s.vlrs, &s.evlrs);
             let run = provenance::previous_run(&texts, &s.extra, &every_name());
             let mut note = None;
             if let Some(run) = run.filter(|r| !r.columns.is_empty()) {
@@ -47,8 +48,13 @@ pub fn open_input(path: &Path) -> Result<(Box<dyn PointSource>, Option<String>)>
                 None => Ok((source::ply::from_bytes(path, map)?, None)),
             }
         }
-        _ => Ok((source::open(path)?, None)),
+        format => Ok((source::open_format(path, format)?, None)),
     }
+}
+
+/// The provenance texts among a LAS file's VLRs, then its EVLRs.
+fn record_texts(vlrs: &[Vlr], evlrs: &[(u64, Vlr)]) -> Vec<String> {
+    provenance::texts(vlrs.iter().chain(evlrs.iter().map(|(_, v)| v)))
 }
 
 /// The previous run in words: `tilecurv 0.1.0 (inputs a.las)`.
@@ -84,9 +90,7 @@ fn replaced_note(path: &Path, run: &PreviousRun) -> String {
 /// property, named), with what to do: `--columns` without the column's group, or a rename.
 fn clash(cfg: &Config, source: &dyn PointSource, what: &str, column: &Column) -> Error {
     let texts = match source.layout() {
-        SourceLayout::Las(p) => {
-            provenance::texts(p.vlrs.iter().chain(p.evlrs.iter().map(|(_, v)| v)))
-        }
+        SourceLayout::Las(p) => record_texts(p.vlrs, p.evlrs),
         SourceLayout::Converted => Vec::new(),
     };
     let whose = if texts.iter().any(|t| is_process_record(t)) {

@@ -3,13 +3,7 @@
 //! gives; tasks run twice are harmless; assemble refuses with exit 5 and writes nothing while a
 //! tile is missing; status counts and lists the tasks; a killed attempt's leftovers are swept.
 
-use std::path::Path;
-
-use crate::common::{generate_terrain, tilecurv};
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
+use crate::common::{generate_terrain, s, tilecurv};
 
 /// Runs `tilecurv args`, asserts the exit code, returns stdout.
 fn run(args: &[&str], code: i32) -> String {

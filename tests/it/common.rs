@@ -12,6 +12,16 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// A path as the `&str` a command line takes.
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// Whether this is a CI run (CI=true), where a missing prerequisite fails instead of skipping.
+pub fn under_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true")
+}
+
 /// A file from `../shared/data`, or None with a loud message. Under CI=true a missing file
 /// fails the test instead: CI may not skip the tests that matter.
 pub fn shared(rel: &str) -> Option<PathBuf> {
@@ -19,7 +29,7 @@ pub fn shared(rel: &str) -> Option<PathBuf> {
     if p.exists() {
         return Some(p);
     }
-    if std::env::var("CI").is_ok_and(|v| v == "true") {
+    if under_ci() {
         panic!(
             "{} is missing and CI=true: the shared test data must be present",
             p.display()
@@ -39,7 +49,7 @@ pub fn laspy_available() -> bool {
         .status()
         .is_ok_and(|s| s.success());
     if !ok {
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
+        if under_ci() {
             panic!("python3 with laspy and lazrs is required under CI=true");
         }
         eprintln!("SKIPPED: laspy check (python3 -c 'import laspy, lazrs' failed)");
@@ -86,6 +96,19 @@ pub fn generate_terrain_with(path: &Path, points: &str, seed: u64, density: f64,
         path.display(),
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// Runs `tilecurv args` again after an interrupted or failed run: asserts it succeeds and
+/// says it resumes; returns its stderr.
+pub fn resume(args: &[&str]) -> String {
+    let o = tilecurv(args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "the rerun failed: {err}");
+    assert!(
+        err.contains("resuming the interrupted run"),
+        "the rerun resumes: {err}"
+    );
+    err
 }
 
 /// Runs `tilecurv process` and asserts success.

@@ -6,15 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::common::{generate_terrain, root, tilecurv};
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-fn under_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-}
+use crate::common::{generate_terrain, process, resume, root, s, tilecurv, under_ci};
 
 /// The shipped sample.
 fn sample() -> PathBuf {
@@ -30,6 +22,36 @@ fn tilecurv_limited(limit: &str, args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("sh runs")
+}
+
+/// Runs `tilecurv args` and asserts success.
+fn run_ok(args: &[&str]) {
+    let o = tilecurv(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// Runs every tile task of the bucketed work directory `work` (their number from `status`).
+fn run_every_tile(work: &Path) {
+    let tasks = String::from_utf8_lossy(&tilecurv(&["status", "--work", s(work)]).stdout)
+        .split(" of ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|n| n.parse::<u64>().ok())
+        .expect("status names the tasks");
+    for t in 0..tasks {
+        run_ok(&[
+            "run-tile",
+            "--work",
+            s(work),
+            "--task",
+            &t.to_string(),
+            "-q",
+        ]);
+    }
 }
 
 /// Temporary outputs (`.<name>.tilecurv-<host>-<pid>.tmp`) left in `dir`.
@@ -83,13 +105,7 @@ fn failed_then_resumed(
         err.contains("the finished work is kept in"),
         "the message says the work is kept: {err}"
     );
-    let again = tilecurv(args);
-    let err = String::from_utf8_lossy(&again.stderr);
-    assert!(again.status.success(), "the rerun failed: {err}");
-    assert!(
-        err.contains("resuming the interrupted run"),
-        "the rerun resumes: {err}"
-    );
+    resume(args);
     assert!(
         std::fs::read(out).expect("output") == std::fs::read(ref_).expect("reference"),
         "{}: the resumed output differs from a clean run's",
@@ -126,20 +142,7 @@ fn write_failures_are_output_failures_that_resume() {
             let out = dir.path().join(format!("out/{stem}.{ext}"));
             std::fs::create_dir_all(out.parent().expect("parent")).expect("output dir");
             let args = ["process", s(input), "-o", s(&out), "--tile", "50m"];
-            let clean = tilecurv(&[
-                "process",
-                s(input),
-                "-o",
-                s(&reference),
-                "--tile",
-                "50m",
-                "-q",
-            ]);
-            assert!(
-                clean.status.success(),
-                "{}",
-                String::from_utf8_lossy(&clean.stderr)
-            );
+            process(input, &reference, &["--tile", "50m"]);
             let failed = tilecurv_limited(&format!("-f {blocks}"), &args);
             let work = tilecurv::io::workdir::default_path(&out);
             failed_then_resumed(&failed, &args, &out, &work, "ulimit -f", &reference);
@@ -149,15 +152,7 @@ fn write_failures_are_output_failures_that_resume() {
     // cluster stages never remove it), and assembling again gives the same bytes.
     let work = dir.path().join("work");
     let out = dir.path().join("cluster/sample.laz");
-    let run = |args: &[&str]| {
-        let o = tilecurv(args);
-        assert!(
-            o.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-    };
-    run(&[
+    run_ok(&[
         "plan",
         s(&sample()),
         "--work",
@@ -166,23 +161,8 @@ fn write_failures_are_output_failures_that_resume() {
         "50m",
         "-q",
     ]);
-    run(&["bucket", "--work", s(&work), "-q"]);
-    let tasks = String::from_utf8_lossy(&tilecurv(&["status", "--work", s(&work)]).stdout)
-        .split(" of ")
-        .nth(1)
-        .and_then(|t| t.split(' ').next())
-        .and_then(|n| n.parse::<u64>().ok())
-        .expect("status names the tasks");
-    for t in 0..tasks {
-        run(&[
-            "run-tile",
-            "--work",
-            s(&work),
-            "--task",
-            &t.to_string(),
-            "-q",
-        ]);
-    }
+    run_ok(&["bucket", "--work", s(&work), "-q"]);
+    run_every_tile(&work);
     std::fs::create_dir_all(out.parent().expect("parent")).expect("output dir");
     let failed = tilecurv_limited("-f 400", &["assemble", "--work", s(&work), "-o", s(&out)]);
     let err = String::from_utf8_lossy(&failed.stderr);
@@ -196,7 +176,7 @@ fn write_failures_are_output_failures_that_resume() {
         work.join("manifest.txt").exists(),
         "assemble removed the work directory"
     );
-    run(&["assemble", "--work", s(&work), "-o", s(&out), "-q"]);
+    run_ok(&["assemble", "--work", s(&work), "-o", s(&out), "-q"]);
     assert!(
         std::fs::read(&out).expect("output")
             == std::fs::read(dir.path().join("Haystack_Rock_ref.laz")).expect("reference"),
@@ -262,20 +242,7 @@ fn a_full_disk_while_writing_laz_keeps_the_work_and_resumes() {
         }
     };
     let reference = dir.path().join("reference.laz");
-    let clean = tilecurv(&[
-        "process",
-        s(&sample()),
-        "-o",
-        s(&reference),
-        "--tile",
-        "50m",
-        "-q",
-    ]);
-    assert!(
-        clean.status.success(),
-        "{}",
-        String::from_utf8_lossy(&clean.stderr)
-    );
+    process(&sample(), &reference, &["--tile", "50m"]);
     let out = mnt.0.join("out.laz");
     let work = dir.path().join("work");
     let input = sample();
@@ -328,16 +295,8 @@ fn reruns_sweep_the_temporary_files_of_dead_processes() {
     let (dead, live) = (dead_pid(), std::process::id());
     let work = dir.path().join("work");
     let input = sample();
-    let run = |args: &[&str]| {
-        let o = tilecurv(args);
-        assert!(
-            o.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-    };
     let plan = ["plan", s(&input), "--work", s(&work), "--tile", "50m", "-q"];
-    run(&plan);
+    run_ok(&plan);
     let plant = |dir: &Path, name: &str, is_dir: bool| {
         let p = dir.join(name);
         if is_dir {
@@ -385,26 +344,10 @@ fn reruns_sweep_the_temporary_files_of_dead_processes() {
     }
     // The cluster stages: plan again (it reopens the work directory), bucket, every tile task,
     // assemble; then `process`, which writes beside its output too.
-    run(&plan);
-    run(&["bucket", "--work", s(&work), "-q"]);
-    let status = tilecurv(&["status", "--work", s(&work)]);
-    let tasks = String::from_utf8_lossy(&status.stdout)
-        .split(" of ")
-        .nth(1)
-        .and_then(|t| t.split(' ').next())
-        .and_then(|n| n.parse::<u64>().ok())
-        .expect("status names the tasks");
-    for t in 0..tasks {
-        run(&[
-            "run-tile",
-            "--work",
-            s(&work),
-            "--task",
-            &t.to_string(),
-            "-q",
-        ]);
-    }
-    run(&[
+    run_ok(&plan);
+    run_ok(&["bucket", "--work", s(&work), "-q"]);
+    run_every_tile(&work);
+    run_ok(&[
         "assemble",
         "--work",
         s(&work),
@@ -412,7 +355,7 @@ fn reruns_sweep_the_temporary_files_of_dead_processes() {
         s(&outdir.join("a.laz")),
         "-q",
     ]);
-    run(&[
+    run_ok(&[
         "process",
         s(&input),
         "-o",
@@ -527,10 +470,7 @@ fn the_summary_counts_undefined_points_of_resumed_tiles() {
     );
     let journalled = finished_tiles(&work);
     assert!(journalled < 1024, "every tile was done before the kill");
-    let resumed = tilecurv(&args);
-    let err = String::from_utf8_lossy(&resumed.stderr);
-    assert!(resumed.status.success(), "{err}");
-    assert!(err.contains("resuming the interrupted run"), "{err}");
+    let err = resume(&args);
     let (nan, flagged) = undefined_in(&out);
     assert_eq!(nan, flagged, "NaN H and the undefined flags disagree");
     assert!(
@@ -565,20 +505,7 @@ fn too_many_open_files_is_a_resource_error_not_bad_input() {
     let dir = tempfile::tempdir().expect("temp dir");
     let input = sample();
     let reference = dir.path().join("reference.las");
-    let clean = tilecurv(&[
-        "process",
-        s(&input),
-        "-o",
-        s(&reference),
-        "--tile",
-        "20m",
-        "-q",
-    ]);
-    assert!(
-        clean.status.success(),
-        "{}",
-        String::from_utf8_lossy(&clean.stderr)
-    );
+    process(&input, &reference, &["--tile", "20m"]);
     let out = dir.path().join("out.las");
     let work = tilecurv::io::workdir::default_path(&out);
     let args = ["process", s(&input), "-o", s(&out), "--tile", "20m"];
@@ -637,12 +564,7 @@ fn an_address_space_limit_lowers_the_budget_or_refuses_cleanly() {
     let input = dir.path().join("terrain.las");
     generate_terrain(&input, "500k", 4, 10.0);
     let reference = dir.path().join("reference.las");
-    let clean = tilecurv(&["process", s(&input), "-o", s(&reference), "-q"]);
-    assert!(
-        clean.status.success(),
-        "{}",
-        String::from_utf8_lossy(&clean.stderr)
-    );
+    process(&input, &reference, &[]);
     let out = dir.path().join("out.las");
     let args = ["process", s(&input), "-o", s(&out), "--memory", "4G"];
     // Room for the program and the mapped input, not for a budget.

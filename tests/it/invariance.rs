@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{column, column_bytes, median, process, records, shared, tilecurv, COLUMNS};
+use crate::common::{column, column_bytes, median, process, records, s, shared, tilecurv, COLUMNS};
 
 fn assert_same_columns(a: &std::path::Path, b: &std::path::Path) {
     for name in COLUMNS {
@@ -75,10 +75,6 @@ const POINTS: u64 = 120_000;
 /// tile is computed whole and in memory on any machine (the default budget depends on the
 /// machine's memory).
 const REFERENCE: [&str; 6] = ["--tile", "100000m", "--threads", "1", "--memory", "4G"];
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
 
 /// Writes a noise-free generated terrain of `points` points at [`DENSITY`] (.las or .laz by the
 /// extension: the same options give the same points in both).

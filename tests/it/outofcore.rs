@@ -15,18 +15,10 @@ use std::time::{Duration, Instant};
 use tilecurv::io::las::header::OutputLayout;
 use tilecurv::io::source::PointSource;
 
-use crate::common::{column, process, records, shared, tilecurv, COLUMNS};
+use crate::common::{column, process, records, resume, s, shared, tilecurv, under_ci, COLUMNS};
 
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_tilecurv")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-fn under_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
 }
 
 /// Writes a noise-free generated terrain of `points` points (10 per square metre).
@@ -325,13 +317,7 @@ fn killed_runs_resume_to_a_byte_identical_output() {
     );
     let last = *tiles_after.last().expect("kills");
     assert!(last >= tiles / 2, "{last} tiles survived the last kill");
-    let done = tilecurv(&args);
-    let err = String::from_utf8_lossy(&done.stderr);
-    assert!(done.status.success(), "the resumed run failed: {err}");
-    assert!(
-        err.contains("resuming the interrupted run"),
-        "the rerun resumes: {err}"
-    );
+    let err = resume(&args);
     let resumed = resumed_tiles(&err);
     assert!(
         resumed >= last,
