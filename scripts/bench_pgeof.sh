@@ -16,7 +16,7 @@
 # Environment: TILECURV_BENCH_DIR (cache and outputs), K (default 30), THREADS (tilecurv
 # threads, default 2), SEED (terrain seed, default 1), KEEP_OUTPUTS=1 to keep the outputs,
 # SCALING=0 to skip the one-thread run.
-# The two tools do not compute the same thing: tilecurv writes normals and H, K, k1, k2 (CNC
+# The two tools do not compute the same thing: tilecurv writes H, K and flags by default (CNC
 # estimator); pgeof writes PCA eigenvalue features and a normal. Both do a k-NN search and a
 # per-point PCA over K neighbours, which dominate pgeof's time.
 set -euo pipefail

@@ -57,8 +57,31 @@ pub fn laspy_available() -> bool {
     ok
 }
 
-/// Runs `tilecurv` with `args`.
+/// The columns the tests' `process` and `plan` runs write unless they name `--columns`: every
+/// curvature column, so that the invariance and closed-form tests check normals, k1 and k2
+/// too. The default (H, K, flags) is checked by `compact::the_default_columns_are_h_k_and_flags`
+/// through [`tilecurv_as_given`].
+pub const ALL_CURVATURE: &str = "normals,H,K,k1,k2,flags";
+
+/// Runs `tilecurv` with `args`; a `process` or `plan` without `--columns` gets
+/// `--columns` [`ALL_CURVATURE`].
 pub fn tilecurv(args: &[&str]) -> Output {
+    tilecurv_as_given(&with_test_columns(args))
+}
+
+/// `args` with `--columns` [`ALL_CURVATURE`] added to a `process` or `plan` that names none
+/// (for the tests that spawn the binary themselves).
+pub fn with_test_columns<'a>(args: &[&'a str]) -> Vec<&'a str> {
+    let mut args = args.to_vec();
+    let computes = matches!(args.first(), Some(&"process") | Some(&"plan"));
+    if computes && !args.iter().any(|a| a.starts_with("--columns")) {
+        args.extend(["--columns", ALL_CURVATURE]);
+    }
+    args
+}
+
+/// Runs `tilecurv` with exactly `args`.
+pub fn tilecurv_as_given(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_tilecurv"))
         .args(args)
         .output()

@@ -8,7 +8,9 @@ use std::path::Path;
 
 use tilecurv::io::source::PointSource;
 
-use crate::common::{column, laspy_available, process, records, tilecurv, write_las};
+use crate::common::{
+    column, laspy_available, process, records, s, tilecurv, tilecurv_as_given, write_las,
+};
 use crate::interop::laspy;
 
 /// A saddle z = 0.02 (x^2 - 0.5 y^2) sampled on a jittered 60 x 60 grid (1 m), and 40 copies
@@ -110,6 +112,30 @@ print("ok")
 "#;
     let said = laspy(check, &[&scaled, &reference]);
     assert!(said.trim_end().ends_with("ok"), "{said}");
+}
+
+/// Without `--columns` a run writes H, K and CurvatureFlags only (the set whose LAZ output
+/// stays within 2x its LAZ input on forest TLS, README "Compact columns"): 9 bytes a point after
+/// the 20-byte format-0 record, and the provenance says so.
+#[test]
+fn the_default_columns_are_h_k_and_flags() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("saddle.las");
+    saddle_with_duplicates(&input);
+    let out = dir.path().join("o.laz");
+    let o = tilecurv_as_given(&["process", s(&input), "-o", s(&out), "-q"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (src, _) = records(&out);
+    let names: Vec<&str> = src.extra.iter().map(|d| d.name.as_str()).collect();
+    assert_eq!(names, ["H", "K", "CurvatureFlags"]);
+    assert_eq!(src.header.record_length, 20 + 4 + 4 + 1);
+    let prov = src
+        .vlrs
+        .iter()
+        .find(|v| v.is("tilecurv", 1))
+        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
+        .expect("provenance");
+    assert!(prov.contains("columns=H,K,flags\n"), "{prov}");
 }
 
 /// `--columns H,flags` writes those two only; the order given does not matter and --directions

@@ -19,7 +19,7 @@ fn tilecurv_limited(limit: &str, args: &[&str]) -> Output {
         .arg("-c")
         .arg(format!("ulimit {limit} && exec \"$0\" \"$@\""))
         .arg(env!("CARGO_BIN_EXE_tilecurv"))
-        .args(args)
+        .args(crate::common::with_test_columns(args))
         .output()
         .expect("sh runs")
 }
@@ -448,7 +448,7 @@ fn the_summary_counts_undefined_points_of_resumed_tiles() {
         "2",
     ];
     let mut child = Command::new(env!("CARGO_BIN_EXE_tilecurv"))
-        .args(args)
+        .args(crate::common::with_test_columns(&args))
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()

@@ -87,7 +87,7 @@ fn generate(path: &Path, points: u64, seed: u64) {
 fn process_args<'a>(input: &'a Path, output: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
     let mut args = vec!["process", s(input), "-o", s(output)];
     args.extend_from_slice(extra);
-    args
+    crate::common::with_test_columns(&args)
 }
 
 /// Runs `tilecurv process`, asserts success and returns its stderr.

@@ -15,7 +15,9 @@ use std::time::{Duration, Instant};
 use tilecurv::io::las::header::OutputLayout;
 use tilecurv::io::source::PointSource;
 
-use crate::common::{column, process, records, resume, s, shared, tilecurv, under_ci, COLUMNS};
+use crate::common::{
+    column, process, records, resume, s, shared, tilecurv, under_ci, with_test_columns, COLUMNS,
+};
 
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_tilecurv")
@@ -36,7 +38,7 @@ fn run_with_peak_rss(args: &[&str], scratch: &Path) -> Option<(Output, u64)> {
         let report = scratch.join("time.txt");
         let out = Command::new(time)
             .args(["-f", "%M", "-o", s(&report), bin()])
-            .args(args)
+            .args(with_test_columns(args))
             .output()
             .expect("/usr/bin/time runs");
         let kib = std::fs::read_to_string(&report)
@@ -48,7 +50,7 @@ fn run_with_peak_rss(args: &[&str], scratch: &Path) -> Option<(Output, u64)> {
     }
     // Fallback: poll the child's high-water mark until it exits.
     let mut child = Command::new(bin())
-        .args(args)
+        .args(with_test_columns(args))
         .stdout(Stdio::piped())
         .stderr(Stdio::from(
             File::create(scratch.join("stderr.txt")).expect("scratch file"),
@@ -166,7 +168,7 @@ struct Background {
 
 fn start(args: &[&str], stderr: &Path) -> Background {
     let child = Command::new(bin())
-        .args(args)
+        .args(with_test_columns(args))
         .stdout(Stdio::null())
         .stderr(Stdio::from(File::create(stderr).expect("stderr file")))
         .spawn()

@@ -6,7 +6,8 @@ use crate::core::estimate::{EstimatorKind, EstimatorParams};
 pub(super) fn vcm_columns() -> ColumnSet {
     let vcm = EstimatorKind::Vcm.build(&EstimatorParams::default());
     ColumnSet {
-        choice: ColumnChoice::default()
+        choice: ColumnChoice::parse("normals,H,K,k1,k2,flags")
+            .expect("valid")
             .with(Group::Directions)
             .with(Group::Features),
         extra: vcm.extra_columns().to_vec(),
@@ -21,10 +22,7 @@ pub(super) fn vcm_columns() -> ColumnSet {
 fn column_lists_parse_in_record_order() {
     let c = ColumnChoice::parse("flags, h,K2").expect("valid");
     assert_eq!(c.to_string(), "H,k2,flags");
-    assert_eq!(
-        ColumnChoice::default().to_string(),
-        "normals,H,K,k1,k2,flags"
-    );
+    assert_eq!(ColumnChoice::default().to_string(), "H,K,flags");
     assert_eq!(
         ColumnChoice::parse(&ColumnChoice::default().to_string()),
         Ok(ColumnChoice::default())

@@ -3,7 +3,7 @@ use crate::io::columns::ColumnChoice;
 
 fn cols() -> ColumnSet {
     ColumnSet {
-        choice: ColumnChoice::default(),
+        choice: ColumnChoice::parse("normals,H,K,k1,k2,flags").expect("valid"),
         extra: Vec::new(),
         unit: "m".into(),
         wide: false,

@@ -309,7 +309,7 @@ mod tests {
     fn merge_with_runs_returns_every_id_once_in_order() {
         let dir = tempfile::tempdir().expect("temp dir");
         let cols = ColumnSet {
-            choice: ColumnChoice::default(),
+            choice: ColumnChoice::parse("normals,H,K,k1,k2,flags").expect("valid"),
             extra: Vec::new(),
             unit: "m".into(),
             wide: true,
