@@ -87,11 +87,7 @@ pub fn file_info(path: &Path) -> Result<FileInfo> {
     let points = source.len();
     Ok(match source.layout() {
         SourceLayout::Las(parts) => {
-            let records: Vec<_> = parts
-                .vlrs
-                .iter()
-                .chain(parts.evlrs.iter().map(|(_, v)| v))
-                .collect();
+            let records: Vec<_> = crate::io::las::vlr::records(parts.vlrs, parts.evlrs).collect();
             let h = parts.header;
             FileInfo {
                 path: path.to_path_buf(),

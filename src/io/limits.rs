@@ -7,30 +7,19 @@
 /// as its memory budget allows);
 /// a limit that cannot be raised is left as it is, and the merge fits itself to it.
 pub fn raise_open_files() {
-    let mut lim = libc::rlimit {
-        rlim_cur: 0,
-        rlim_max: 0,
-    };
-    // SAFETY: getrlimit and setrlimit only read or write the struct passed.
-    unsafe {
-        if libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) == 0 && lim.rlim_cur < lim.rlim_max {
-            let raised = libc::rlimit {
-                rlim_cur: lim.rlim_max,
-                rlim_max: lim.rlim_max,
-            };
-            libc::setrlimit(libc::RLIMIT_NOFILE, &raised);
-        }
+    if let Some(lim) = current(Limit::OpenFiles).filter(|l| l.rlim_cur < l.rlim_max) {
+        let raised = libc::rlimit {
+            rlim_cur: lim.rlim_max,
+            rlim_max: lim.rlim_max,
+        };
+        // SAFETY: setrlimit only reads the struct passed.
+        unsafe { libc::setrlimit(libc::RLIMIT_NOFILE, &raised) };
     }
 }
 
 /// The soft limit on open files, if it can be read (`RLIM_INFINITY` is `u64::MAX`).
 pub fn open_files_limit() -> Option<u64> {
-    let mut lim = libc::rlimit {
-        rlim_cur: 0,
-        rlim_max: 0,
-    };
-    // SAFETY: getrlimit only writes the struct passed.
-    (unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) } == 0).then_some(lim.rlim_cur)
+    current(Limit::OpenFiles).map(|l| l.rlim_cur)
 }
 
 /// The file descriptors this process has open now (Linux: `/proc/self/fd`, less the one the
@@ -43,13 +32,33 @@ pub fn open_descriptors() -> Option<u64> {
 /// The address-space limit (`RLIMIT_AS`, `ulimit -v`) in bytes; None when unlimited. Every
 /// mapping counts against it: the memory-mapped inputs, thread stacks, the allocator's arenas.
 pub fn address_space_limit() -> Option<u64> {
+    current(Limit::AddressSpace)
+        .map(|l| l.rlim_cur)
+        .filter(|&cur| cur != libc::RLIM_INFINITY)
+}
+
+/// The limits read here.
+#[derive(Clone, Copy)]
+enum Limit {
+    OpenFiles,
+    AddressSpace,
+}
+
+/// The soft and hard values of a limit, if getrlimit answers. A match of calls rather than a
+/// resource argument: the resource's type differs between C libraries (glibc: unsigned).
+fn current(which: Limit) -> Option<libc::rlimit> {
     let mut lim = libc::rlimit {
         rlim_cur: 0,
         rlim_max: 0,
     };
     // SAFETY: getrlimit only writes the struct passed.
-    let ok = unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut lim) } == 0;
-    (ok && lim.rlim_cur != libc::RLIM_INFINITY).then_some(lim.rlim_cur)
+    let r = unsafe {
+        match which {
+            Limit::OpenFiles => libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim),
+            Limit::AddressSpace => libc::getrlimit(libc::RLIMIT_AS, &mut lim),
+        }
+    };
+    (r == 0).then_some(lim)
 }
 
 /// Keeps the allocator to one arena when the address space is limited: glibc reserves 64 MiB

@@ -54,7 +54,7 @@ pub fn open_input(path: &Path) -> Result<(Box<dyn PointSource>, Option<String>)>
 
 /// The provenance texts among a LAS file's VLRs, then its EVLRs.
 fn record_texts(vlrs: &[Vlr], evlrs: &[(u64, Vlr)]) -> Vec<String> {
-    provenance::texts(vlrs.iter().chain(evlrs.iter().map(|(_, v)| v)))
+    provenance::texts(crate::io::las::vlr::records(vlrs, evlrs))
 }
 
 /// The previous run in words: `tilecurv 0.1.0 (inputs a.las)`.

@@ -193,3 +193,12 @@ pub fn read_evlrs(path: &Path, file: &[u8], header: &LasHeader) -> Result<Vec<(u
     }
     Ok(out)
 }
+
+/// A file's VLRs, then its EVLRs (each with its file offset), as one sequence of records: the
+/// order in which readers meet them.
+pub fn records<'a>(
+    vlrs: &'a [Vlr],
+    evlrs: &'a [(u64, Vlr)],
+) -> impl Iterator<Item = &'a Vlr> + Clone {
+    vlrs.iter().chain(evlrs.iter().map(|(_, v)| v))
+}

@@ -16,7 +16,7 @@ use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
 use crate::io::las::header::{LasHeader, POINT_FORMAT_SIZES};
 use crate::io::las::parts::LasParts;
 use crate::io::las::trim::Trim;
-use crate::io::las::vlr::{read_evlrs, read_vlrs, Vlr};
+use crate::io::las::vlr::{self, read_evlrs, read_vlrs, Vlr};
 
 use super::{InputBytes, PointSource, Property, SourceLayout, SourcePoint, Stored};
 
@@ -120,7 +120,7 @@ impl LasSource {
             )));
         }
         let bad = |why: String| Error::bad_input(&self.path, None, why);
-        let records = self.vlrs.iter().chain(self.evlrs.iter().map(|(_, v)| v));
+        let records = vlr::records(&self.vlrs, &self.evlrs);
         let payload = extra_bytes::merged_payload(records).map_err(bad)?;
         let base = POINT_FORMAT_SIZES[self.header.point_format as usize] as usize;
         let stored = self.stored_length();
@@ -247,8 +247,7 @@ fn extra_descriptors(
             format!("{why}; fix or remove the extra-bytes VLR"),
         )
     };
-    let data = extra_bytes::merged_payload(vlrs.iter().chain(evlrs.iter().map(|(_, v)| v)))
-        .map_err(bad)?;
+    let data = extra_bytes::merged_payload(vlr::records(vlrs, evlrs)).map_err(bad)?;
     let extra = extra_bytes::parse(&data).map_err(bad)?;
     let total: usize = extra.iter().map(|d| d.size).sum();
     if total > header.extra_bytes_len() as usize {
@@ -340,14 +339,12 @@ impl PointSource for LasSource {
 
     /// The horizontal unit of the file's CRS.
     fn unit(&self) -> UnitSource {
-        horizontal_unit(self.vlrs.iter().chain(self.evlrs.iter().map(|(_, v)| v)))
+        horizontal_unit(vlr::records(&self.vlrs, &self.evlrs))
     }
 
     /// The vertical unit of the file's CRS, from the record that gives the horizontal one.
     fn vertical_unit(&self) -> crate::io::crs_summary::VerticalUnit {
-        crate::io::crs_summary::vertical_unit(
-            self.vlrs.iter().chain(self.evlrs.iter().map(|(_, v)| v)),
-        )
+        crate::io::crs_summary::vertical_unit(vlr::records(&self.vlrs, &self.evlrs))
     }
 
     /// The classification and withheld flag of a record: point formats 0-5 keep both in byte
