@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use crate::core::plan::TilePlan;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::progress::Reporter;
 
 /// `--orient propagate`, across tiles: reads every tile's patch anchors and shared normals,
@@ -22,9 +22,14 @@ pub fn resolve_orientation(
     let mut offsets = Vec::with_capacity(tplan.tiles.len() + 1);
     offsets.push(0u32);
     for t in &tplan.tiles {
-        let sc =
-            crate::io::results::read_sidecar(&crate::io::results::orientation_path(dir, t.key))?;
+        let path = crate::io::results::orientation_path(dir, t.key);
+        let sc = crate::io::results::read_sidecar(&path)?;
         let base = *offsets.last().unwrap_or(&0);
+        // Patch numbers are u32 across the scene: a sum past that is damage, not data.
+        let next = u32::try_from(sc.anchors.len())
+            .ok()
+            .and_then(|n| base.checked_add(n))
+            .ok_or_else(|| Error::damaged_work(&path, "more than 2^32 patches in the scene"))?;
         anchors.extend(sc.anchors.iter().map(|a| crate::core::orient::PatchAnchor {
             patch: base + a.patch,
             ..*a
@@ -33,7 +38,7 @@ pub fn resolve_orientation(
             patch: base + s.patch,
             ..*s
         }));
-        offsets.push(base + sc.anchors.len() as u32);
+        offsets.push(next);
     }
     let total = *offsets.last().unwrap_or(&0) as usize;
     let votes = crate::core::orient::votes_from_shared(&mut shared);

@@ -116,6 +116,16 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
             outward: c.u8().ok_or_else(bad)? == 1,
         });
     }
+    // A tile numbers its patches 0, 1, ... in the order of their anchors; a checksum-valid but
+    // inconsistent sidecar would otherwise skew the orientation signs of the whole scene.
+    let numbered = out
+        .anchors
+        .iter()
+        .enumerate()
+        .all(|(i, a)| a.patch as usize == i);
+    if !numbered || na > u64::from(u32::MAX) {
+        return Err(bad());
+    }
     for r in shared.chunks_exact(SHARED_BYTES) {
         let mut c = Cursor::new(r);
         out.shared.push(crate::core::orient::SharedNormal {
@@ -127,6 +137,9 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
                 c.f64().ok_or_else(bad)?,
             ],
         });
+    }
+    if out.shared.iter().any(|n| u64::from(n.patch) >= na) {
+        return Err(bad());
     }
     Ok(out)
 }
@@ -170,6 +183,20 @@ mod tests {
             let e = read_sidecar(&path).expect_err("damaged");
             assert_eq!(e.exit_class(), crate::error::ExitClass::Output);
             assert!(e.to_string().contains("tile_3_-4.ori"), "{e}");
+        }
+        // Checksum-valid but inconsistent: a shared normal of a patch the tile has no anchor
+        // for, and anchors not numbered 0, 1, ... in order.
+        let mut stray = s.clone();
+        stray.shared[7].patch = 40;
+        let mut misnumbered = s.clone();
+        misnumbered.anchors.swap(3, 4);
+        for bad in [stray, misnumbered] {
+            std::fs::rename(write_sidecar(&path, &bad).expect("write"), &path).expect("rename");
+            let e = read_sidecar(&path).expect_err("inconsistent");
+            assert!(
+                e.to_string().contains("orientation sidecar is damaged"),
+                "{e}"
+            );
         }
     }
 }
