@@ -152,6 +152,19 @@ fn cgroup_limit(
     lowest
 }
 
+/// Gives the memory the allocator holds free back to the system (glibc: `malloc_trim`, over
+/// every arena), between phases: the tile phase's buffers, freed in the worker threads' arenas,
+/// would otherwise stay resident through the write phase and add to its own (30M points,
+/// `--memory 128M`: peak anonymous memory 182 -> 122 MiB, the write phase 179 -> 99 MiB).
+/// Elsewhere nothing happens.
+pub fn return_free_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only releases free pages of the allocator's own heaps.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

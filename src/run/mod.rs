@@ -173,6 +173,7 @@ pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Re
         let scan = bucket::bucket_all(&work, &spec, &layout, &exec)?;
         let done = tiles::tiles(&work, &spec, &scan, &layout, None, &exec)?;
         drop(scan);
+        crate::io::limits::return_free_memory();
         let undefined = assemble::assemble_outputs(&work, &spec, &done.plan, &exec)?;
         Ok((done, undefined))
     })();
