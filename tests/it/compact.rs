@@ -114,6 +114,16 @@ print("ok")
     assert!(said.trim_end().ends_with("ok"), "{said}");
 }
 
+/// The text of a LAS output's tilecurv provenance record.
+fn provenance(path: &Path) -> String {
+    let (s, _) = records(path);
+    s.vlrs
+        .iter()
+        .find(|v| v.is("tilecurv", 1))
+        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
+        .expect("provenance")
+}
+
 /// Without `--columns` a run writes H, K and CurvatureFlags only (the set whose LAZ output
 /// stays within 2x its LAZ input on forest TLS, README "Compact columns"): 9 bytes a point after
 /// the 20-byte format-0 record, and the provenance says so.
@@ -129,12 +139,7 @@ fn the_default_columns_are_h_k_and_flags() {
     let names: Vec<&str> = src.extra.iter().map(|d| d.name.as_str()).collect();
     assert_eq!(names, ["H", "K", "CurvatureFlags"]);
     assert_eq!(src.header.record_length, 20 + 4 + 4 + 1);
-    let prov = src
-        .vlrs
-        .iter()
-        .find(|v| v.is("tilecurv", 1))
-        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
-        .expect("provenance");
+    let prov = provenance(&out);
     assert!(prov.contains("columns=H,K,flags\n"), "{prov}");
 }
 
@@ -156,13 +161,7 @@ fn columns_pick_what_is_written() {
         names(&out),
         (vec!["H".into(), "CurvatureFlags".into()], 20 + 4 + 1)
     );
-    let (s, _) = records(&out);
-    let prov = s
-        .vlrs
-        .iter()
-        .find(|v| v.is("tilecurv", 1))
-        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
-        .expect("provenance");
+    let prov = provenance(&out);
     assert!(prov.contains("columns=H,flags\n"), "{prov}");
     assert!(prov.contains("column.H=i32 scale "), "{prov}");
     assert!(prov.contains("column.CurvatureFlags=u8\n"), "{prov}");
