@@ -118,7 +118,12 @@ impl TileJob<'_> {
             })?;
             retried += again;
             exec.reporter.advance(results.len() as u64);
-            gathered.append(&mut results);
+            if gathered.is_empty() {
+                // One part (most tiles): its results are the tile's, without a copy.
+                gathered = std::mem::take(&mut results);
+            } else {
+                gathered.append(&mut results);
+            }
         }
         Ok((gathered, sidecar, retried))
     }
@@ -422,7 +427,7 @@ fn write_results(
     let (mut undefined, mut retried) = (0u64, 0u64);
     let mut first_error = None;
     for msg in rx.iter() {
-        let added = msg.and_then(|mut f| {
+        let added = msg.and_then(|f| {
             undefined += f
                 .results
                 .iter()
@@ -432,7 +437,7 @@ fn write_results(
             journal.add(
                 f.spec.key,
                 f.spec.index,
-                &mut f.results,
+                &f.results,
                 f.sidecar.as_ref(),
                 cols,
             )
