@@ -30,13 +30,6 @@ impl TilePoints {
         self.file_normals.push(p.normal);
     }
 
-    /// Makes room for `n` more points.
-    pub fn reserve(&mut self, n: usize) {
-        self.xyz.reserve(n);
-        self.ids.reserve(n);
-        self.file_normals.reserve(n);
-    }
-
     /// Reorders the points to follow a Z-order (Morton) curve over x/y, core and context
     /// separately, so that consecutive queries touch the same part of the k-d tree (cache
     /// locality). Points with the same Morton key are ordered by position, and exact duplicates

@@ -118,12 +118,7 @@ impl TileJob<'_> {
             })?;
             retried += again;
             exec.reporter.advance(results.len() as u64);
-            if gathered.is_empty() {
-                // One part (most tiles): its results are the tile's, without a copy.
-                gathered = std::mem::take(&mut results);
-            } else {
-                gathered.append(&mut results);
-            }
+            gathered.append(&mut results);
         }
         Ok((gathered, sidecar, retried))
     }
@@ -427,7 +422,7 @@ fn write_results(
     let (mut undefined, mut retried) = (0u64, 0u64);
     let mut first_error = None;
     for msg in rx.iter() {
-        let added = msg.and_then(|f| {
+        let added = msg.and_then(|mut f| {
             undefined += f
                 .results
                 .iter()
@@ -437,7 +432,7 @@ fn write_results(
             journal.add(
                 f.spec.key,
                 f.spec.index,
-                &f.results,
+                &mut f.results,
                 f.sidecar.as_ref(),
                 cols,
             )

@@ -143,11 +143,7 @@ impl Buckets {
                     &format!("bucket file holds {} points, not {count}", points.len()),
                 ));
             }
-            if all.is_empty() {
-                all = points; // one task directory (process): no copy
-            } else {
-                all.extend(points);
-            }
+            all.extend(points);
         }
         let points = Arc::new(all);
         if let Ok(mut c) = self.cache.lock() {
@@ -217,12 +213,6 @@ pub fn load_tile(
         region,
         ..Default::default()
     };
-    // A whole tile's first pass loads its core and about a quarter more of halo (an initial
-    // halo of three k-NN radii around a tile of dozens): room for them up front instead of
-    // copies as the vectors double. A quadtree part or a retry loads less: no guess.
-    if part.splits.is_empty() && only.is_none() {
-        t.reserve(core.len() + core.len() / 4);
-    }
     let selected =
         |p: &&SourcePoint| part.contains(&p.xyz) && only.is_none_or(|s| s.contains(&p.id));
     for p in core.iter().filter(selected) {
