@@ -8,6 +8,8 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use crossbeam_channel::bounded;
+
 use crate::config::OrientMode;
 use crate::core::compute::PointResult;
 use crate::core::estimate::flags;
@@ -126,9 +128,92 @@ pub fn assemble(
     }
 }
 
+/// Bytes of output records the merge hands to the writer at a time: small enough that the
+/// buffers in flight stay a few MiB whatever the chunk size, large enough that a hand-off per
+/// buffer costs nothing.
+const HANDOFF_BYTES: usize = 4 << 20;
+
+/// Merges the results into `source`'s records ([`merge_records`]) and writes them to `writer`.
+/// The merge (reading, decoding, encoding) runs on a thread of its own and hands filled buffers
+/// to this one, which writes them: the write system calls, whose copying into the page cache
+/// was most of this phase's time, overlap the merge instead of following it. Two buffers
+/// circulate, so memory does not grow. The output's bytes are those of one thread: the buffers
+/// are written in the order they were filled.
 #[allow(clippy::too_many_arguments)]
 fn merge_into(
     writer: &mut dyn PointSink,
+    source: &dyn PointSource,
+    first_id: u64,
+    merger: &mut Merger,
+    flips: Option<&[Vec<bool>]>,
+    cols: (&ColumnSet, &OutputColumns),
+    select: &ClassFilter,
+    chunk_points: usize,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<u64> {
+    let (full_tx, full_rx) = bounded::<Vec<u8>>(1);
+    let (free_tx, free_rx) = bounded::<Vec<u8>>(2);
+    std::thread::scope(|s| {
+        let merge = std::thread::Builder::new()
+            .name("assemble merge".into())
+            .spawn_scoped(s, move || {
+                // A failed send means the writer stopped, and it reports why.
+                let mut hand_off = |buf: &mut Vec<u8>| {
+                    let empty = free_rx.try_recv().unwrap_or_default();
+                    full_tx
+                        .send(std::mem::replace(buf, empty))
+                        .map_err(|_| Error::Interrupted)
+                };
+                merge_records(
+                    source,
+                    first_id,
+                    merger,
+                    flips,
+                    cols,
+                    select,
+                    chunk_points,
+                    reporter,
+                    cancel,
+                    &mut hand_off,
+                )
+            });
+        let merge = match merge {
+            Ok(m) => m,
+            Err(e) => {
+                return Err(Error::Resource(format!(
+                    "cannot start a thread to merge the results: {e}; lower --threads, or raise the limits on processes (ulimit -u) or memory (ulimit -v), then run the same command again: it resumes"
+                )))
+            }
+        };
+        let mut failed = None;
+        for mut buf in full_rx.iter() {
+            if let Err(e) = writer.write_points(&buf) {
+                failed = Some(e);
+                break;
+            }
+            buf.clear();
+            let _ = free_tx.try_send(buf);
+        }
+        // The merge stops at its next hand-off once nobody receives.
+        drop(full_rx);
+        drop(free_tx);
+        let merged = merge
+            .join()
+            .unwrap_or_else(|p| std::panic::resume_unwind(p));
+        match failed {
+            Some(e) => Err(e),
+            None => merged,
+        }
+    })
+}
+
+/// Streams `source` in chunks and appends to a buffer each record followed by its encoded
+/// result (taken from `merger` in id order; not computed for the points `select` leaves out),
+/// handing the buffer to `hand_off` whenever it holds [`HANDOFF_BYTES`], and at the end.
+/// Returns the number of points whose curvature is undefined.
+#[allow(clippy::too_many_arguments)]
+fn merge_records(
     source: &dyn PointSource,
     first_id: u64,
     merger: &mut Merger,
@@ -138,6 +223,7 @@ fn merge_into(
     chunk_points: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
+    hand_off: &mut dyn FnMut(&mut Vec<u8>) -> Result<()>,
 ) -> Result<u64> {
     let rl = source.record_length();
     let mut out = Vec::new();
@@ -147,8 +233,10 @@ fn merge_into(
         if cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
         }
-        out.clear();
         for (j, r) in records.chunks_exact(rl).enumerate() {
+            if out.len() >= HANDOFF_BYTES {
+                hand_off(&mut out)?;
+            }
             let id = first_id + first + j as u64;
             if !select.selects(source.class_of(r)) {
                 // Left out of the buckets by the scan: no result, NaN and flag 128.
@@ -181,9 +269,11 @@ fn merge_into(
                 cols.encode(&result, &mut out);
             }
         }
-        writer.write_points(&out)?;
         reporter.advance((records.len() / rl) as u64);
         Ok(())
     })?;
+    if !out.is_empty() {
+        hand_off(&mut out)?;
+    }
     Ok(undefined)
 }

@@ -8,6 +8,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use super::frames::{bucket_file, spill, AxisGrid, Grids};
 use super::stats::stats_text;
 use super::{Buckets, TaskDir, DONE};
@@ -96,29 +98,50 @@ pub fn scan(
         grids: grids_of(inputs),
     };
     let mut stats = ScanStats::empty();
+    // Decoding buffers, reused from group to group of pieces.
+    let mut pieces: Vec<Piece> = Vec::new();
     for input in inputs {
         let rl = input.source.record_length();
         input
             .source
             .for_each_chunk(chunk_points, &mut |first, records| {
                 let n = records.len() / rl;
-                let mut kept = 0;
-                for (i, rec) in records.chunks_exact(rl).enumerate() {
-                    if !input.select.selects(input.source.class_of(rec)) {
-                        continue;
+                // A few pieces per thread at a time: the decoded points in flight stay a few
+                // MiB whatever the chunk size.
+                let piece_bytes = PIECE_RECORDS * rl;
+                let group = 4 * rayon::current_num_threads().max(1);
+                pieces.resize_with(group, Piece::default);
+                for (g, records) in records.chunks(group * piece_bytes).enumerate() {
+                    let decoded: Vec<Result<()>> = records
+                        .par_chunks(piece_bytes)
+                        .zip(pieces.par_iter_mut())
+                        .enumerate()
+                        .map(|(j, (r, piece))| {
+                            let first = first + ((g * group + j) * PIECE_RECORDS) as u64;
+                            decode_piece(input, grid, first, r, piece)
+                        })
+                        .collect();
+                    // In file order: the first error is the first bad point's, and every
+                    // bucket receives its points in file order, as a one-thread scan appends
+                    // them.
+                    for (piece, decoded) in pieces.iter().zip(decoded) {
+                        decoded?;
+                        stats.merge(&piece.stats);
+                        held.bytes += piece.points.len() * POINT_BYTES;
+                        let mut start = 0;
+                        for &(key, len) in &piece.runs {
+                            let run = &piece.points[start..start + len];
+                            // One push at a time, as the one-thread scan grew the buckets:
+                            // extending by whole runs gave capacities that are not powers of
+                            // two, and 60 MiB more peak RSS on the 20M terrain.
+                            let bucket = held.mem.entry(key).or_default();
+                            for p in run {
+                                bucket.push(*p);
+                            }
+                            start += len;
+                        }
                     }
-                    let mut p = input.source.decode(first + i as u64, rec);
-                    if input.z_scale != 1.0 {
-                        rescale_z(&mut p, input.z_scale);
-                    }
-                    check_point(input.source, grid, &p)?;
-                    p.id += input.first_id;
-                    let key = grid.key(p.xyz[0], p.xyz[1]);
-                    stats.add(p.xyz, key);
-                    held.mem.entry(key).or_default().push(p);
-                    kept += 1;
                 }
-                held.bytes += kept * POINT_BYTES;
                 if held.bytes > memory.buckets_bytes {
                     held.spill_largest(memory.buckets_after_spill_bytes)?;
                 }
@@ -137,6 +160,56 @@ pub fn scan(
         .map(|(k, v)| (k, Arc::new(v)))
         .collect();
     Ok((Buckets::in_memory(grid, mem), stats))
+}
+
+/// Records of a chunk decoded by one task: the pieces of a chunk are decoded in parallel (on
+/// the caller's rayon pool) and appended to the buckets in file order.
+const PIECE_RECORDS: usize = 1 << 14;
+
+/// The selected points of a piece of a chunk, decoded and checked, in file order.
+#[derive(Default)]
+struct Piece {
+    points: Vec<SourcePoint>,
+    /// Consecutive points of one core tile, as (tile, count): points arrive in scan order, so
+    /// runs are long and the buckets are looked up once a run, not once a point.
+    runs: Vec<(TileKey, usize)>,
+    /// The statistics of the piece's points (they merge exactly, in any grouping).
+    stats: ScanStats,
+}
+
+/// Decodes the records `records` of `input`, the first of which is its point `first`, into
+/// `piece` (emptied first): the selected points, z converted, checked ([`check_point`]), with
+/// the scene-wide id.
+fn decode_piece(
+    input: &ScanInput<'_>,
+    grid: TileGrid,
+    first: u64,
+    records: &[u8],
+    piece: &mut Piece,
+) -> Result<()> {
+    piece.points.clear();
+    piece.runs.clear();
+    piece.stats = ScanStats::empty();
+    let rl = input.source.record_length();
+    for (i, rec) in records.chunks_exact(rl).enumerate() {
+        if !input.select.selects(input.source.class_of(rec)) {
+            continue;
+        }
+        let mut p = input.source.decode(first + i as u64, rec);
+        if input.z_scale != 1.0 {
+            rescale_z(&mut p, input.z_scale);
+        }
+        check_point(input.source, grid, &p)?;
+        p.id += input.first_id;
+        let key = grid.key(p.xyz[0], p.xyz[1]);
+        piece.stats.add(p.xyz, key);
+        piece.points.push(p);
+        match piece.runs.last_mut() {
+            Some((k, len)) if *k == key => *len += 1,
+            _ => piece.runs.push((key, 1)),
+        }
+    }
+    Ok(())
 }
 
 /// The coordinate grids of the inputs (LAS scale and offset, z times the z factor), by id.
