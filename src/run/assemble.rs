@@ -66,60 +66,66 @@ pub fn assemble_outputs(
     for ((source, output), first) in spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids) {
         let out_cols = output_columns(output, &spec.cols, encoding)?;
         let provenance = format!("{}{}", spec.provenance(), out_cols.provenance());
+        let merge = Merge {
+            source: source.as_ref(),
+            first_id: *first,
+            flips: flips.as_deref(),
+            stored: &spec.cols,
+            cols: &out_cols,
+            select: &spec.select,
+            chunk_points: chunk,
+            reporter: exec.reporter,
+            cancel: exec.cancel,
+        };
         undefined += assemble(
-            source.as_ref(),
-            *first,
+            &merge,
             &mut merger,
-            flips.as_deref(),
-            (&spec.cols, &out_cols),
-            &spec.select,
             output,
             &provenance,
             &spec.output_options,
-            chunk,
-            exec.reporter,
-            exec.cancel,
         )?;
     }
     exec.reporter.finish_phase();
     Ok(undefined)
 }
 
-/// Writes `output` from `source` (whose point 0 has global id `first_id`) and the next results
-/// of `merger` (stored as the run's column set says), written as the output's columns say;
-/// with `flips` (`--orient propagate`), the results of the patches marked there (per tile of
-/// the plan) are written with the opposite orientation. The output appears only if every point
-/// was matched with its result; otherwise the temporary file is removed. Points `select` does
-/// not select have no result and are written as not computed. Returns the number of points
-/// written whose curvature is undefined.
-#[allow(clippy::too_many_arguments)]
+/// What one output's merge reads: its input, the results' layout and the output's columns.
+pub struct Merge<'a> {
+    /// The input whose records the output repeats.
+    pub source: &'a dyn PointSource,
+    /// The global id of the input's point 0.
+    pub first_id: u64,
+    /// With `--orient propagate`: per tile of the plan, the patches to write flipped.
+    pub flips: Option<&'a [Vec<bool>]>,
+    /// The run's column set, as the result files store it.
+    pub stored: &'a ColumnSet,
+    /// The output's columns.
+    pub cols: &'a OutputColumns,
+    /// The points the run computed (the others are written as not computed).
+    pub select: &'a ClassFilter,
+    /// Points read from `source` at a time.
+    pub chunk_points: usize,
+    /// Progress.
+    pub reporter: &'a dyn Reporter,
+    /// Set on a signal: the merge stops.
+    pub cancel: &'a AtomicBool,
+}
+
+/// Writes `output` from `m.source` (whose point 0 has global id `m.first_id`) and the next
+/// results of `merger`; with `m.flips` (`--orient propagate`), the results of the patches
+/// marked there are written with the opposite orientation. The output appears only if every
+/// point was matched with its result; otherwise the temporary file is removed. Points
+/// `m.select` does not select have no result and are written as not computed. Returns the
+/// number of points written whose curvature is undefined.
 pub fn assemble(
-    source: &dyn PointSource,
-    first_id: u64,
+    m: &Merge<'_>,
     merger: &mut Merger,
-    flips: Option<&[Vec<bool>]>,
-    cols: (&ColumnSet, &OutputColumns),
-    select: &ClassFilter,
     output: &Path,
     provenance: &str,
     options: &OutputOptions,
-    chunk_points: usize,
-    reporter: &dyn Reporter,
-    cancel: &AtomicBool,
 ) -> Result<u64> {
-    let mut writer = create_sink(source, output, cols.1, provenance, options)?;
-    match merge_into(
-        writer.as_mut(),
-        source,
-        first_id,
-        merger,
-        flips,
-        cols,
-        select,
-        chunk_points,
-        reporter,
-        cancel,
-    ) {
+    let mut writer = create_sink(m.source, output, m.cols, provenance, options)?;
+    match merge_into(writer.as_mut(), m, merger) {
         Ok(undefined) => writer.finish().map(|_| undefined),
         Err(e) => {
             writer.abandon();
@@ -139,19 +145,7 @@ const HANDOFF_BYTES: usize = 4 << 20;
 /// was most of this phase's time, overlap the merge instead of following it. Two buffers
 /// circulate, so memory does not grow. The output's bytes are those of one thread: the buffers
 /// are written in the order they were filled.
-#[allow(clippy::too_many_arguments)]
-fn merge_into(
-    writer: &mut dyn PointSink,
-    source: &dyn PointSource,
-    first_id: u64,
-    merger: &mut Merger,
-    flips: Option<&[Vec<bool>]>,
-    cols: (&ColumnSet, &OutputColumns),
-    select: &ClassFilter,
-    chunk_points: usize,
-    reporter: &dyn Reporter,
-    cancel: &AtomicBool,
-) -> Result<u64> {
+fn merge_into(writer: &mut dyn PointSink, m: &Merge<'_>, merger: &mut Merger) -> Result<u64> {
     let (full_tx, full_rx) = bounded::<Vec<u8>>(1);
     let (free_tx, free_rx) = bounded::<Vec<u8>>(2);
     std::thread::scope(|s| {
@@ -165,18 +159,7 @@ fn merge_into(
                         .send(std::mem::replace(buf, empty))
                         .map_err(|_| Error::Interrupted)
                 };
-                merge_records(
-                    source,
-                    first_id,
-                    merger,
-                    flips,
-                    cols,
-                    select,
-                    chunk_points,
-                    reporter,
-                    cancel,
-                    &mut hand_off,
-                )
+                merge_records(m, merger, &mut hand_off)
             });
         let merge = match merge {
             Ok(m) => m,
@@ -208,23 +191,26 @@ fn merge_into(
     })
 }
 
-/// Streams `source` in chunks and appends to a buffer each record followed by its encoded
-/// result (taken from `merger` in id order; not computed for the points `select` leaves out),
-/// handing the buffer to `hand_off` whenever it holds [`HANDOFF_BYTES`], and at the end.
+/// Streams `m.source` in chunks and appends to a buffer each record followed by its encoded
+/// result (taken from `merger` in id order; not computed for the points `m.select` leaves
+/// out), handing the buffer to `hand_off` whenever it holds [`HANDOFF_BYTES`], and at the end.
 /// Returns the number of points whose curvature is undefined.
-#[allow(clippy::too_many_arguments)]
 fn merge_records(
-    source: &dyn PointSource,
-    first_id: u64,
+    m: &Merge<'_>,
     merger: &mut Merger,
-    flips: Option<&[Vec<bool>]>,
-    (stored, cols): (&ColumnSet, &OutputColumns),
-    select: &ClassFilter,
-    chunk_points: usize,
-    reporter: &dyn Reporter,
-    cancel: &AtomicBool,
     hand_off: &mut dyn FnMut(&mut Vec<u8>) -> Result<()>,
 ) -> Result<u64> {
+    let Merge {
+        source,
+        first_id,
+        flips,
+        stored,
+        cols,
+        select,
+        chunk_points,
+        reporter,
+        cancel,
+    } = *m;
     let rl = source.record_length();
     let mut out = Vec::new();
     let mut rec = Vec::new();
