@@ -197,7 +197,6 @@ impl std::fmt::Display for OrientMode {
     }
 }
 
-/// Everything a `process` run needs.
 /// The value of `-k`: a count, or `auto`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum KArg {
@@ -219,6 +218,7 @@ impl KArg {
     }
 }
 
+/// Everything a `process` run needs.
 #[derive(Debug, Clone)]
 pub struct Config {
     /// The input files: one scene (halos cross file borders), one output per input.

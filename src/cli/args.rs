@@ -110,11 +110,11 @@ pub struct ResultArgs {
     /// Store the new columns of a LAS/LAZ output as 32-bit floats (NaN where undefined), as
     /// tilecurv did before scaled columns. By default they are scaled integers, which readers
     /// turn back into numbers with the extra-bytes descriptors' scale (laspy and PDAL apply it)
-    /// and which LAZ compresses far better (with --columns normals,H,K,k1,k2,flags a LAZ output of
-    /// forest LIDAR is about 4 times its LAZ input instead of 6.5): unit vectors (normals, directions, the VCM normal) as i16 at
-    /// 1/32767 (error at most 1.5e-5); H, K, and k1 with k2, as i32 at a power-of-two step of at
-    /// most 1/4096 of the 99th percentile of |value| over all the points of the run (error at
-    /// most 1.2e-4 of that percentile; the RMS quantisation error is 27 to 160 times below the
+    /// and which LAZ compresses far better (with --columns normals,H,K,k1,k2,flags a LAZ
+    /// output of forest LIDAR is about 4 times its LAZ input instead of 6.5): unit vectors
+    /// (normals, directions, the VCM normal) as i16 at 1/32767 (error at most 1.5e-5); H, K,
+    /// and k1 with k2, as i32 at a power-of-two step of at most 1/4096 of the 99th percentile
+    /// of |value| over all the points of the run (error at most 1.2e-4 of that percentile; the RMS quantisation error is 27 to 160 times below the
     /// estimator's RMS error on the CNC authors' torus, 570 to 830 times on generated
     /// terrain), coarser only if the largest |value| would exceed 2^30 steps. `tilecurv info`
     /// prints each column's step. An undefined value is the type's minimum (-32768 or
@@ -513,7 +513,8 @@ pub struct AssembleArgs {
     /// .ascii.ply. Holds every input
     /// point in the same order with all original fields, VLRs and EVLRs, plus the columns
     /// the plan's --columns chose (by default H, K and CurvatureFlags). Curvature is positive
-    /// where the surface bends away from its normal (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
+    /// where the surface bends away from its normal (hilltops with upward normals), in
+    /// 1/(horizontal unit of the file's CRS).
     #[arg(short, long)]
     pub output: PathBuf,
 
