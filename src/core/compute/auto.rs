@@ -53,18 +53,7 @@ pub(super) fn compute_auto(
     stop()?;
     // A point whose rung estimates are exact: its whole list, and each neighbour's normal
     // prefix, provably complete.
-    let exact: Vec<bool> = (0..n)
-        .into_par_iter()
-        .map(|q| {
-            let info = bufs.info[q];
-            info.len > 0
-                && info.complete
-                && bufs.list(q, k).iter().all(|&j| {
-                    let lj = bufs.info[j as usize];
-                    lj.len > 0 && lj.prefix
-                })
-        })
-        .collect();
+    let exact: Vec<bool> = (0..n).into_par_iter().map(|q| bufs.exact(q, k)).collect();
     let verified: Vec<bool> = (0..n)
         .into_par_iter()
         .map(|i| i < n_core && smooth(bufs, k, i).iter().all(|&q| exact[q as usize]))

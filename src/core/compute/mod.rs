@@ -372,13 +372,14 @@ impl TileBuffers {
         &self.lists[i * k..i * k + self.info[i].len as usize]
     }
 
-    /// Whether core point `i` can be computed: its list and its neighbours' lists are complete
-    /// (otherwise it is retried with a wider halo).
-    fn verified(&self, i: usize, k: usize) -> bool {
+    /// Whether point `i`'s estimate is exact: its list is complete, and so is the normal
+    /// prefix ([`ListInfo::prefix`]) of each of its neighbours, the whole list for one k
+    /// (otherwise a core point is retried with a wider halo).
+    fn exact(&self, i: usize, k: usize) -> bool {
         self.info[i].complete
             && self.list(i, k).iter().all(|&j| {
                 let lj = self.info[j as usize];
-                lj.len > 0 && lj.complete
+                lj.len > 0 && lj.prefix
             })
     }
 }
@@ -542,7 +543,7 @@ pub fn compute_tile(
     };
     let verified: Vec<bool> = (0..n_core)
         .into_par_iter()
-        .map(|i| bufs.verified(i, k))
+        .map(|i| bufs.exact(i, k))
         .collect();
     let todo: Vec<usize> = (0..n_core).filter(|&i| verified[i]).collect();
     let retry: Vec<u64> = (0..n_core)
