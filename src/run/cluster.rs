@@ -19,7 +19,7 @@ use crate::io::source::declared_bounds;
 use crate::io::workdir::{WorkDir, TASKS};
 use crate::progress::Reporter;
 use crate::run::bucket::{bucket_task, open_buckets};
-use crate::run::prepare::{check_extra_bytes, check_outputs, open_inputs, output_paths};
+use crate::run::prepare::{check_output_columns, check_outputs, open_inputs, output_paths};
 use crate::run::spec::{manifest_params, RunSpec};
 use crate::run::tiles::{missing_tiles, tiles, TilesDone};
 use crate::run::{Exec, Summary};
@@ -243,9 +243,8 @@ pub fn assemble(
     check_outputs(&a.cfg, &outputs)?;
     a.spec.outputs = outputs;
     let s = &a.spec;
-    let names = (&s.cols, s.output_options.ply_names);
-    super::rerun::check_ply_names(&a.cfg, &s.sources, &s.outputs, names)?;
-    for note in check_extra_bytes(&a.cfg, &s.sources, &s.outputs, &s.cols)? {
+    let ply = s.output_options.ply_names;
+    for note in check_output_columns(&a.cfg, &s.sources, &s.outputs, &s.cols, ply)? {
         reporter.warn(&note);
     }
     let undefined = super::assemble::assemble_outputs(&a.work, &a.spec, &tplan, &exec)?;

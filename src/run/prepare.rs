@@ -222,11 +222,27 @@ fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bo
     Ok(with_normals > 0 && !cfg.ignore_file_normals)
 }
 
+/// The checks of the new columns against each output (among `outputs`, one per source), before
+/// any work: PLY names an input property already has ([`check_ply_names`]), extra-bytes
+/// descriptors that need an EVLR ([`check_extra_bytes`]); returns the warnings to give.
+///
+/// [`check_ply_names`]: crate::run::rerun::check_ply_names
+pub fn check_output_columns(
+    cfg: &Config,
+    sources: &[Box<dyn PointSource>],
+    outputs: &[PathBuf],
+    cols: &ColumnSet,
+    ply_names: crate::io::ply::PlyNames,
+) -> Result<Vec<String>> {
+    crate::run::rerun::check_ply_names(cfg, sources, outputs, (cols, ply_names))?;
+    check_extra_bytes(cfg, sources, outputs, cols)
+}
+
 /// Refuses, before any work, a LAS/LAZ output (among `outputs`, one per source, with the new
 /// columns `cols`) whose extra-bytes descriptors do not fit a VLR (65535 bytes) when it keeps a
 /// LAS version before 1.4, which has no EVLRs to hold them. Returns the warnings for the LAS
 /// 1.4 outputs that get them as an EVLR instead, which some readers ignore.
-pub fn check_extra_bytes(
+fn check_extra_bytes(
     cfg: &Config,
     sources: &[Box<dyn PointSource>],
     outputs: &[PathBuf],
@@ -375,9 +391,8 @@ fn open_checked(cfg: &Config, outputs: Vec<PathBuf>, reporter: &dyn Reporter) ->
     };
     let output_options = output_options(cfg);
     crate::run::rerun::check_new_names(cfg, &sources, &cols)?;
-    let ply = (&cols, output_options.ply_names);
-    crate::run::rerun::check_ply_names(cfg, &sources, &outputs, ply)?;
-    notes.extend(check_extra_bytes(cfg, &sources, &outputs, &cols)?);
+    let ply = output_options.ply_names;
+    notes.extend(check_output_columns(cfg, &sources, &outputs, &cols, ply)?);
     for note in &notes {
         reporter.warn(note);
     }
