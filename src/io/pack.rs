@@ -163,10 +163,23 @@ pub fn compress(raw: &[u8]) -> std::io::Result<Vec<u8>> {
     })
 }
 
+/// Largest `len` [`decompress_into`] reserves at once: a length read from a damaged file is
+/// not trusted with an allocation of its size (the frame's own header may be damaged too), so a
+/// larger frame is decoded as a stream that grows its buffer as the data comes.
+const MAX_RESERVE: usize = 64 << 20;
+
 /// Decodes one frame of [`compress`] into `out` (cleared first), which must come to exactly
 /// `len` bytes; false if the frame is damaged (its checksum, its structure) or of another size.
 pub fn decompress_into(frame: &[u8], len: usize, out: &mut Vec<u8>) -> bool {
     out.clear();
+    if len > MAX_RESERVE {
+        use std::io::Read;
+        let Ok(d) = zstd::stream::read::Decoder::with_buffer(frame) else {
+            return false;
+        };
+        let read = d.take(len as u64 + 1).read_to_end(out);
+        return matches!(read, Ok(n) if n == len);
+    }
     out.reserve(len);
     let decode = |d: &mut zstd::bulk::Decompressor<'static>, out: &mut Vec<u8>| matches!(d.decompress_to_buffer(frame, out), Ok(n) if n == len && out.len() == len);
     DECOMPRESSOR.with(|cell| {
@@ -240,5 +253,17 @@ mod tests {
             bad[at] ^= 0x10;
             assert!(!decompress_into(&bad, raw.len(), &mut out), "bit at {at}");
         }
+        // A damaged length far past what the frame holds is refused without reserving it.
+        assert!(!decompress_into(&frame, 1 << 40, &mut out));
+        assert!(out.capacity() < 1 << 30, "{}", out.capacity());
+        // Frames past the reserve limit decode as a stream, to the same bytes.
+        let big = vec![7u8; MAX_RESERVE + 5];
+        let frame = compress(&big).expect("compress");
+        assert!(decompress_into(&frame, big.len(), &mut out) && out == big);
+        assert!(!decompress_into(&frame, big.len() + 1, &mut out));
+        let mut bad = frame.clone();
+        let at = bad.len() - 2;
+        bad[at] ^= 0x10;
+        assert!(!decompress_into(&bad, big.len(), &mut out));
     }
 }
