@@ -238,7 +238,12 @@ impl Merger {
             let group: Vec<PathBuf> = files.drain(..take).collect();
             let run = dir.join(format!("run_{}.res", runs.len()));
             let mut m = Merger::open_direct(&group, cols)?;
-            let count = m.readers.iter().map(|r| r.count).sum();
+            // Counts come from the files' headers: a sum past u64 is damage.
+            let count = m
+                .readers
+                .iter()
+                .try_fold(0u64, |n, r| n.checked_add(r.count))
+                .ok_or_else(|| Error::damaged_work(&group[0], "point counts overflow"))?;
             let patched = m.readers.iter().any(TileResults::patched);
             let mut rec = Vec::new();
             // Runs only serve this assemble pass: no need to make them durable, nor to hold
