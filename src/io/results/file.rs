@@ -40,6 +40,15 @@ const BLOCK_BYTES: usize = 32 << 10;
 /// allocation).
 const MAX_BLOCK: usize = 16 << 20;
 
+/// Memory one result file of `cols` takes in a merge: a decoded block (at most
+/// [`BLOCK_BYTES`] of rows) with the ids of its rows (8 bytes each: narrow rows make many),
+/// and 16 KiB for the rest of the reader; the frame and planes of a block being decoded are
+/// freed once it is. About 57 KiB for normals, H, K, k1, k2 and flags, 76 KiB for H, K and
+/// flags.
+pub fn reader_bytes(cols: &ColumnSet) -> usize {
+    BLOCK_BYTES + 8 * BLOCK_BYTES.div_ceil(cols.result_size()) + (16 << 10)
+}
+
 /// Bytes of one record in memory: the global patch (u64) then the columns.
 pub fn record_size(cols: &ColumnSet) -> usize {
     8 + cols.result_size()

@@ -69,19 +69,15 @@ pub(super) fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
 /// memory budget allow (see [`fan_in`]).
 pub const MAX_FAN_IN: usize = 8192;
 
-/// Memory one result file takes in a merge: a decoded block (32 KiB of records) with its ids
-/// (the frame and planes of a block being decoded are freed once it is).
-pub const READER_BYTES: usize = 48 << 10;
-
 /// How many result files one merge may open: [`MAX_FAN_IN`], or less when the process's
 /// open-file limit is low (the CLI raised its soft limit to the hard one at start): what the
 /// limit leaves beside the descriptors open now, less a reserve (64, or a quarter of a small
 /// limit) for the output, a run file and everything else; and at most what a quarter of
-/// `memory_bytes` (the run's budget, free once the tiles are done) holds of [`READER_BYTES`];
-/// at least 2. A limit too low even for that makes the open fail with EMFILE, an error that
-/// says to raise `ulimit -n`.
-pub fn fan_in(memory_bytes: usize) -> usize {
-    let by_memory = (memory_bytes / 4 / READER_BYTES).clamp(2, MAX_FAN_IN);
+/// `memory_bytes` (the run's budget, free once the tiles are done) holds of readers of `cols`
+/// (`file::reader_bytes`: a block of rows and their ids); at least 2. A limit too low even
+/// for that makes the open fail with EMFILE, an error that says to raise `ulimit -n`.
+pub fn fan_in(memory_bytes: usize, cols: &ColumnSet) -> usize {
+    let by_memory = (memory_bytes / 4 / file::reader_bytes(cols)).clamp(2, MAX_FAN_IN);
     let Some(soft) = crate::io::limits::open_files_limit() else {
         return 64.min(by_memory);
     };
@@ -217,7 +213,7 @@ impl Merger {
         cols: &ColumnSet,
         memory_bytes: usize,
     ) -> Result<Self> {
-        Self::open_with_fan_in(dir, files, cols, fan_in(memory_bytes))
+        Self::open_with_fan_in(dir, files, cols, fan_in(memory_bytes, cols))
     }
 
     /// Opens a merge over `files` with at most `fan_in` (>= 2) files open at once: while there
