@@ -88,6 +88,12 @@ pub fn tilecurv_as_given(args: &[&str]) -> Output {
         .expect("the tilecurv binary runs")
 }
 
+/// The texts of a LAS file's tilecurv provenance records, in file order.
+pub fn provenance_texts(path: &Path) -> Vec<String> {
+    let (s, _) = records(path);
+    tilecurv::io::las::provenance::texts(s.vlrs.iter())
+}
+
 /// Writes a noise-free generated terrain (`tilecurv generate terrain`) of `points` points
 /// (`200k`, `1M` or a plain count) at `density` points per square metre; .las or .laz by the
 /// extension, the same points in both.
@@ -214,7 +220,8 @@ pub fn column_bytes(path: &Path, name: &str) -> Vec<u8> {
         .collect()
 }
 
-/// Names of the columns tilecurv adds by default.
+/// Names of the columns of [`ALL_CURVATURE`], the tests' runs' columns (the default of
+/// `tilecurv process` is H, K and CurvatureFlags).
 pub const COLUMNS: [&str; 8] = [
     "NormalX",
     "NormalY",

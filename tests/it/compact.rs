@@ -9,7 +9,8 @@ use std::path::Path;
 use tilecurv::io::source::PointSource;
 
 use crate::common::{
-    column, laspy_available, process, records, s, tilecurv, tilecurv_as_given, write_las,
+    column, laspy_available, process, provenance_texts, records, s, tilecurv, tilecurv_as_given,
+    write_las,
 };
 use crate::interop::laspy;
 
@@ -114,14 +115,11 @@ print("ok")
     assert!(said.trim_end().ends_with("ok"), "{said}");
 }
 
-/// The text of a LAS output's tilecurv provenance record.
+/// The text of a LAS output's (only) tilecurv provenance record.
 fn provenance(path: &Path) -> String {
-    let (s, _) = records(path);
-    s.vlrs
-        .iter()
-        .find(|v| v.is("tilecurv", 1))
-        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
-        .expect("provenance")
+    let texts = provenance_texts(path);
+    assert_eq!(texts.len(), 1, "{texts:?}");
+    texts[0].clone()
 }
 
 /// Without `--columns` a run writes H, K and CurvatureFlags only (the set whose LAZ output

@@ -6,7 +6,8 @@
 use std::path::{Path, PathBuf};
 
 use crate::common::{
-    column_bytes, generate_terrain, laspy_available, process, records, run_process, COLUMNS,
+    column_bytes, generate_terrain, laspy_available, process, provenance_texts, records,
+    run_process, s, tilecurv_as_given, COLUMNS,
 };
 use crate::interop::laspy;
 
@@ -45,12 +46,6 @@ for path in sys.argv[1:]:
 /// `names` as owned strings.
 fn strings(names: &[&str]) -> Vec<String> {
     names.iter().map(|n| n.to_string()).collect()
-}
-
-/// The texts of a LAS file's tilecurv provenance records, in file order.
-fn provenance_texts(path: &Path) -> Vec<String> {
-    let (s, _) = records(path);
-    tilecurv::io::las::provenance::texts(s.vlrs.iter())
 }
 
 /// Asserts that processing `input` into `output` with `args` is refused before any work, and
@@ -129,7 +124,7 @@ fn a_rerun_replaces_the_previous_columns_bit_for_bit() {
 
 /// A re-run with other `--columns` drops every column of the previous run, not only those it
 /// writes again; the columns it does write equal the first run's, and a third run with the
-/// defaults gives the first run's records again.
+/// first run's columns (the tests' [`crate::common::ALL_CURVATURE`]) gives its records again.
 #[test]
 fn a_rerun_with_other_columns_drops_all_the_previous_ones() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -155,6 +150,31 @@ fn a_rerun_with_other_columns_drops_all_the_previous_ones() {
         );
         assert_eq!(names[1], strings(&[&TRUTH[..], &COLUMNS[..]].concat()));
     }
+}
+
+/// The common case, with the real defaults (no `--columns`): a re-run on a default output
+/// replaces H, K and CurvatureFlags, says so, and writes the first run's records again.
+#[test]
+fn a_default_rerun_on_a_default_output_gives_the_same_records() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let t = terrain(dir.path());
+    let (once, twice) = (dir.path().join("once.laz"), dir.path().join("twice.laz"));
+    let run = |input: &Path, output: &Path| {
+        let o = tilecurv_as_given(&["process", s(input), "-o", s(output), "-q"]);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        err
+    };
+    run(&t, &once);
+    let err = run(&once, &twice);
+    assert!(err.contains("replacing H, K, CurvatureFlags"), "{err}");
+    let (src, _) = records(&twice);
+    let names: Vec<&str> = src.extra.iter().map(|d| d.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [&TRUTH[..], &["H", "K", "CurvatureFlags"][..]].concat()
+    );
+    assert!(records(&twice).1 == records(&once).1, "records differ");
 }
 
 /// Writes `input` again as `output` with laspy, with an f64 extra dimension `name` (all 0.5)
