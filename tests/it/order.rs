@@ -4,8 +4,9 @@
 //! centimetre (many neighbours at exactly equal distances, at the K-th place too), a patch of
 //! random points snapped to the centimetre, and exact duplicates (pairs and triples). A second
 //! file holds the same records under a fixed permutation; both are processed under the default
-//! settings, with `--orient propagate`, and with the randomised `cnc-uniform` and the
-//! tie-breaking `cnc-delaunay` estimators, over several tiles and two threads.
+//! settings, with `-k auto` (its ScaleK and ScaleFlags too), with `--orient propagate`, and
+//! with the randomised `cnc-uniform` and the tie-breaking `cnc-delaunay` estimators, over
+//! several tiles and two threads.
 //!
 //! Like invariance.rs, this uses only the `tilecurv` binary and the files it writes.
 
@@ -109,9 +110,14 @@ fn shuffled_records_give_identical_columns() {
         );
         process(&a, &oa, &args);
         process(&b, &ob, &args);
+        let scale: &[&str] = match name {
+            "auto" => &["ScaleK", "ScaleFlags"],
+            _ => &[],
+        };
         let mut bad: Vec<usize> = COLUMNS
             .iter()
             .chain(&directions)
+            .chain(scale)
             .flat_map(|c| differing(&oa, &ob, c, &perm))
             .collect();
         bad.sort_unstable();
