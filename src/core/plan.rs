@@ -197,15 +197,20 @@ impl ScanStats {
         }
     }
 
-    /// Adds one point that falls in the core of tile `key`.
-    pub fn add(&mut self, xyz: [f64; 3], key: TileKey) {
+    /// Adds one point to the bounds, the centroid and the count; [`ScanStats::in_tile`] counts
+    /// it in its tile (once per run of points of one tile, not per point).
+    pub fn add(&mut self, xyz: [f64; 3]) {
         for (a, &c) in xyz.iter().enumerate() {
             self.min[a] = self.min[a].min(c);
             self.max[a] = self.max[a].max(c);
         }
         self.centroid.add(xyz);
-        *self.per_tile.entry(key).or_default() += 1;
         self.count += 1;
+    }
+
+    /// Counts `n` added points in the core of tile `key`.
+    pub fn in_tile(&mut self, key: TileKey, n: u64) {
+        *self.per_tile.entry(key).or_default() += n;
     }
 
     /// Adds the statistics of other points (another scan task's): the result is the same

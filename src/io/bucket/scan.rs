@@ -202,12 +202,15 @@ fn decode_piece(
         check_point(input.source, grid, &p)?;
         p.id += input.first_id;
         let key = grid.key(p.xyz[0], p.xyz[1]);
-        piece.stats.add(p.xyz, key);
+        piece.stats.add(p.xyz);
         piece.points.push(p);
         match piece.runs.last_mut() {
             Some((k, len)) if *k == key => *len += 1,
             _ => piece.runs.push((key, 1)),
         }
+    }
+    for &(key, len) in &piece.runs {
+        piece.stats.in_tile(key, len as u64);
     }
     Ok(())
 }

@@ -69,9 +69,11 @@ mod tests {
     #[test]
     fn stats_text_round_trips_and_rejects_damage() {
         let mut s = ScanStats::empty();
-        s.add([0.1, -0.3, 5.0], (-3, 4));
-        s.add([9.0, 8.0, 7.0], (-3, 4));
-        s.add([1e6 + 0.25, 4e6, -2.0], (0, 0));
+        s.add([0.1, -0.3, 5.0]);
+        s.add([9.0, 8.0, 7.0]);
+        s.in_tile((-3, 4), 2);
+        s.add([1e6 + 0.25, 4e6, -2.0]);
+        s.in_tile((0, 0), 1);
         let text = stats_text(&s);
         let t = parse_stats(&text).expect("parse");
         assert_eq!(
