@@ -122,6 +122,22 @@ fn auto_scale_matches_the_best_fixed_k_on_a_half_noisy_terrain() {
     );
     let flags = column(&auto, "ScaleFlags");
     assert!(flags.iter().all(|f| (0.0..8.0).contains(f)));
+    // algorithms.md §9, failure modes: at 2-5 cm noise 96-100% of points saturate at K = 320
+    // (flag 1). The east half is at 5 cm; 80% leaves room for its border with the clean half.
+    let east: Vec<(f64, f64)> = scale
+        .iter()
+        .zip(&flags)
+        .zip(&x)
+        .filter(|(_, x)| **x >= mid)
+        .map(|((k, f), _)| (*k, *f))
+        .collect();
+    let saturated = east
+        .iter()
+        .filter(|(k, f)| *k == 320.0 && *f as u8 & 1 == 1)
+        .count();
+    let share = saturated as f64 / east.len() as f64;
+    eprintln!("east half saturated at K = 320: {:.3}", share);
+    assert!(share >= 0.8, "{share}");
 }
 
 /// Every column, the chosen scale and its flags too, is bit-identical between one tile on one
