@@ -216,7 +216,12 @@ fn get_run(c: &mut Cursor<'_>, out: &mut Vec<SourcePoint>) -> Option<()> {
     let has: Vec<bool> = match c.u8()? {
         0 => vec![false; n],
         1 => vec![true; n],
-        2 => c.take(n)?.iter().map(|&b| b == 1).collect(),
+        // Any byte but 0 or 1 is damage, like every other field of a frame.
+        2 => c
+            .take(n)?
+            .iter()
+            .map(|&b| (b <= 1).then_some(b == 1))
+            .collect::<Option<_>>()?,
         _ => return None,
     };
     let with = has.iter().filter(|&&h| h).count();
