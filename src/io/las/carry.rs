@@ -73,7 +73,8 @@ pub fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result
     let described: usize = parse(&data)
         .map(|d| d.iter().map(|d| d.size).sum())
         .unwrap_or(0);
-    let mut gap = input.header.extra_bytes_len() as usize - described;
+    // LasSource refuses descriptors past the records' extra bytes; saturating all the same.
+    let mut gap = (input.header.extra_bytes_len() as usize).saturating_sub(described);
     while gap > 0 {
         let n = gap.min(255);
         data.extend_from_slice(&encode_undocumented(n as u8));
