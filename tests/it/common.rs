@@ -94,6 +94,20 @@ pub fn provenance_texts(path: &Path) -> Vec<String> {
     tilecurv::io::las::provenance::texts(s.vlrs.iter())
 }
 
+/// The tiles whose result files the work directory `work` holds (finished, journalled).
+pub fn finished_tiles(work: &Path) -> usize {
+    std::fs::read_dir(work.join("results"))
+        .map(|d| {
+            d.flatten()
+                .filter(|e| {
+                    let name = e.file_name().to_string_lossy().into_owned();
+                    name.starts_with("tile_") && name.ends_with(".res")
+                })
+                .count()
+        })
+        .unwrap_or(0)
+}
+
 /// Writes a noise-free generated terrain (`tilecurv generate terrain`) of `points` points
 /// (`200k`, `1M` or a plain count) at `density` points per square metre; .las or .laz by the
 /// extension, the same points in both.

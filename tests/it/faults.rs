@@ -6,7 +6,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::common::{generate_terrain, process, resume, root, s, tilecurv, under_ci};
+use crate::common::{
+    finished_tiles, generate_terrain, process, resume, root, s, tilecurv, under_ci,
+};
 
 /// The shipped sample.
 fn sample() -> PathBuf {
@@ -401,17 +403,6 @@ fn undefined_in(out: &Path) -> (usize, usize) {
         .filter(|&&f| (f as u8) & tilecurv::core::estimate::flags::UNDEFINED != 0)
         .count();
     (nan, flagged)
-}
-
-/// Result files in a work directory.
-fn finished_tiles(work: &Path) -> usize {
-    std::fs::read_dir(work.join("results"))
-        .map(|d| {
-            d.flatten()
-                .filter(|e| e.file_name().to_string_lossy().ends_with(".res"))
-                .count()
-        })
-        .unwrap_or(0)
 }
 
 /// Issue 12 item 11: after a resume the summary said "0 undefined" while the output held

@@ -12,7 +12,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{column, column_bytes, median, process, records, s, shared, tilecurv, COLUMNS};
+use crate::common::{
+    column, column_bytes, finished_tiles, median, process, records, s, shared, tilecurv, COLUMNS,
+};
 
 fn assert_same_columns(a: &std::path::Path, b: &std::path::Path) {
     for name in COLUMNS {
@@ -327,20 +329,6 @@ fn generated_terrain_memory_budget_does_not_change_results() {
         "the one tile is too large for its share of a 64M budget, so it is computed in parts: {err}"
     );
     assert_same_output(&reference, &parts);
-}
-
-/// Finished tiles (result files under their final names) in a work directory.
-fn finished_tiles(work: &Path) -> usize {
-    std::fs::read_dir(work.join("results"))
-        .map(|d| {
-            d.flatten()
-                .filter(|e| {
-                    let name = e.file_name().to_string_lossy().into_owned();
-                    name.starts_with("tile_") && name.ends_with(".res")
-                })
-                .count()
-        })
-        .unwrap_or(0)
 }
 
 #[test]

@@ -16,7 +16,8 @@ use tilecurv::io::las::header::OutputLayout;
 use tilecurv::io::source::PointSource;
 
 use crate::common::{
-    column, process, records, resume, s, shared, tilecurv, under_ci, with_test_columns, COLUMNS,
+    column, finished_tiles, process, records, resume, s, shared, tilecurv, under_ci,
+    with_test_columns, COLUMNS,
 };
 
 fn bin() -> &'static str {
@@ -203,17 +204,6 @@ impl Background {
             std::thread::sleep(Duration::from_millis(5));
         }
     }
-}
-
-/// Finished tiles in a work directory.
-fn finished_tiles(work: &Path) -> usize {
-    std::fs::read_dir(work.join("results"))
-        .map(|d| {
-            d.flatten()
-                .filter(|e| e.file_name().to_string_lossy().ends_with(".res"))
-                .count()
-        })
-        .unwrap_or(0)
 }
 
 /// The number in "(N resumed)" of the final summary line.
