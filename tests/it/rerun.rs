@@ -213,6 +213,20 @@ fn a_foreign_column_named_like_a_new_one_is_refused_before_any_work() {
         "--columns normals,K,k1,k2,flags",
     ];
     assert_refused(&foreign, &out, &[], &words);
+    // With the real default columns the advice is what a user can type; with H alone asked
+    // for, there is nothing to leave out.
+    for (columns, advice) in [
+        (None, "leave the new one out with --columns K,flags"),
+        (Some("H"), "the new column is the only one asked for"),
+    ] {
+        let mut args = vec!["process", s(&foreign), "-o", s(&out), "-q"];
+        args.extend(columns.map(|c| ["--columns", c]).iter().flatten());
+        let o = tilecurv_as_given(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(3), "{err}");
+        assert!(err.contains(advice), "{err}");
+        assert!(!out.exists());
+    }
     let once = dir.path().join("once.las");
     let marked = dir.path().join("marked.las");
     process(&t, &once, &[]);
