@@ -175,7 +175,8 @@ fn columns_pick_what_is_written() {
 }
 
 /// `--f32` keeps the float layout of earlier versions: f32 columns without scale or no-data,
-/// NaN where undefined, 29 bytes a point; a PLY output is f32 by default too (no scale field).
+/// NaN where undefined, 4 bytes a value (the tests' seven values and the flags: 29 bytes a point
+/// after the record); a PLY output is f32 by default too (no scale field).
 #[test]
 fn f32_keeps_the_float_layout() {
     let dir = tempfile::tempdir().expect("temp dir");
