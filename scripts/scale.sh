@@ -5,7 +5,7 @@
 # results/ apart (each their own peak), sampled with `du -sb` every 0.5 s. Peak RSS should stay
 # flat (about the budget plus ~60 MiB) while the points grow a hundredfold; the work directory
 # peaks once the tiles are done (the buckets, if they spilled, plus the result files: about 5 +
-# 19 bytes a point on the terrain), or while assemble merges more result files than it may
+# 7 bytes a point on the terrain with the default columns, 5 + 19 with normals, k1, k2), or while assemble merges more result files than it may
 # open at once (run files, up to as much again as the results), and is gone at the end.
 #
 # usage: scripts/scale.sh [SIZE...]        (default: 1M 10M 100M; sizes as `generate --points`)
