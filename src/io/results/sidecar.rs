@@ -101,21 +101,31 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
     let (mut anchors, mut shared) = (Vec::new(), Vec::new());
     get_planes(&mut anchors, a_planes, na as usize, ANCHOR_BYTES);
     get_planes(&mut shared, s_planes, ns as usize, SHARED_BYTES);
-    let mut out = TileSidecar::default();
-    for r in anchors.chunks_exact(ANCHOR_BYTES) {
+    // Records of a fixed size cut from planes of that size: every field is there.
+    let anchor = |r: &[u8]| {
         let mut c = Cursor::new(r);
-        out.anchors.push(crate::core::orient::PatchAnchor {
-            patch: c.u32().ok_or_else(bad)?,
-            dist2: c.f64().ok_or_else(bad)?,
-            pos: [
-                c.f64().ok_or_else(bad)?,
-                c.f64().ok_or_else(bad)?,
-                c.f64().ok_or_else(bad)?,
-            ],
-            id: c.u64().ok_or_else(bad)?,
-            outward: c.u8().ok_or_else(bad)? == 1,
-        });
-    }
+        Some(crate::core::orient::PatchAnchor {
+            patch: c.u32()?,
+            dist2: c.f64()?,
+            pos: [c.f64()?, c.f64()?, c.f64()?],
+            id: c.u64()?,
+            outward: c.u8()? == 1,
+        })
+    };
+    let normal = |r: &[u8]| {
+        let mut c = Cursor::new(r);
+        Some(crate::core::orient::SharedNormal {
+            id: c.u64()?,
+            patch: c.u32()?,
+            normal: [c.f64()?, c.f64()?, c.f64()?],
+        })
+    };
+    let anchors: Option<Vec<_>> = anchors.chunks_exact(ANCHOR_BYTES).map(anchor).collect();
+    let shared: Option<Vec<_>> = shared.chunks_exact(SHARED_BYTES).map(normal).collect();
+    let (Some(anchors), Some(shared)) = (anchors, shared) else {
+        return Err(bad());
+    };
+    let out = TileSidecar { anchors, shared };
     // A tile numbers its patches 0, 1, ... in the order of their anchors; a checksum-valid but
     // inconsistent sidecar would otherwise skew the orientation signs of the whole scene.
     let numbered = out
@@ -125,18 +135,6 @@ pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
         .all(|(i, a)| a.patch as usize == i);
     if !numbered || na > u64::from(u32::MAX) {
         return Err(bad());
-    }
-    for r in shared.chunks_exact(SHARED_BYTES) {
-        let mut c = Cursor::new(r);
-        out.shared.push(crate::core::orient::SharedNormal {
-            id: c.u64().ok_or_else(bad)?,
-            patch: c.u32().ok_or_else(bad)?,
-            normal: [
-                c.f64().ok_or_else(bad)?,
-                c.f64().ok_or_else(bad)?,
-                c.f64().ok_or_else(bad)?,
-            ],
-        });
     }
     if out.shared.iter().any(|n| u64::from(n.patch) >= na) {
         return Err(bad());
