@@ -422,7 +422,7 @@ fn write_results(
     let (mut undefined, mut retried) = (0u64, 0u64);
     let mut first_error = None;
     for msg in rx.iter() {
-        let added = msg.and_then(|mut f| {
+        let added = msg.and_then(|f| {
             undefined += f
                 .results
                 .iter()
@@ -432,7 +432,7 @@ fn write_results(
             journal.add(
                 f.spec.key,
                 f.spec.index,
-                &mut f.results,
+                &f.results,
                 f.sidecar.as_ref(),
                 cols,
             )

@@ -91,23 +91,28 @@ pub fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
     dir.join(format!("tile_{}_{}.res", key.0, key.1))
 }
 
-/// Writes one tile's results (sorted here by id) under a temporary name; returns it. Patches are
+/// Writes one tile's results (in id order) under a temporary name; returns it. Patches are
 /// stored only if some point has one (`--orient propagate`).
 fn write_tile_tmp(
     dir: &Path,
     key: TileKey,
     tile_index: u32,
-    results: &mut [PointResult],
+    results: &[PointResult],
     cols: &ColumnSet,
 ) -> Result<PathBuf> {
-    results.sort_unstable_by_key(|r| r.id);
+    // Sorted as (id, place) pairs rather than moving the ~160-byte results themselves (their
+    // moves were 5% of a run's CPU time); ids are unique, so the order is the ids'.
+    let mut order: Vec<(u64, u32)> = (results.iter().enumerate())
+        .map(|(i, r)| (r.id, i as u32))
+        .collect();
+    order.sort_unstable();
     let mut stats = CurvatureStats::default();
     results.iter().for_each(|r| stats.add(&r.curvature));
     let patched = results.iter().any(|r| r.patch != NO_PATCH);
     let count = results.len() as u64;
     let mut w = ResultWriter::create(&tile_path(dir, key), count, cols, patched, &stats)?;
     let mut buf = Vec::with_capacity(record_size(cols));
-    for r in results.iter() {
+    for r in order.iter().map(|&(_, i)| &results[i as usize]) {
         buf.clear();
         buf.extend_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
         cols.encode_result(r, &mut buf);
@@ -141,7 +146,7 @@ impl Journal {
         &mut self,
         key: TileKey,
         tile_index: u32,
-        results: &mut [PointResult],
+        results: &[PointResult],
         sidecar: Option<&TileSidecar>,
         cols: &ColumnSet,
     ) -> Result<()> {
