@@ -4,7 +4,7 @@
 //! narrows the candidates: the answer is ranked exactly in f64, and a query the block cannot
 //! settle goes on to the shell search (`shell`). Pure: no files, no channels.
 
-use super::{sort_ranked, KnnScratch, NeighbourIndex};
+use super::{sort_ranked, sq_dist, KnnScratch, NeighbourIndex};
 use crate::core::geometry::V3;
 
 /// Points bucketed in cubic cells, sorted by (column, z cell).
@@ -43,11 +43,20 @@ pub(super) struct Block {
     x: Vec<f32>,
     y: Vec<f32>,
     z: Vec<f32>,
+    /// The gathered points' absolute f64 coordinates (copied in cell order, so the exact
+    /// ranking reads them contiguously instead of at random in the tile's order).
+    xyz: Vec<V3>,
     /// Local point index and position rank of each gathered point.
     local: Vec<u32>,
     rank: Vec<u32>,
     /// Bound on |f32 squared distance - f64 squared distance| between any two gathered points.
     slack2: f64,
+}
+
+/// The key of cell `c` in a grid of `dims` cells: column (x, y), then z cell.
+#[inline]
+fn cell_key(dims: [usize; 3], c: [usize; 3]) -> u64 {
+    ((c[0] * dims[1] + c[1]) as u64) << 32 | c[2] as u64
 }
 
 /// The most cells a grid has along one axis (cell indices stay far from any integer limit).
@@ -113,12 +122,7 @@ impl Grid {
         let mut keyed: Vec<(u64, u32)> = xyz
             .iter()
             .enumerate()
-            .map(|(i, p)| {
-                (
-                    ((coord(p, 0) * dims[1] + coord(p, 1)) as u64) << 32 | coord(p, 2) as u64,
-                    i as u32,
-                )
-            })
+            .map(|(i, p)| (cell_key(dims, [0, 1, 2].map(|a| coord(p, a))), i as u32))
             .collect();
         keyed.sort_unstable();
         let mut cols = vec![0u32; dims[0] * dims[1] + 1];
@@ -162,6 +166,12 @@ impl Grid {
         })
     }
 
+    /// The key cells are sorted by: column (x, y), then z cell.
+    #[inline]
+    pub(super) fn cell_key(&self, c: [usize; 3]) -> u64 {
+        cell_key(self.dims, c)
+    }
+
     /// The cell holding `q` (a point inside the grid's bounds).
     #[inline]
     pub(super) fn cell_of(&self, q: V3) -> [usize; 3] {
@@ -191,6 +201,7 @@ impl Grid {
         b.x.clear();
         b.y.clear();
         b.z.clear();
+        b.xyz.clear();
         b.local.clear();
         b.rank.clear();
         let (z_lo, z_hi) = (c[2].saturating_sub(1) as u32, (c[2] + 1) as u32);
@@ -203,12 +214,13 @@ impl Grid {
                     cells.start + self.zcells[cells.clone()].partition_point(|z| z.0 < z_lo);
                 let last = cells.start + self.zcells[cells].partition_point(|z| z.0 <= z_hi);
                 let run = self.zcells[first].1 as usize..self.zcells[last].1 as usize;
-                for (p, &l) in self.xyz[run.clone()].iter().zip(&self.order[run.clone()]) {
-                    b.x.push((p[0] - b.centre[0]) as f32);
-                    b.y.push((p[1] - b.centre[1]) as f32);
-                    b.z.push((p[2] - b.centre[2]) as f32);
-                    b.local.push(l);
-                }
+                // One pass per array over a contiguous run: no per-element capacity checks.
+                let pts = &self.xyz[run.clone()];
+                b.x.extend(pts.iter().map(|p| (p[0] - b.centre[0]) as f32));
+                b.y.extend(pts.iter().map(|p| (p[1] - b.centre[1]) as f32));
+                b.z.extend(pts.iter().map(|p| (p[2] - b.centre[2]) as f32));
+                b.xyz.extend_from_slice(pts);
+                b.local.extend_from_slice(&self.order[run.clone()]);
                 b.rank.extend_from_slice(&self.ranks[run]);
             }
         }
@@ -254,7 +266,8 @@ impl NeighbourIndex<'_> {
             dx * dx + dy * dy + dz * dz
         }));
         let d2 = &s.d2[..];
-        let count = |t: f32| d2.iter().map(|&d| (d <= t) as usize).sum::<usize>();
+        // u32 lanes: twice as many per vector as usize (a block holds far fewer than 2^32).
+        let count = |t: f32| d2.iter().map(|&d| (d <= t) as u32).sum::<u32>() as usize;
         // Smallest squared radius found holding >= need points, aiming at a few more than need
         // (so that few points are ranked exactly); counts grow about linearly with the squared
         // radius on a surface, so each guess rescales the last.
@@ -293,19 +306,13 @@ impl NeighbourIndex<'_> {
         // Every point that can be among the exact k nearest is within `above` plus twice the
         // rounding bound (f32 k-th <= above; exact and f32 values differ by <= slack2).
         let lim = ((above as f64 + 2.0 * b.slack2) * (1.0 + 1e-6)) as f32;
-        s.keys.clear();
-        s.keys.resize(d2.len(), 0);
-        let mut n = 0;
-        for (j, &d) in d2.iter().enumerate() {
-            s.keys[n] = j as u64; // branch-free compaction of the indices within lim
-            n += (d <= lim) as usize;
-        }
         s.exact.clear();
-        for &j in &s.keys[..n] {
-            let l = b.local[j as usize];
-            if l as usize != i {
-                s.exact
-                    .push((self.dist2(q, l as usize), b.rank[j as usize], l));
+        for (j, &d) in d2.iter().enumerate() {
+            if d <= lim {
+                let l = b.local[j];
+                if l as usize != i {
+                    s.exact.push((sq_dist(b.xyz[j], q), b.rank[j], l));
+                }
             }
         }
         if s.exact.len() < others {

@@ -183,6 +183,16 @@ impl<'a> NeighbourIndex<'a> {
         self.xyz.is_empty()
     }
 
+    /// A key of point `i` (local index) to order queries by: consecutive queries in this
+    /// order share the grid's gathered block (its cell, as the grid sorts them); 0 for the
+    /// k-d tree. The answers do not depend on the order of the queries.
+    pub fn query_key(&self, i: usize) -> u64 {
+        match &self.backend {
+            Backend::Grid(g) => g.cell_key(g.cell_of(self.xyz[i])),
+            Backend::Tree { .. } => 0,
+        }
+    }
+
     /// The `k` nearest neighbours of point `i` (local index), written to `out` as local indices:
     /// `i` itself first (as the CNC reference code counts it), then the k - 1 nearest others by
     /// increasing (exact f64 distance, position, original id): see the module documentation.
@@ -248,9 +258,16 @@ impl<'a> NeighbourIndex<'a> {
 
     #[inline]
     fn dist2(&self, q: V3, j: usize) -> f64 {
-        let d = sub(self.xyz[j], q);
-        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        sq_dist(self.xyz[j], q)
     }
+}
+
+/// The exact squared distance between `p` and `q`, the one formula every backend ranks by (the
+/// same bits whichever copy of a point's coordinates it reads).
+#[inline]
+fn sq_dist(p: V3, q: V3) -> f64 {
+    let d = sub(p, q);
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }
 
 #[cfg(test)]
