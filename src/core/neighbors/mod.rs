@@ -21,6 +21,7 @@
 //! in `kdtree`; this file holds the index, its scratch and the exact ranking they share.
 
 use kiddo::ImmutableKdTree;
+use rayon::slice::ParallelSliceMut;
 
 use std::cmp::Ordering;
 
@@ -96,7 +97,7 @@ fn position_ranks(xyz: &[V3], ids: &[u64]) -> Vec<u32> {
         .enumerate()
         .map(|(i, (p, &id))| (p.map(key), id, i as u32))
         .collect();
-    order.sort_unstable();
+    order.par_sort_unstable();
     let mut ranks = vec![0u32; xyz.len()];
     for (r, o) in order.iter().enumerate() {
         ranks[o.2 as usize] = r as u32;
