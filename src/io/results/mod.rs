@@ -325,7 +325,7 @@ mod tests {
         let mut files = Vec::new();
         let mut journal = Journal::new(dir.path());
         for t in 0..150u64 {
-            let mut rs: Vec<PointResult> = (0..7u64)
+            let rs: Vec<PointResult> = (0..7u64)
                 .map(|j| PointResult {
                     id: j * 150 + t,
                     normal: [0.0, 0.0, 1.0],
@@ -340,7 +340,7 @@ mod tests {
                 })
                 .collect();
             journal
-                .add((t as i64, 0), t as u32, &mut rs, None, &cols)
+                .add((t as i64, 0), t as u32, &rs, None, &cols)
                 .expect("write");
             files.push(tile_path(dir.path(), (t as i64, 0)));
         }
