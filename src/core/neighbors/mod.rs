@@ -71,6 +71,8 @@ pub struct KnnScratch {
     ranked: Vec<Cand>,
     block: Block,
     d2: Vec<f32>,
+    /// Block indices of the points the block path ranks exactly.
+    within: Vec<u32>,
     keys: Vec<u64>,
     exact: Vec<Cand>,
     /// The last query's squared k-th distance, the first guess for the next one.
