@@ -118,7 +118,12 @@ impl TileJob<'_> {
             })?;
             retried += again;
             exec.reporter.advance(results.len() as u64);
-            gathered.append(&mut results);
+            // A whole tile (one part) hands its results over without a copy.
+            if gathered.is_empty() {
+                gathered = results;
+            } else {
+                gathered.append(&mut results);
+            }
         }
         Ok((gathered, sidecar, retried))
     }
