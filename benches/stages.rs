@@ -6,7 +6,7 @@
 //! (default FILE: data/Haystack_Rock.las, the sample that ships; tile 50, K 30, repeat 3).
 //! Takes the points of a `--tile`-wide square at the centre of FILE (file units), orders them
 //! along a Morton curve as a loaded tile is, and times, per point: the engine's k-NN (index
-//! build included), kiddo `nearest_n` on tile-local f32 coordinates (no exact re-ranking, so
+//! build included, queries in the index's cell order as the engine's tasks make them), kiddo `nearest_n` on tile-local f32 coordinates (no exact re-ranking, so
 //! a lower bound on what a kiddo-based engine costs), PCA normals, and the default estimator
 //! with its neighbourhood gather. Best of `--repeat` runs of each stage.
 
@@ -119,7 +119,10 @@ fn main() {
         let index = NeighbourIndex::build(&t.xyz, &t.ids, k).expect("index");
         let mut s = KnnScratch::default();
         let mut out = Vec::with_capacity(k);
-        for i in 0..n {
+        // In the index's query order, as the engine's k-NN tasks query (core::compute).
+        let mut order: Vec<(u64, usize)> = (0..n).map(|i| (index.query_key(i), i)).collect();
+        order.sort_unstable();
+        for &(_, i) in &order {
             index.knn(i, k, &mut s, &mut out);
             lists[i * k..(i + 1) * k].copy_from_slice(&out);
         }

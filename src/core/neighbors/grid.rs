@@ -35,7 +35,8 @@ static NEXT_GRID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::n
 
 /// The 3 x 3 x 3 cells around one grid cell, gathered as f32 coordinates relative to the cell's
 /// centre (structure of arrays, so the distance pass vectorises). Every query in that cell
-/// reuses it: queries arrive in Morton order, so consecutive ones mostly share a cell.
+/// reuses it: the tile's k-NN tasks query their points in cell order
+/// ([`NeighbourIndex::query_key`]), so consecutive ones mostly share a cell.
 #[derive(Default)]
 pub(super) struct Block {
     /// The grid (its [`Grid::uid`]) and centre cell gathered, or None before the first gather:
