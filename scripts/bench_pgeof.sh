@@ -61,7 +61,8 @@ for size in "${SIZES[@]}"; do
 
     cat "$in" >/dev/null
     out_tc="$BENCH_DIR/out_tilecurv_$size.las"
-    rm -f "$out_tc"
+    # --progress-json appends: a previous run's events would be read as this run's phases.
+    rm -f "$out_tc" "$BENCH_DIR/progress_tilecurv_$size.jsonl"
     /usr/bin/time -v -o "$BENCH_DIR/time_tilecurv_$size.txt" \
         "$BIN" process "$in" -o "$out_tc" -k "$K" --threads "$THREADS" -q \
         --progress-json "$BENCH_DIR/progress_tilecurv_$size.jsonl"
