@@ -147,6 +147,18 @@ fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
     std::mem::swap(v, spare);
 }
 
+/// The smallest and largest coordinate on each axis of `xyz` (not empty).
+fn bounds(xyz: &[V3]) -> (V3, V3) {
+    let (mut lo, mut hi) = (xyz[0], xyz[0]);
+    for p in xyz {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    (lo, hi)
+}
+
 impl<'a> NeighbourIndex<'a> {
     /// Builds the index over `xyz` (absolute f64 coordinates) with original ids `ids`, for
     /// queries of about `k` neighbours. Returns None when there are no points or more than
@@ -155,14 +167,7 @@ impl<'a> NeighbourIndex<'a> {
         if xyz.is_empty() || xyz.len() > u32::MAX as usize {
             return None;
         }
-        let mut lo = xyz[0];
-        let mut hi = xyz[0];
-        for p in xyz {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
+        let (lo, hi) = bounds(xyz);
         let ranks = position_ranks(xyz, ids);
         let duplicates = Duplicates::find(xyz, &ranks, k);
         if let Some(g) = Grid::build(xyz, &ranks, lo, hi, k) {

@@ -26,14 +26,7 @@ fn brute(xyz: &[V3], ids: &[u64], i: usize, k: usize) -> Vec<u32> {
 }
 
 fn check_both_backends(xyz: &[V3], ids: &[u64], ks: &[usize]) {
-    let mut lo = xyz[0];
-    let mut hi = xyz[0];
-    for p in xyz {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
+    let (lo, hi) = bounds(xyz);
     let mut scratch = KnnScratch::default();
     let mut out = Vec::new();
     for &k in ks {
