@@ -56,9 +56,10 @@ pub(super) struct Block {
     slack2: f64,
 }
 
-/// The key of cell `c` in a grid of `dims` cells: column (x, y), then z cell.
+/// The key of cell `c` in a grid of `dims` cells, the order the grid sorts its cells in:
+/// column (x, y), then z cell.
 #[inline]
-fn cell_key(dims: [usize; 3], c: [usize; 3]) -> u64 {
+pub(super) fn cell_key(dims: [usize; 3], c: [usize; 3]) -> u64 {
     ((c[0] * dims[1] + c[1]) as u64) << 32 | c[2] as u64
 }
 
@@ -169,12 +170,6 @@ impl Grid {
         })
     }
 
-    /// The key cells are sorted by: column (x, y), then z cell.
-    #[inline]
-    pub(super) fn cell_key(&self, c: [usize; 3]) -> u64 {
-        cell_key(self.dims, c)
-    }
-
     /// The cell holding `q` (a point inside the grid's bounds).
     #[inline]
     pub(super) fn cell_of(&self, q: V3) -> [usize; 3] {
@@ -280,10 +275,10 @@ impl NeighbourIndex<'_> {
         } else {
             (0.5 * g.cell * g.cell) as f32
         };
-        // A narrow window: every point in it is ranked exactly and sorted, and a sort of more
-        // than 32 keys partitions first (the standard library's small-sort network takes 32):
-        // at k = 30 a window of need + 9 sorted 29-38 keys, about twice the work of a
-        // count pass more.
+        // A narrow window: every point in it is ranked exactly and sorted, and the standard
+        // library sorts up to 32 keys with its small-sort network but partitions more first.
+        // At k = 30 the former window (need + 9) left 29-38 keys to sort; an extra count pass
+        // costs far less than that partition.
         let window = need + 2 + need / 16;
         let aim = (need + 1 + need / 32) as f32;
         for _ in 0..8 {

@@ -196,7 +196,7 @@ impl<'a> NeighbourIndex<'a> {
     /// k-d tree. The answers do not depend on the order of the queries.
     pub fn query_key(&self, i: usize) -> u64 {
         match &self.backend {
-            Backend::Grid(g) => g.cell_key(g.cell_of(self.xyz[i])),
+            Backend::Grid(g) => grid::cell_key(g.dims, g.cell_of(self.xyz[i])),
             Backend::Tree { .. } => 0,
         }
     }
