@@ -6,8 +6,9 @@
 //! (default FILE: data/Haystack_Rock.las, the sample that ships; tile 50, K 30, repeat 3).
 //! Takes the points of a `--tile`-wide square at the centre of FILE (file units), orders them
 //! along a Morton curve as a loaded tile is, and times, per point: the engine's k-NN (index
-//! build included, queries in the index's cell order as the engine's tasks make them), kiddo `nearest_n` on tile-local f32 coordinates (no exact re-ranking, so
-//! a lower bound on what a kiddo-based engine costs), PCA normals, and the default estimator
+//! build included, queries in the index's cell order as the engine's tasks make them), kiddo
+//! `nearest_n` on tile-local f32 coordinates (no exact re-ranking, so a lower bound on what a
+//! kiddo-based engine costs), PCA normals, and the default estimator
 //! with its neighbourhood gather. Best of `--repeat` runs of each stage.
 
 use std::num::NonZeroUsize;

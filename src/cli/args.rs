@@ -114,9 +114,9 @@ pub struct ResultArgs {
     /// output of forest LIDAR is about 4 times its LAZ input instead of 6.5): unit vectors
     /// (normals, directions, the VCM normal) as i16 at 1/32767 (error at most 1.5e-5); H, K,
     /// and k1 with k2, as i32 at a power-of-two step of at most 1/4096 of the 99th percentile
-    /// of |value| over all the points of the run (error at most 1.2e-4 of that percentile; the RMS quantisation error is 27 to 160 times below the
-    /// estimator's RMS error on the CNC authors' torus, 570 to 830 times on generated
-    /// terrain), coarser only if the largest |value| would exceed 2^30 steps. `tilecurv info`
+    /// of |value| over all the points of the run (error at most 1.2e-4 of that percentile;
+    /// the RMS quantisation error is 27 to 160 times below the estimator's RMS error on the
+    /// CNC authors' torus, 570 to 830 times on generated terrain), coarser only if the largest |value| would exceed 2^30 steps. `tilecurv info`
     /// prints each column's step. An undefined value is the type's minimum (-32768 or
     /// -2147483648), declared as the column's no-data value: laspy returns it scaled, so mask
     /// it with CurvatureFlags & 7 (or the raw value). PLY has no scale field: PLY outputs are
