@@ -331,7 +331,8 @@ pub struct MemoryPlan {
     pub buckets_after_spill_bytes: usize,
     /// Decoded spilled buckets kept for neighbouring tiles' halos (1/5), once buckets are on disk.
     pub bucket_cache_bytes: usize,
-    /// Tiles (or quadtree parts) in flight: one per tile driver.
+    /// Tiles (or quadtree parts) in flight: one per tile driver, one driver per worker thread
+    /// and at least 2 (so that one tile's loading overlaps another's computation).
     pub tiles_in_flight: usize,
     /// Bytes for each tile in flight: 2/5 of the budget shared by `tiles_in_flight`.
     pub per_tile_bytes: usize,
@@ -348,10 +349,10 @@ pub struct MemoryPlan {
 }
 
 impl MemoryPlan {
-    /// The plan for a budget of `budget_bytes`, `k` neighbours per point and `rungs` scales
-    /// per point (`-k auto`; 1 for one k).
-    pub fn new(budget_bytes: usize, k: usize, rungs: usize) -> Self {
-        let tiles_in_flight = 2;
+    /// The plan for a budget of `budget_bytes`, `k` neighbours per point, `rungs` scales per
+    /// point (`-k auto`; 1 for one k) and `threads` worker threads.
+    pub fn new(budget_bytes: usize, k: usize, rungs: usize, threads: usize) -> Self {
+        let tiles_in_flight = threads.max(2);
         let buckets_bytes = budget_bytes * 2 / 5;
         let per_tile_bytes = budget_bytes * 2 / 5 / tiles_in_flight;
         let tile_point_bytes = 300 + 4 * k + 128 * rungs.saturating_sub(1);
@@ -467,17 +468,21 @@ mod tests {
 
     #[test]
     fn memory_plan_shares_the_budget() {
-        let m = MemoryPlan::new(1 << 30, 30, 1);
-        // Buckets during the scan and the tiles in flight after it never exceed the budget.
-        assert!(m.buckets_bytes + m.bucket_cache_bytes <= m.budget_bytes);
-        assert!(m.bucket_cache_bytes + m.tiles_in_flight * m.per_tile_bytes <= m.budget_bytes);
+        for threads in [1, 2, 16] {
+            let m = MemoryPlan::new(1 << 30, 30, 1, threads);
+            assert_eq!(m.tiles_in_flight, threads.max(2));
+            // Buckets during the scan and the tiles in flight after it never exceed the budget.
+            assert!(m.buckets_bytes + m.bucket_cache_bytes <= m.budget_bytes);
+            assert!(m.bucket_cache_bytes + m.tiles_in_flight * m.per_tile_bytes <= m.budget_bytes);
+            assert!(m.max_core_points * m.tile_point_bytes <= m.per_tile_bytes);
+        }
+        let m = MemoryPlan::new(1 << 30, 30, 1, 2);
         assert_eq!(m.tile_point_bytes, 420);
-        assert!(m.max_core_points * m.tile_point_bytes <= m.per_tile_bytes);
         // A 2000-byte record: 1 GiB / 16 / 2064 = 32513 points per chunk at most.
         assert_eq!(m.chunk_points(1_000_000, 2000), 32_513);
         assert_eq!(m.chunk_points(500, 2000), 500);
         assert_eq!(
-            MemoryPlan::new(64 << 20, 30, 1).chunk_points(1 << 20, 1 << 20),
+            MemoryPlan::new(64 << 20, 30, 1, 2).chunk_points(1 << 20, 1 << 20),
             1024
         );
     }

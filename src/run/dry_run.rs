@@ -65,7 +65,7 @@ fn estimate(scratch: &WorkDir, spec: &RunSpec, exec: &Exec<'_>, work_path: &Path
             max_core_points: exec.memory.max_core_points,
         };
         let t1 = Instant::now();
-        let (r, _, _) = job.compute(sample, exec, &mut TileBuffers::default())?;
+        let (r, _, _) = job.compute(sample, exec, &exec.pool, &mut TileBuffers::default())?;
         us_per_point = t1.elapsed().as_secs_f64() * 1e6 / r.len().max(1) as f64;
     }
     let n = scan.stats.count as f64;

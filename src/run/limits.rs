@@ -33,11 +33,13 @@ pub fn fit_memory(cfg: &Config, spec: &RunSpec, reporter: &dyn Reporter) -> Resu
         .iter()
         .map(|s| std::fs::metadata(s.path()).map_or(0, |m| m.len()))
         .sum();
-    // The run's pool (large stacks), rayon's global pool (the LAZ compressor's), the tile
-    // drivers, the rest.
+    // The run's pool and the tile drivers' own workers (large stacks), rayon's global pool
+    // (the LAZ compressor's), the tile drivers (one per thread, at least 2), the rest.
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
-    let own =
-        PROGRAM_BYTES + cfg.threads as u64 * super::WORKER_STACK as u64 + (cores + 4) * STACK_BYTES;
+    let threads = cfg.threads as u64;
+    let own = PROGRAM_BYTES
+        + 2 * threads * super::WORKER_STACK as u64
+        + (cores + threads.max(2) + 2) * STACK_BYTES;
     let mut budget = cfg.memory_bytes;
     if let Some(limit) = address_space_limit() {
         let besides = format!(

@@ -100,7 +100,12 @@ impl<'a> Exec<'a> {
             })?;
         Ok(Exec {
             pool,
-            memory: MemoryPlan::new(budget as usize, cfg.k, cfg.scale.map_or(1, |l| l.rungs())),
+            memory: MemoryPlan::new(
+                budget as usize,
+                cfg.k,
+                cfg.scale.map_or(1, |l| l.rungs()),
+                cfg.threads,
+            ),
             chunk_points: cfg.chunk_points,
             reporter,
             cancel,

@@ -1,16 +1,20 @@
 //! The tiles stage: plans the tiles from the scan statistics, then computes every tile whose
 //! result is not yet in the work directory. Tile drivers (as many as the memory plan has tiles
-//! in flight) each take the next tile, load it (part by part when it is too dense for its share
-//! of the budget) and compute it on the shared rayon pool, so that one tile's loading and serial
-//! steps overlap another's parallel ones; a result writer journals each finished tile. Results
-//! and errors travel on one channel: the first error stops the drivers, the tiles finished
-//! before it stay journalled, and a signal is honoured between tile parts.
+//! in flight: one per worker thread, at least 2) each take the next tile, load it (part by part
+//! when it is too dense for its share of the budget) and compute it: on a worker thread of the
+//! driver's own while many tiles are left, so that the threads never wait for each other
+//! within a tile (the shared pool's fork-join steps left a core idle a tenth of the time), and
+//! on the shared rayon pool for the last tiles and for any tile that holds a large share of
+//! the work, so that no core idles at the end. A result writer journals each finished tile.
+//! Results and errors travel on one channel: the first error stops the drivers, the tiles
+//! finished before it stay journalled, and a signal is honoured between tile parts.
 
 use std::collections::HashSet;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 
 use crossbeam_channel::bounded;
+use rayon::ThreadPool;
 
 use crate::config::OrientMode;
 use crate::core::compute::{
@@ -29,7 +33,7 @@ use crate::io::results::{is_complete, orientation_path, tile_path, Journal, Tile
 use crate::io::workdir::{sweep_dead_temps, WorkDir};
 use crate::run::bucket::Bucketed;
 use crate::run::spec::RunSpec;
-use crate::run::Exec;
+use crate::run::{Exec, WORKER_STACK};
 
 /// What the tiles stage did.
 #[derive(Debug, Clone)]
@@ -85,11 +89,13 @@ pub struct TileJob<'a> {
 pub type TileResult = (Vec<PointResult>, TileSidecar, u64);
 
 impl TileJob<'_> {
-    /// Computes one tile, all its parts in order, on `exec`'s pool with the driver's buffers.
+    /// Computes one tile, all its parts in order, on `pool` with the driver's buffers (`exec`
+    /// for the signal and the progress).
     pub fn compute(
         &self,
         spec: &TileSpec,
         exec: &Exec<'_>,
+        pool: &rayon::ThreadPool,
         bufs: &mut TileBuffers,
     ) -> Result<TileResult> {
         let whole = Part::whole(self.plan.grid.rect(spec.key));
@@ -113,7 +119,7 @@ impl TileJob<'_> {
                 None,
                 &self.plan.per_tile,
             )?;
-            let (mut results, again) = exec.pool.install(|| {
+            let (mut results, again) = pool.install(|| {
                 self.compute_verified(spec, &part, t, &mut sidecar, bufs, exec.cancel)
             })?;
             retried += again;
@@ -340,7 +346,8 @@ struct Finished {
     retried: u64,
 }
 
-/// Runs `todo` with the memory plan's number of drivers and one result writer. Tiles finish in
+/// Runs `todo` with the memory plan's number of drivers (each with a worker of its own, see
+/// [`pool_for`]) and one result writer. Tiles finish in
 /// any order: each has its own result file, and the parts of a tile stay with one driver, in
 /// order (patch numbering). Returns (undefined points, retried points).
 fn drive(
@@ -353,29 +360,39 @@ fn drive(
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
     let propagate = job.params.propagate.is_some();
+    let drivers = exec.memory.tiles_in_flight.max(1);
+    // Workers of their own for the drivers only when there are no more drivers than threads
+    // (`--threads 1` has 2 drivers sharing its one worker).
+    let solo = drivers <= exec.pool.current_num_threads();
+    // Points in the tiles no driver has taken yet.
+    let left = AtomicU64::new(todo.iter().map(|t| t.count).sum());
     std::thread::scope(|s| -> Result<(u64, u64)> {
         let (tx, rx) = bounded::<Result<Finished>>(1);
         let (mut started, mut refused) = (0, None);
-        for _ in 0..exec.memory.tiles_in_flight.max(1) {
+        for _ in 0..drivers {
             let tx = tx.clone();
-            let (next, stop) = (&next, &stop);
+            let (next, stop, left) = (&next, &stop, &left);
             let driver = std::thread::Builder::new().name("tile driver".into());
             let spawned = driver.spawn_scoped(s, move || {
                 let mut bufs = TileBuffers::default();
+                let own = solo.then(solo_pool).flatten();
                 while !stop.load(Ordering::Relaxed) {
                     let Some(spec) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
                         return;
                     };
+                    let before = left.fetch_sub(spec.count, Ordering::Relaxed);
+                    let pool = pool_for(own.as_ref(), &exec.pool, spec.count, before, drivers);
                     let msg = if exec.cancel.load(Ordering::Relaxed) {
                         Err(Error::Interrupted)
                     } else {
-                        job.compute(spec, exec, &mut bufs)
-                            .map(|(results, sidecar, retried)| Finished {
+                        job.compute(spec, exec, pool, &mut bufs).map(
+                            |(results, sidecar, retried)| Finished {
                                 spec: spec.clone(),
                                 results,
                                 sidecar: propagate.then_some(sidecar),
                                 retried,
-                            })
+                            },
+                        )
                     };
                     let failed = msg.is_err();
                     // A failed send means the writer stopped, and it reports why.
@@ -411,6 +428,36 @@ fn drive(
         }
         Ok((undefined, retried))
     })
+}
+
+/// A pool of one worker thread (with the workers' stack) for a tile driver; None when the
+/// thread cannot be started, and the driver then computes on the shared pool.
+fn solo_pool() -> Option<ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .stack_size(WORKER_STACK)
+        .thread_name(|_| "tile worker".into())
+        .build()
+        .ok()
+}
+
+/// The pool a driver computes a tile of `count` points on when `left` points (the tile's
+/// included) were in tiles no driver had taken: its own worker (`own`) while the tile is small
+/// against the work left to every driver (at most a quarter of its share), otherwise the shared
+/// pool, whose threads share the tile, so that the last tiles of a run, or one tile that holds
+/// a large share of it (the dense tile around a terrestrial scanner), do not leave cores idle
+/// while one thread computes them. The results do not depend on the pool.
+fn pool_for<'p>(
+    own: Option<&'p ThreadPool>,
+    shared: &'p ThreadPool,
+    count: u64,
+    left: u64,
+    drivers: usize,
+) -> &'p ThreadPool {
+    match own {
+        Some(p) if count.saturating_mul(4 * drivers as u64) <= left => p,
+        _ => shared,
+    }
 }
 
 /// The result writer: journals each finished tile. The first error (a driver's, or the
