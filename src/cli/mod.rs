@@ -44,8 +44,9 @@ Exit codes:
        small for even the smallest budget (the message says what to raise it to)
   3    bad input: the input is unreadable, malformed or unsupported (the message names the file and byte offset)
   4    output failure: the output or the work directory could not be written or read, or a
-       limit of the machine stopped the run (disk space, ulimit -f, ulimit -n, memory); the
-       work is kept: fix the cause and run the same command again to resume
+       limit of the machine stopped the run (disk space, ulimit -f, ulimit -n, memory, or a
+       processor without the AVX2 and FMA instructions the build uses: the message says how to
+       rebuild); the work is kept: fix the cause and run the same command again to resume
   5    tasks missing: a cluster stage (run-tile, assemble) found tasks of an earlier stage not
        done; nothing was written (the message names them; `tilecurv status --missing` lists them)
   130  interrupted (SIGINT/SIGTERM): no output was written; run the same command again to resume
