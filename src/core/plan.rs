@@ -141,12 +141,22 @@ pub struct Centroid {
 /// 2^32: the units per coordinate unit of [`Centroid`]'s sums.
 const CENTROID_UNITS: f64 = 4_294_967_296.0;
 
+/// 2^63, the first f64 past the i64 range.
+const TWO_POW_63: f64 = 9_223_372_036_854_775_808.0;
+
 impl Centroid {
     /// Adds one point (finite coordinates; others saturate and make the centroid meaningless).
     pub fn add(&mut self, p: V3) {
         for (s, c) in self.sum.iter_mut().zip(p) {
             // `as` saturates: a coordinate beyond 2^95 cannot overflow the sum by itself.
-            *s = s.saturating_add((c * CENTROID_UNITS).round() as i128);
+            // Through i64 where the value fits (coordinates below 2^31 units): the same
+            // integer without the f64 -> i128 library call, 4% of the scan's time.
+            let v = (c * CENTROID_UNITS).round();
+            let q = match v.abs() < TWO_POW_63 {
+                true => v as i64 as i128,
+                false => v as i128,
+            };
+            *s = s.saturating_add(q);
         }
         self.n += 1;
     }
@@ -485,6 +495,30 @@ mod tests {
             MemoryPlan::new(64 << 20, 30, 1, 2).chunk_points(1 << 20, 1 << 20),
             1024
         );
+    }
+
+    /// The i64 shortcut of `Centroid::add` gives the sum's definition, round(c * 2^32) as an
+    /// i128, on both sides of the i64 range and at UTM magnitudes.
+    #[test]
+    fn centroid_sums_are_the_rounded_units() {
+        let edge = 2f64.powi(31);
+        for c in [
+            0.3e-9,
+            -2.5 / CENTROID_UNITS,
+            5_123_456.789,
+            -712_345.25,
+            edge - 1e-6,
+            -edge,
+            edge,
+            edge * 3.0,
+            -1e20,
+            1e30,
+        ] {
+            let mut m = Centroid::default();
+            m.add([c, -c, 0.0]);
+            let want = |c: f64| (c * CENTROID_UNITS).round() as i128;
+            assert_eq!(m.sum, [want(c), want(-c), 0], "{c}");
+        }
     }
 
     #[test]

@@ -500,3 +500,34 @@ fn write_results(
         None => committed.map(|_| (undefined, retried)),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A driver keeps a tile on its own worker while the tile is at most a quarter of its share
+    /// of the work left, and hands the last tiles, and a tile holding much of the run, to the
+    /// shared pool.
+    #[test]
+    fn the_last_and_the_largest_tiles_go_to_the_shared_pool() {
+        let pool = |n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .expect("a test pool")
+        };
+        let (own, shared) = (pool(1), pool(2));
+        let on_own =
+            |count, left| std::ptr::eq(pool_for(Some(&own), &shared, count, left, 2), &own);
+        assert!(on_own(25_000, 20_000_000));
+        // 2 drivers: a quarter of each one's share is left / 8.
+        assert!(on_own(25_000, 200_000));
+        assert!(!on_own(25_000, 199_999));
+        assert!(!on_own(5_000_000, 20_000_000));
+        // Without a worker of its own (one thread, or none could be started): the shared pool.
+        assert!(std::ptr::eq(
+            pool_for(None, &shared, 1, u64::MAX, 2),
+            &shared
+        ));
+    }
+}

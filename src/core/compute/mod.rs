@@ -186,9 +186,14 @@ impl NeighbourhoodBuf {
     ) -> Curvature {
         self.pos.clear();
         self.nrm.clear();
+        let q = xyz[i];
+        // The squared radius of the neighbourhood, for the SHARPER_THAN_NEIGHBOURHOOD flag.
+        let mut r2 = 0.0f64;
         for &j in list {
             if let Some(nj) = normals[j as usize] {
-                self.pos.push(sub(xyz[j as usize], xyz[i]));
+                let d = sub(xyz[j as usize], q);
+                r2 = r2.max(dot(d, d));
+                self.pos.push(d);
                 self.nrm.push(nj);
             }
         }
@@ -199,12 +204,11 @@ impl NeighbourhoodBuf {
             &Neighbourhood {
                 positions: &self.pos,
                 normals: &self.nrm,
-                key: position_key(&xyz[i]),
+                key: position_key(&q),
             },
             &mut self.scratch,
             extra,
         );
-        let r2 = self.pos.iter().map(|p| dot(*p, *p)).fold(0.0, f64::max);
         if sharper_than(&c, r2.sqrt()) {
             c.flags |= flags::SHARPER_THAN_NEIGHBOURHOOD;
         }
