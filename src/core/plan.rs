@@ -341,8 +341,10 @@ pub struct MemoryPlan {
     pub buckets_after_spill_bytes: usize,
     /// Decoded spilled buckets kept for neighbouring tiles' halos (1/5), once buckets are on disk.
     pub bucket_cache_bytes: usize,
-    /// Tiles (or quadtree parts) in flight: one per tile driver, one driver per worker thread
-    /// and at least 2 (so that one tile's loading overlaps another's computation).
+    /// Tiles (or quadtree parts) in flight: one per tile driver. One driver per worker thread
+    /// (each then computes on a worker of its own: run/tiles.rs) as long as each keeps
+    /// [`MIN_TILE_SHARE`] of the budget, fewer otherwise (they then share the pool); at least 2,
+    /// so that one tile's loading overlaps another's computation.
     pub tiles_in_flight: usize,
     /// Bytes for each tile in flight: 2/5 of the budget shared by `tiles_in_flight`.
     pub per_tile_bytes: usize,
@@ -362,7 +364,7 @@ impl MemoryPlan {
     /// The plan for a budget of `budget_bytes`, `k` neighbours per point, `rungs` scales per
     /// point (`-k auto`; 1 for one k) and `threads` worker threads.
     pub fn new(budget_bytes: usize, k: usize, rungs: usize, threads: usize) -> Self {
-        let tiles_in_flight = threads.max(2);
+        let tiles_in_flight = (budget_bytes * 2 / 5 / MIN_TILE_SHARE).clamp(2, threads.max(2));
         let buckets_bytes = budget_bytes * 2 / 5;
         let per_tile_bytes = budget_bytes * 2 / 5 / tiles_in_flight;
         let tile_point_bytes = 300 + 4 * k + 128 * rungs.saturating_sub(1);
@@ -386,6 +388,11 @@ impl MemoryPlan {
         requested.min((self.chunk_bytes / (record_bytes.max(1) + 64)).max(1024))
     }
 }
+
+/// The least share of the budget a tile in flight gets when there is one per thread (about
+/// 50,000 points at k = 30 before a tile is split into parts): a small budget on many cores
+/// keeps fewer, larger tiles in flight rather than splitting every tile.
+pub const MIN_TILE_SHARE: usize = 32 << 20;
 
 /// The smallest memory budget a run accepts (`--memory 64M`).
 pub const MIN_BUDGET_BYTES: u64 = 64 << 20;
@@ -478,9 +485,14 @@ mod tests {
 
     #[test]
     fn memory_plan_shares_the_budget() {
-        for threads in [1, 2, 16] {
-            let m = MemoryPlan::new(1 << 30, 30, 1, threads);
-            assert_eq!(m.tiles_in_flight, threads.max(2));
+        // One per thread, at least 2, while each keeps 32 MiB: 1 GiB * 2/5 holds 12 of them.
+        for (threads, budget, want) in [(1, 1 << 30, 2), (2, 1 << 30, 2), (8, 1 << 30, 8)]
+            .into_iter()
+            .chain([(16, 1 << 30, 12), (16, 64 << 20, 2), (4, 4 << 30, 4)])
+        {
+            let m = MemoryPlan::new(budget, 30, 1, threads);
+            assert_eq!(m.tiles_in_flight, want, "{threads} threads, {budget} bytes");
+            assert!(m.per_tile_bytes >= MIN_TILE_SHARE || want == 2);
             // Buckets during the scan and the tiles in flight after it never exceed the budget.
             assert!(m.buckets_bytes + m.bucket_cache_bytes <= m.budget_bytes);
             assert!(m.bucket_cache_bytes + m.tiles_in_flight * m.per_tile_bytes <= m.budget_bytes);

@@ -1,6 +1,6 @@
 //! The tiles stage: plans the tiles from the scan statistics, then computes every tile whose
 //! result is not yet in the work directory. Tile drivers (as many as the memory plan has tiles
-//! in flight: one per worker thread, at least 2) each take the next tile, load it (part by part
+//! in flight: one per worker thread while the budget allows, at least 2) each take the next tile, load it (part by part
 //! when it is too dense for its share of the budget) and compute it: on a worker thread of the
 //! driver's own while many tiles are left, so that the threads never wait for each other
 //! within a tile (the shared pool's fork-join steps left a core idle a tenth of the time), and
@@ -361,9 +361,10 @@ fn drive(
     let stop = AtomicBool::new(false);
     let propagate = job.params.propagate.is_some();
     let drivers = exec.memory.tiles_in_flight.max(1);
-    // Workers of their own for the drivers only when there are no more drivers than threads
-    // (`--threads 1` has 2 drivers sharing its one worker).
-    let solo = drivers <= exec.pool.current_num_threads();
+    // Workers of their own for the drivers when there is one driver per thread (not with
+    // `--threads 1`, whose 2 drivers share its one worker, nor when the budget keeps fewer
+    // drivers than threads: `MemoryPlan::tiles_in_flight`).
+    let solo = drivers == exec.pool.current_num_threads();
     // Points in the tiles no driver has taken yet.
     let left = AtomicU64::new(todo.iter().map(|t| t.count).sum());
     std::thread::scope(|s| -> Result<(u64, u64)> {
