@@ -32,6 +32,8 @@ use crate::core::point::{cmp_point, cmp_position};
 mod duplicates;
 mod grid;
 mod kdtree;
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+mod network;
 mod radius;
 mod shell;
 
@@ -119,7 +121,9 @@ fn rank(a: &Cand, b: &Cand) -> Ordering {
 /// in the low bits (as many as the entries need, at least 6; branch-free and much faster than
 /// comparing tuples), then put in exact order by an insertion pass: the keys only misorder
 /// distances within 2^bits ulps of each other (relative 2^-36 at most: ties among them), so
-/// that pass moves almost nothing. Past 2^16 entries, a comparison sort.
+/// that pass moves almost nothing. Up to 32 entries (a k = 30 query's) the keys are sorted by
+/// a sorting network in registers where the build has AVX2 (`network`); past 2^16, a
+/// comparison sort. The order is [`rank`]'s either way.
 fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
     if v.len() > 1 << 16 {
         v.sort_unstable_by(rank);
@@ -127,17 +131,33 @@ fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
     }
     let bits = (usize::BITS - v.len().saturating_sub(1).leading_zeros()).max(6);
     let low = (1u64 << bits) - 1;
-    keys.clear();
     // Squared distances are >= +0.0, whose bit patterns order like the values.
-    keys.extend(
-        v.iter()
-            .enumerate()
-            .map(|(e, r)| (r.0.to_bits() & !low) | e as u64),
-    );
-    keys.sort_unstable();
+    let key = |(e, r): (usize, &Cand)| (r.0.to_bits() & !low) | e as u64;
     spare.clear();
-    spare.extend(keys.iter().map(|&key| v[(key & low) as usize]));
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    if v.len() <= 32 {
+        // The keys as doubles (finite and non-negative: ordered like their bits), padded with
+        // +inf, which sorts last.
+        let mut k = [f64::INFINITY; 32];
+        for (slot, e) in k.iter_mut().zip(v.iter().enumerate()) {
+            *slot = f64::from_bits(key(e));
+        }
+        // SAFETY: compiled only where the build enables AVX2, whose absence main.rs refuses at
+        // start-up.
+        unsafe { network::sort32(&mut k) };
+        spare.extend(k[..v.len()].iter().map(|x| v[(x.to_bits() & low) as usize]));
+    }
+    if spare.is_empty() {
+        keys.clear();
+        keys.extend(v.iter().enumerate().map(key));
+        keys.sort_unstable();
+        spare.extend(keys.iter().map(|&key| v[(key & low) as usize]));
+    }
     for x in 1..spare.len() {
+        // In order already unless within a tie window: one comparison in the common case.
+        if spare[x - 1].0 < spare[x].0 {
+            continue;
+        }
         let mut y = x;
         while y > 0 && rank(&spare[y], &spare[y - 1]).is_lt() {
             spare.swap(y, y - 1);
