@@ -231,6 +231,27 @@ impl Grid {
     }
 }
 
+/// Writes to the front of `out` the indices j of `d2` with `d2[j] <= lim`, in increasing
+/// order, and returns how many. Branch-free (a branch per point mispredicted often): eight at a
+/// time where the build has AVX2 (`simd`), else one at a time.
+fn select_within(d2: &[f32], lim: f32, out: &mut Vec<u32>) -> usize {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    // SAFETY: compiled only where the build enables AVX2, whose absence main.rs refuses.
+    return unsafe { super::simd::select_within(d2, lim, out) };
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    {
+        if out.len() < d2.len() {
+            out.resize(d2.len(), 0);
+        }
+        let mut n = 0;
+        for (j, &d) in d2.iter().enumerate() {
+            out[n] = j as u32;
+            n += (d <= lim) as usize;
+        }
+        n
+    }
+}
+
 impl NeighbourIndex<'_> {
     /// The fast path of the grid: ranks the points of the 3 x 3 x 3 cells around `i`'s cell
     /// (gathered once per cell, see [`Block`]). An f32 pass over them finds a squared radius
@@ -308,16 +329,9 @@ impl NeighbourIndex<'_> {
         // Every point that can be among the exact k nearest is within `above` plus twice the
         // rounding bound (f32 k-th <= above; exact and f32 values differ by <= slack2).
         let lim = ((above as f64 + 2.0 * b.slack2) * (1.0 + 1e-6)) as f32;
-        // Branch-free compaction of the indices within lim (about a quarter of the block: a
-        // branch per point mispredicted often), then the exact ranking of those.
-        if s.within.len() < d2.len() {
-            s.within.resize(d2.len(), 0);
-        }
-        let mut n = 0;
-        for (j, &d) in d2.iter().enumerate() {
-            s.within[n] = j as u32;
-            n += (d <= lim) as usize;
-        }
+        // The block points within lim (about a quarter of the block), then the exact ranking
+        // of those.
+        let n = select_within(d2, lim, &mut s.within);
         s.exact.clear();
         for &j in &s.within[..n] {
             let (j, l) = (j as usize, b.local[j as usize]);

@@ -32,10 +32,10 @@ use crate::core::point::{cmp_point, cmp_position};
 mod duplicates;
 mod grid;
 mod kdtree;
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-mod network;
 mod radius;
 mod shell;
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+mod simd;
 
 use duplicates::Duplicates;
 
@@ -122,7 +122,7 @@ fn rank(a: &Cand, b: &Cand) -> Ordering {
 /// comparing tuples), then put in exact order by an insertion pass: the keys only misorder
 /// distances within 2^bits ulps of each other (relative 2^-36 at most: ties among them), so
 /// that pass moves almost nothing. Up to 32 entries (a k = 30 query's) the keys are sorted by
-/// a sorting network in registers where the build has AVX2 (`network`); past 2^16, a
+/// a sorting network in registers where the build has AVX2 (`simd`); past 2^16, a
 /// comparison sort. The order is [`rank`]'s either way.
 fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
     if v.len() > 1 << 16 {
@@ -144,7 +144,7 @@ fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
         }
         // SAFETY: compiled only where the build enables AVX2, whose absence main.rs refuses at
         // start-up.
-        unsafe { network::sort32(&mut k) };
+        unsafe { simd::sort32(&mut k) };
         spare.extend(k[..v.len()].iter().map(|x| v[(x.to_bits() & low) as usize]));
     }
     if spare.is_empty() {
