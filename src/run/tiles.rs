@@ -1,13 +1,14 @@
 //! The tiles stage: plans the tiles from the scan statistics, then computes every tile whose
 //! result is not yet in the work directory. Tile drivers (as many as the memory plan has tiles
-//! in flight: one per worker thread while the budget allows, at least 2) each take the next tile, load it (part by part
-//! when it is too dense for its share of the budget) and compute it: on a worker thread of the
-//! driver's own while many tiles are left, so that the threads never wait for each other
-//! within a tile (the shared pool's fork-join steps left a core idle a tenth of the time), and
-//! on the shared rayon pool for the last tiles and for any tile that holds a large share of
-//! the work, so that no core idles at the end. A result writer journals each finished tile.
-//! Results and errors travel on one channel: the first error stops the drivers, the tiles
-//! finished before it stay journalled, and a signal is honoured between tile parts.
+//! in flight: one per worker thread while the budget allows, at least 2) each take the next
+//! tile, load it (part by part when it is too dense for its share of the budget) and compute
+//! it: on a worker thread of the driver's own while many tiles are left, so that the threads
+//! never wait for each other within a tile (the shared pool's fork-join steps left a core idle
+//! a tenth of the time), and on the shared rayon pool for the last tiles and for any tile that
+//! holds a large share of the work, so that no core idles at the end. A result writer journals
+//! each finished tile. Results and errors travel on one channel: the first error stops the
+//! drivers, the tiles finished before it stay journalled, and a signal is honoured between
+//! tile parts.
 
 use std::collections::HashSet;
 use std::path::Path;
@@ -346,10 +347,10 @@ struct Finished {
     retried: u64,
 }
 
-/// Runs `todo` with the memory plan's number of drivers (each with a worker of its own, see
-/// [`pool_for`]) and one result writer. Tiles finish in
-/// any order: each has its own result file, and the parts of a tile stay with one driver, in
-/// order (patch numbering). Returns (undefined points, retried points).
+/// Runs `todo` with the memory plan's number of drivers (each with a worker of its own when
+/// there is one per thread, see [`pool_for`]) and one result writer. Tiles finish in any
+/// order: each has its own result file, and the parts of a tile stay with one driver, in order
+/// (patch numbering). Returns (undefined points, retried points).
 fn drive(
     job: &TileJob<'_>,
     todo: &[TileSpec],
