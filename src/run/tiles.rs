@@ -96,7 +96,7 @@ impl TileJob<'_> {
         &self,
         spec: &TileSpec,
         exec: &Exec<'_>,
-        pool: &rayon::ThreadPool,
+        pool: &ThreadPool,
         bufs: &mut TileBuffers,
     ) -> Result<TileResult> {
         let whole = Part::whole(self.plan.grid.rect(spec.key));

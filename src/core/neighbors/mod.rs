@@ -131,25 +131,10 @@ fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
     }
     let bits = (usize::BITS - v.len().saturating_sub(1).leading_zeros()).max(6);
     let low = (1u64 << bits) - 1;
-    // Squared distances are >= +0.0, whose bit patterns order like the values.
-    let key = |(e, r): (usize, &Cand)| (r.0.to_bits() & !low) | e as u64;
     spare.clear();
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-    if v.len() <= 32 {
-        // The keys as doubles (finite and non-negative: ordered like their bits), padded with
-        // +inf, which sorts last.
-        let mut k = [f64::INFINITY; 32];
-        for (slot, e) in k.iter_mut().zip(v.iter().enumerate()) {
-            *slot = f64::from_bits(key(e));
-        }
-        // SAFETY: compiled only where the build enables AVX2, whose absence main.rs refuses at
-        // start-up.
-        unsafe { simd::sort32(&mut k) };
-        spare.extend(k[..v.len()].iter().map(|x| v[(x.to_bits() & low) as usize]));
-    }
-    if spare.is_empty() {
+    if !network_order(v, low, spare) {
         keys.clear();
-        keys.extend(v.iter().enumerate().map(key));
+        keys.extend(v.iter().enumerate().map(|e| sort_key(e, low)));
         keys.sort_unstable();
         spare.extend(keys.iter().map(|&key| v[(key & low) as usize]));
     }
@@ -165,6 +150,39 @@ fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
         }
     }
     std::mem::swap(v, spare);
+}
+
+/// The sort key of entry `e` of [`sort_ranked`]: its squared distance's bits (>= +0.0, whose
+/// bit patterns order like the values) with `e` in the `low` bits.
+#[inline]
+fn sort_key((e, r): (usize, &Cand), low: u64) -> u64 {
+    (r.0.to_bits() & !low) | e as u64
+}
+
+/// Appends to `spare` the entries of `v` in the order of their [`sort_key`]s, sorted by the
+/// AVX2 network (`simd`) as doubles (finite and non-negative: ordered like their bits) padded
+/// with +inf, which sorts last. Returns false, doing nothing, past 32 entries or in a build
+/// without AVX2.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+fn network_order(v: &[Cand], low: u64, spare: &mut Vec<Cand>) -> bool {
+    if v.len() > 32 {
+        return false;
+    }
+    let mut k = [f64::INFINITY; 32];
+    for (slot, e) in k.iter_mut().zip(v.iter().enumerate()) {
+        *slot = f64::from_bits(sort_key(e, low));
+    }
+    // SAFETY: compiled only where the build enables AVX2, whose absence main.rs refuses at
+    // start-up.
+    unsafe { simd::sort32(&mut k) };
+    spare.extend(k[..v.len()].iter().map(|x| v[(x.to_bits() & low) as usize]));
+    true
+}
+
+/// Without AVX2 the standard sort takes every list ([`sort_ranked`]).
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+fn network_order(_: &[Cand], _: u64, _: &mut Vec<Cand>) -> bool {
+    false
 }
 
 /// The smallest and largest coordinate on each axis of `xyz` (not empty).

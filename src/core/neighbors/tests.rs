@@ -44,25 +44,35 @@ fn check_both_backends(xyz: &[V3], ids: &[u64], ks: &[usize]) {
     }
 }
 
+/// An n x n lattice of spacing `step` in the plane z = origin[2] from `origin`, in (gx, gy)
+/// order, each node repeated `copies(gx, gy)` times (exact duplicates, adjacent).
+fn lattice(
+    origin: V3,
+    n: usize,
+    step: f64,
+    mut copies: impl FnMut(usize, usize) -> usize,
+) -> Vec<V3> {
+    let mut xyz = Vec::new();
+    for gx in 0..n {
+        for gy in 0..n {
+            let p = [
+                origin[0] + gx as f64 * step,
+                origin[1] + gy as f64 * step,
+                origin[2],
+            ];
+            xyz.extend(std::iter::repeat_n(p, copies(gx, gy)));
+        }
+    }
+    xyz
+}
+
 #[test]
 fn matches_brute_force_with_duplicates_and_utm_offsets() {
     // A grid with exact duplicates and many equal distances, far from the origin (UTM-like).
-    let mut xyz = Vec::new();
     let mut rng = crate::core::rng::Rng::new(12345);
-    let mut next = || rng.next_u64();
-    for gx in 0..20 {
-        for gy in 0..20 {
-            let p = [
-                500_000.0 + gx as f64 * 0.5,
-                5_000_000.0 + gy as f64 * 0.5,
-                100.0,
-            ];
-            xyz.push(p);
-            if next() >> 61 == 0 {
-                xyz.push(p); // exact duplicate return
-            }
-        }
-    }
+    let mut xyz = lattice([500_000.0, 5_000_000.0, 100.0], 20, 0.5, |_, _| {
+        1 + (rng.next_u64() >> 61 == 0) as usize
+    });
     // A few isolated points far away (sparse shells) and a tree-like vertical column.
     xyz.push([500_030.0, 5_000_030.0, 100.0]);
     xyz.push([499_990.0, 5_000_002.0, 140.0]);
@@ -85,16 +95,7 @@ fn matches_brute_force_with_duplicates_and_utm_offsets() {
 /// beside groups too small for the shortcut and a lattice around them.
 #[test]
 fn duplicate_groups_match_brute_force() {
-    let mut xyz = Vec::new();
-    for gx in 0..12 {
-        for gy in 0..12 {
-            xyz.push([
-                500_000.0 + gx as f64 * 0.25,
-                4_100_000.0 + gy as f64 * 0.25,
-                50.0,
-            ]);
-        }
-    }
+    let mut xyz = lattice([500_000.0, 4_100_000.0, 50.0], 12, 0.25, |_, _| 1);
     xyz.extend(vec![[500_001.0, 4_100_001.0, 50.0]; 200]);
     xyz.extend(vec![[500_002.0, 4_100_000.5, 50.25]; 40]);
     xyz.extend(vec![[500_000.5, 4_100_002.0, 50.0]; 3]);
@@ -137,23 +138,13 @@ fn ties_are_broken_by_position_whatever_the_order_and_ids() {
     // in lattice order with ids in that order, once shuffled with other ids. Every point's
     // neighbours must be the same positions in the same order: ties go by position, and by
     // id only between duplicates, whose positions are the same.
-    let mut xyz = Vec::new();
-    for gx in 0..24 {
-        for gy in 0..24 {
-            let p = [
-                600_000.0 + gx as f64 * 0.01,
-                5_000_000.0 + gy as f64 * 0.01,
-                10.0,
-            ];
-            xyz.push(p);
-            if (gx * 7 + gy * 3) % 11 == 0 {
-                xyz.push(p);
-                if gx % 3 == 0 {
-                    xyz.push(p);
-                }
-            }
+    let xyz = lattice([600_000.0, 5_000_000.0, 10.0], 24, 0.01, |gx, gy| {
+        match ((gx * 7 + gy * 3) % 11 == 0, gx % 3 == 0) {
+            (true, true) => 3,
+            (true, false) => 2,
+            _ => 1,
         }
-    }
+    });
     let n = xyz.len();
     let ids: Vec<u64> = (0..n as u64).collect();
     let mut rng = crate::core::rng::Rng::new(31);
