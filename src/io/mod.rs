@@ -5,6 +5,7 @@ pub mod bucket;
 pub mod columns;
 pub mod crs;
 pub mod crs_summary;
+pub mod direct;
 pub mod info;
 pub mod las;
 pub mod limits;

@@ -93,6 +93,11 @@ impl TempFile {
         Ok((tmp, file))
     }
 
+    /// Its path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
     /// The output it becomes.
     pub fn output(&self) -> &Path {
         &self.output

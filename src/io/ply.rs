@@ -11,12 +11,11 @@
 //! CloudCompare's command line shows as `H`; the LAS names are an option.
 
 use std::fmt::Write as _;
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
+use crate::io::direct::DirectFile;
 use crate::io::las::extra_bytes::ScalarType;
 use crate::io::output::{PointSink, TempFile};
 use crate::io::source::ply::ply_type_name;
@@ -26,7 +25,7 @@ use crate::io::source::{encode_le, PointSource, Property};
 pub struct PlyWriter {
     /// Removed on every path but a successful `finish`.
     tmp: TempFile,
-    w: BufWriter<File>,
+    w: DirectFile,
     ascii: bool,
     /// The input's properties with the type each is written as.
     props: Vec<(Property, ScalarType)>,
@@ -157,7 +156,7 @@ impl PlyWriter {
         }
         head += "end_header\n";
         let (tmp, file) = TempFile::create(output)?;
-        let mut w = BufWriter::with_capacity(4 << 20, file);
+        let mut w = DirectFile::new(file, tmp.path());
         w.write_all(head.as_bytes()).map_err(|e| tmp.error(e))?;
         Ok(PlyWriter {
             tmp,
@@ -229,14 +228,12 @@ impl PointSink for PlyWriter {
 
     fn finish(self: Box<Self>) -> Result<()> {
         let PlyWriter { tmp, w, .. } = *self;
-        let file = w.into_inner().map_err(|e| tmp.error(e.into_error()))?;
+        let file = w.into_file().map_err(|e| tmp.error(e))?;
         tmp.commit(file)
     }
 
     fn abandon(self: Box<Self>) {
         // The buffered records are discarded, not flushed; dropping `tmp` removes the file.
-        let PlyWriter { tmp, w, .. } = *self;
-        drop(w.into_parts());
-        drop(tmp);
+        drop(self.tmp);
     }
 }

@@ -8,10 +8,12 @@
 //! `carry` and `convert` build its [`LasFileSpec`] for `process`.
 
 use std::fs::File;
-use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::io::{BufWriter, Seek, Write};
+use std::os::unix::fs::FileExt;
 use std::path::Path;
 
 use crate::error::{Error, Result};
+use crate::io::direct::DirectFile;
 use crate::io::las::extra_bytes;
 use crate::io::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
 use crate::io::las::provenance::PROVENANCE;
@@ -224,7 +226,7 @@ fn is_copc(v: &Vlr) -> bool {
 
 /// Where the point records go.
 enum Points {
-    Plain(BufWriter<File>),
+    Plain(DirectFile),
     Laz(Box<laz::ParLasZipCompressor<BufWriter<File>>>),
 }
 
@@ -270,15 +272,20 @@ impl LasFileWriter {
             waveform_start: 0,
         };
         let (tmp, file) = TempFile::create(output)?;
-        let mut w = BufWriter::with_capacity(4 << 20, file);
-        w.write_all(&header.patched(&layout))
-            .and_then(|_| w.write_all(&head))
-            .map_err(|e| tmp.error(e))?;
+        let start = [header.patched(&layout), head].concat();
         let points = match laz_vlr {
-            None => Points::Plain(w),
-            Some(lv) => Points::Laz(Box::new(
-                laz::ParLasZipCompressor::new(w, lv).map_err(|e| laz_error(&tmp, e))?,
-            )),
+            None => {
+                let mut w = DirectFile::new(file, tmp.path());
+                w.write_all(&start).map_err(|e| tmp.error(e))?;
+                Points::Plain(w)
+            }
+            Some(lv) => {
+                let mut w = BufWriter::with_capacity(4 << 20, file);
+                w.write_all(&start).map_err(|e| tmp.error(e))?;
+                Points::Laz(Box::new(
+                    laz::ParLasZipCompressor::new(w, lv).map_err(|e| laz_error(&tmp, e))?,
+                ))
+            }
         };
         Ok(LasFileWriter {
             tmp,
@@ -324,14 +331,13 @@ impl LasFileWriter {
         }
         let tmp = self.tmp;
         let werr = |e: std::io::Error| tmp.error(e);
-        let mut w = match self.points {
-            Points::Plain(w) => w,
-            Points::Laz(mut c) => {
+        let end_of_points = match &mut self.points {
+            Points::Plain(w) => w.position(),
+            Points::Laz(c) => {
                 c.done().map_err(|e| laz_error(&tmp, e))?;
-                c.into_inner()
+                c.get_mut().stream_position().map_err(werr)?
             }
         };
-        let end_of_points = w.stream_position().map_err(werr)?;
         let mut tail = Vec::new();
         for (i, v) in self.evlrs.iter().enumerate() {
             if Some(i) == self.waveform_evlr {
@@ -342,21 +348,25 @@ impl LasFileWriter {
         if !self.evlrs.is_empty() && self.header.version.1 >= 4 {
             self.layout.evlr_start = end_of_points;
         }
-        w.write_all(&tail).map_err(werr)?;
-        w.seek(SeekFrom::Start(0)).map_err(werr)?;
-        w.write_all(&self.header.patched(&self.layout))
+        let file = match self.points {
+            Points::Plain(mut w) => w.write_all(&tail).and_then(|_| w.into_file()),
+            Points::Laz(c) => {
+                let mut w = c.into_inner();
+                w.write_all(&tail)
+                    .and_then(|_| w.into_inner().map_err(|e| e.into_error()))
+            }
+        }
+        .map_err(werr)?;
+        file.write_all_at(&self.header.patched(&self.layout), 0)
             .map_err(werr)?;
-        let file = w.into_inner().map_err(|e| werr(e.into_error()))?;
         tmp.commit(file)
     }
 
     /// Removes the temporary file; the buffered records are discarded, not flushed.
     pub fn abandon(self) {
-        let w = match self.points {
-            Points::Plain(w) => w,
-            Points::Laz(c) => c.into_inner(),
-        };
-        drop(w.into_parts());
+        if let Points::Laz(c) = self.points {
+            drop(c.into_inner().into_parts());
+        }
         drop(self.tmp);
     }
 }
