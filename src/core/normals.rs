@@ -23,21 +23,24 @@ pub fn pca_normal(xyz: &[V3], nbrs: &[u32]) -> Option<V3> {
         return None;
     }
     let q = xyz[nbrs[0] as usize];
-    let inv = 1.0 / nbrs.len() as f64;
-    let mut mean = [0.0; 3];
-    for &j in nbrs {
-        let d = sub(xyz[j as usize], q);
-        for a in 0..3 {
-            mean[a] += d[a] * inv;
-        }
-    }
+    // One pass: the sums of d and d d^T (d relative to the query point, which lies among the
+    // points, so |mean d| is at most their spread and the difference below loses little).
+    let mut s1 = [0.0; 3];
     let mut c = [[0.0; 3]; 3];
     for &j in nbrs {
-        let d = sub(sub(xyz[j as usize], q), mean);
+        let d = sub(xyz[j as usize], q);
         for r in 0..3 {
+            s1[r] += d[r];
             for s in r..3 {
                 c[r][s] += d[r] * d[s];
             }
+        }
+    }
+    // The scatter matrix: sum (d - mean)(d - mean)^T = sum d d^T - s1 s1^T / n.
+    let inv = 1.0 / nbrs.len() as f64;
+    for r in 0..3 {
+        for s in r..3 {
+            c[r][s] -= s1[r] * s1[s] * inv;
         }
     }
     c[1][0] = c[0][1];
