@@ -11,6 +11,7 @@ pub mod orient;
 pub mod plan;
 pub mod point;
 pub mod quantize;
+pub mod radix;
 pub mod rng;
 pub mod sampling;
 pub mod scale;

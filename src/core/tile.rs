@@ -48,20 +48,28 @@ impl TilePoints {
             let q = |v: f64, lo: f64, ext: f64| (((v - lo) / ext).clamp(0.0, 1.0) * 65535.0) as u32;
             interleave(q(p[0], r.min[0], w)) | (interleave(q(p[1], r.min[1], h)) << 1)
         };
+        let mut spare = Vec::new();
         for range in [0..self.n_core, self.n_core..self.xyz.len()] {
-            let mut order: Vec<(u32, usize)> =
-                range.clone().map(|i| (key(&self.xyz[i]), i)).collect();
-            order.sort_unstable_by(|a, b| {
-                a.0.cmp(&b.0).then_with(|| {
-                    cmp_point(
-                        (&self.xyz[a.1], self.ids[a.1]),
-                        (&self.xyz[b.1], self.ids[b.1]),
-                    )
-                })
-            });
-            let xyz: Vec<V3> = order.iter().map(|&(_, i)| self.xyz[i]).collect();
-            let ids: Vec<u64> = order.iter().map(|&(_, i)| self.ids[i]).collect();
-            let nrm: Vec<Option<V3>> = order.iter().map(|&(_, i)| self.file_normals[i]).collect();
+            let mut order: Vec<(u64, u32)> = range
+                .clone()
+                .map(|i| (key(&self.xyz[i]) as u64, i as u32))
+                .collect();
+            crate::core::radix::sort_by_key(&mut order, &mut spare);
+            // Points sharing a key (rare: 1/65536 of the region's width apart) by position, then
+            // id, whatever order they were loaded in.
+            for run in order.chunk_by_mut(|a, b| a.0 == b.0) {
+                if run.len() > 1 {
+                    run.sort_unstable_by(|a, b| {
+                        let (i, j) = (a.1 as usize, b.1 as usize);
+                        cmp_point((&self.xyz[i], self.ids[i]), (&self.xyz[j], self.ids[j]))
+                    });
+                }
+            }
+            let xyz: Vec<V3> = order.iter().map(|&(_, i)| self.xyz[i as usize]).collect();
+            let ids: Vec<u64> = order.iter().map(|&(_, i)| self.ids[i as usize]).collect();
+            let nrm: Vec<Option<V3>> = (order.iter())
+                .map(|&(_, i)| self.file_normals[i as usize])
+                .collect();
             self.xyz[range.clone()].copy_from_slice(&xyz);
             self.ids[range.clone()].copy_from_slice(&ids);
             self.file_normals[range].copy_from_slice(&nrm);

@@ -327,14 +327,19 @@ fn lists_for(
     let k = reach.k;
     let scratch = || {
         let todo: Vec<(u64, u32)> = Vec::with_capacity(LIST_CHUNK);
-        (KnnScratch::default(), Vec::with_capacity(k), todo)
+        (
+            KnnScratch::default(),
+            Vec::with_capacity(k),
+            todo,
+            Vec::new(),
+        )
     };
     let TileBuffers { lists, info } = bufs;
     lists
         .par_chunks_mut(LIST_CHUNK * k)
         .zip(info.par_chunks_mut(LIST_CHUNK))
         .enumerate()
-        .for_each_init(scratch, |(s, list, todo), (c, (slots, infos))| {
+        .for_each_init(scratch, |(s, list, todo, spare), (c, (slots, infos))| {
             let first = c * LIST_CHUNK;
             todo.clear();
             todo.extend(
@@ -342,7 +347,7 @@ fn lists_for(
                     .filter(|&o| infos[o].len == 0 && which[first + o])
                     .map(|o| (index.query_key(first + o), o as u32)),
             );
-            todo.sort_unstable();
+            crate::core::radix::sort_by_key(todo, spare);
             for &(_, o) in todo.iter() {
                 if cancel.load(Ordering::Relaxed) {
                     return;

@@ -5,7 +5,6 @@
 //! settle goes on to the shell search (`shell`). Pure: no files, no channels.
 
 use super::{sort_ranked, sq_dist, KnnScratch, NeighbourIndex};
-use rayon::slice::ParallelSliceMut;
 
 use crate::core::geometry::V3;
 
@@ -128,7 +127,7 @@ impl Grid {
             .enumerate()
             .map(|(i, p)| (cell_key(dims, [0, 1, 2].map(|a| coord(p, a))), i as u32))
             .collect();
-        keyed.par_sort_unstable();
+        crate::core::radix::sort_by_key(&mut keyed, &mut Vec::new());
         let mut cols = vec![0u32; dims[0] * dims[1] + 1];
         let mut zcells: Vec<(u32, u32)> = Vec::new();
         let mut biggest = 0usize;

@@ -105,7 +105,7 @@ fn write_tile_tmp(
     let mut order: Vec<(u64, u32)> = (results.iter().enumerate())
         .map(|(i, r)| (r.id, i as u32))
         .collect();
-    order.sort_unstable();
+    crate::core::radix::sort_by_key(&mut order, &mut Vec::new());
     let mut stats = CurvatureStats::default();
     results.iter().for_each(|r| stats.add(&r.curvature));
     let patched = results.iter().any(|r| r.patch != NO_PATCH);

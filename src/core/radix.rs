@@ -1,0 +1,91 @@
+//! A least-significant-digit radix sort of (key, index) pairs, for the orders a tile is put in
+//! many thousand times a run: its points' Morton order (core::tile) and its results' id order
+//! (io::results). At a tile's 25k pairs it took a quarter of the time of the standard library's
+//! comparison sort, which was a tenth of the CPU time of the threads that load tiles and
+//! journal their results (issue 14).
+
+/// Bits of the key sorted per pass.
+const DIGIT: u32 = 11;
+
+/// Below this many pairs the comparison sort is as fast.
+const SMALL: usize = 256;
+
+/// Sorts `pairs` by key, stably: pairs with equal keys keep their order. When the indices
+/// increase in the input (as when they number the pairs), the result is the order by (key,
+/// index). `spare` is scratch, reused from call to call. Only the digits in which the keys
+/// differ are sorted on.
+pub fn sort_by_key(pairs: &mut Vec<(u64, u32)>, spare: &mut Vec<(u64, u32)>) {
+    if pairs.len() < SMALL {
+        pairs.sort_by_key(|p| p.0);
+        return;
+    }
+    let lo = pairs.iter().map(|p| p.0).min().unwrap_or(0);
+    let range = pairs.iter().map(|p| p.0 - lo).max().unwrap_or(0);
+    spare.clear();
+    spare.resize(pairs.len(), (0, 0));
+    let mut count = vec![0u32; 1 << DIGIT];
+    let mask = (1u64 << DIGIT) - 1;
+    let mut shift = 0;
+    while shift < u64::BITS && range >> shift != 0 {
+        let at = shift;
+        let digit = |k: u64| ((k - lo) >> at & mask) as usize;
+        count.fill(0);
+        for p in pairs.iter() {
+            count[digit(p.0)] += 1;
+        }
+        shift += DIGIT;
+        // A digit every key shares (the unused bits between two fields of a key) moves nothing.
+        if count.contains(&(pairs.len() as u32)) {
+            continue;
+        }
+        let mut start = 0;
+        for c in count.iter_mut() {
+            (*c, start) = (start, start + *c);
+        }
+        for &p in pairs.iter() {
+            let d = digit(p.0);
+            spare[count[d] as usize] = p;
+            count[d] += 1;
+        }
+        std::mem::swap(pairs, spare);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::rng::Rng;
+
+    /// The order is the standard library's stable sort by key, for keys spread over every bit
+    /// width, with many ties, with two fields and unused bits between them (as the grid's cell
+    /// keys), and at both sides of the small-input cut.
+    #[test]
+    fn sorts_like_a_stable_sort() {
+        let mut rng = Rng::new(7);
+        let mut spare = Vec::new();
+        for (n, bits) in [
+            (10, 64),
+            (300, 3),
+            (5000, 20),
+            (5000, 33),
+            (20_000, 64),
+            (257, 1),
+        ] {
+            let mut pairs: Vec<(u64, u32)> = (0..n as u32)
+                .map(|i| {
+                    let k = rng.next_u64() >> (64 - bits);
+                    match bits {
+                        1 => (k.wrapping_add(u64::MAX / 3), i),
+                        // Two fields: 12 bits at 32..44, 4 bits at 0..4.
+                        20 => ((k >> 4) << 32 | (k & 15), i),
+                        _ => (k, i),
+                    }
+                })
+                .collect();
+            let mut expected = pairs.clone();
+            expected.sort_by_key(|p| p.0);
+            sort_by_key(&mut pairs, &mut spare);
+            assert_eq!(pairs, expected, "{n} pairs, keys of {bits} bits");
+        }
+    }
+}
