@@ -21,7 +21,6 @@
 //! in `kdtree`; this file holds the index, its scratch and the exact ranking they share.
 
 use kiddo::ImmutableKdTree;
-use rayon::slice::ParallelSliceMut;
 
 use std::cmp::Ordering;
 
@@ -95,16 +94,23 @@ fn position_ranks(xyz: &[V3], ids: &[u64]) -> Vec<u32> {
             b | 1 << 63
         }
     };
-    let mut order: Vec<([u64; 3], u64, u32)> = xyz
-        .iter()
-        .zip(ids)
-        .enumerate()
-        .map(|(i, (p, &id))| (p.map(key), id, i as u32))
+    // By x (a radix sort), then the points sharing an x (quantized coordinates: a few each) by
+    // y, z and id.
+    let mut order: Vec<(u64, u32)> = (xyz.iter().enumerate())
+        .map(|(i, p)| (key(p[0]), i as u32))
         .collect();
-    order.par_sort_unstable();
+    crate::core::radix::sort_by_key(&mut order, &mut Vec::new());
+    for run in order.chunk_by_mut(|a, b| a.0 == b.0) {
+        if run.len() > 1 {
+            run.sort_unstable_by_key(|&(_, i)| {
+                let p = xyz[i as usize];
+                (key(p[1]), key(p[2]), ids[i as usize], i)
+            });
+        }
+    }
     let mut ranks = vec![0u32; xyz.len()];
     for (r, o) in order.iter().enumerate() {
-        ranks[o.2 as usize] = r as u32;
+        ranks[o.1 as usize] = r as u32;
     }
     ranks
 }
