@@ -4,39 +4,35 @@
 //! comparison sort, which was a tenth of the CPU time of the threads that load tiles and
 //! journal their results (issue 14).
 
-/// Bits of the key sorted per pass.
-const DIGIT: u32 = 11;
-
 /// Below this many pairs the comparison sort is as fast.
 const SMALL: usize = 256;
 
 /// Sorts `pairs` by key, stably: pairs with equal keys keep their order. When the indices
 /// increase in the input (as when they number the pairs), the result is the order by (key,
-/// index). `spare` is scratch, reused from call to call. Only the digits in which the keys
-/// differ are sorted on.
+/// index). `spare` is scratch, reused from call to call. Passes sort 8 bits at a time (11 past
+/// 2048 pairs, where the larger count table pays), and only where the keys differ: a pass
+/// starts at the lowest bit that varies above the last one, so the unused bits between two
+/// fields of a key (the grid's cell keys) cost nothing.
 pub fn sort_by_key(pairs: &mut Vec<(u64, u32)>, spare: &mut Vec<(u64, u32)>) {
     if pairs.len() < SMALL {
         pairs.sort_by_key(|p| p.0);
         return;
     }
-    let lo = pairs.iter().map(|p| p.0).min().unwrap_or(0);
-    let range = pairs.iter().map(|p| p.0 - lo).max().unwrap_or(0);
+    let first = pairs[0].0;
+    let varying = pairs.iter().fold(0, |v, p| v | (p.0 ^ first));
+    let bits = if pairs.len() > 2048 { 11 } else { 8 };
+    let mask = (1u64 << bits) - 1;
     spare.clear();
     spare.resize(pairs.len(), (0, 0));
-    let mut count = vec![0u32; 1 << DIGIT];
-    let mask = (1u64 << DIGIT) - 1;
-    let mut shift = 0;
-    while shift < u64::BITS && range >> shift != 0 {
+    let mut count = vec![0u32; 1 << bits];
+    let mut shift = 0u32;
+    while shift < u64::BITS && varying >> shift != 0 {
+        shift += (varying >> shift).trailing_zeros();
         let at = shift;
-        let digit = |k: u64| ((k - lo) >> at & mask) as usize;
+        let digit = |k: u64| (k >> at & mask) as usize;
         count.fill(0);
         for p in pairs.iter() {
             count[digit(p.0)] += 1;
-        }
-        shift += DIGIT;
-        // A digit every key shares (the unused bits between two fields of a key) moves nothing.
-        if count.contains(&(pairs.len() as u32)) {
-            continue;
         }
         let mut start = 0;
         for c in count.iter_mut() {
@@ -48,6 +44,7 @@ pub fn sort_by_key(pairs: &mut Vec<(u64, u32)>, spare: &mut Vec<(u64, u32)>) {
             count[d] += 1;
         }
         std::mem::swap(pairs, spare);
+        shift += bits;
     }
 }
 
