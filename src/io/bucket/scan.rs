@@ -98,8 +98,9 @@ pub fn scan(
         grids: grids_of(inputs),
     };
     let mut stats = ScanStats::empty();
-    // Decoding buffers, reused from group to group of pieces.
-    let mut pieces: Vec<Piece> = Vec::new();
+    // Decoding buffers, reused from group to group of pieces: one group is appended while
+    // the next is decoded.
+    let mut pieces: [Vec<Piece>; 2] = Default::default();
     for input in inputs {
         let rl = input.source.record_length();
         input
@@ -108,39 +109,28 @@ pub fn scan(
                 let n = records.len() / rl;
                 // A few pieces per thread at a time: the decoded points in flight stay a few
                 // MiB whatever the chunk size.
-                let piece_bytes = PIECE_RECORDS * rl;
                 let group = 4 * rayon::current_num_threads().max(1);
-                pieces.resize_with(group, Piece::default);
-                for (g, records) in records.chunks(group * piece_bytes).enumerate() {
-                    let decoded: Vec<Result<()>> = records
-                        .par_chunks(piece_bytes)
-                        .zip(pieces.par_iter_mut())
-                        .enumerate()
-                        .map(|(j, (r, piece))| {
-                            let first = first + ((g * group + j) * PIECE_RECORDS) as u64;
-                            decode_piece(input, grid, first, r, piece)
-                        })
-                        .collect();
-                    // In file order: the first error is the first bad point's, and every
-                    // bucket receives its points in file order, as a one-thread scan appends
-                    // them.
-                    for (piece, decoded) in pieces.iter().zip(decoded) {
-                        decoded?;
-                        stats.merge(&piece.stats);
-                        held.bytes += piece.points.len() * POINT_BYTES;
-                        let mut start = 0;
-                        for &(key, len) in &piece.runs {
-                            let run = &piece.points[start..start + len];
-                            // One push at a time, as the one-thread scan grew the buckets:
-                            // extending by whole runs gave capacities that are not powers of
-                            // two, and 60 MiB more peak RSS on the 20M terrain.
-                            let bucket = held.mem.entry(key).or_default();
-                            for p in run {
-                                bucket.push(*p);
-                            }
-                            start += len;
-                        }
-                    }
+                let groups: Vec<&[u8]> = records.chunks(group * PIECE_RECORDS * rl).collect();
+                let [full, empty] = &mut pieces;
+                let mut decoded: Option<Vec<Result<()>>> = None;
+                for g in 0..=groups.len() {
+                    // Appending group g - 1 (one thread) while group g is decoded (the others):
+                    // the appends, in file order, were half of the scan's time alone.
+                    let at = first + (g * group * PIECE_RECORDS) as u64;
+                    let (appended, next) = rayon::join(
+                        || match decoded.take() {
+                            Some(d) => append(full, d, &mut held, &mut stats),
+                            None => Ok(()),
+                        },
+                        || {
+                            groups
+                                .get(g)
+                                .map(|r| decode_group(input, grid, at, r, empty, group))
+                        },
+                    );
+                    appended?;
+                    std::mem::swap(full, empty);
+                    decoded = next;
                 }
                 if held.bytes > memory.buckets_bytes {
                     held.spill_largest(memory.buckets_after_spill_bytes)?;
@@ -175,6 +165,57 @@ struct Piece {
     runs: Vec<(TileKey, usize)>,
     /// The statistics of the piece's points (they merge exactly, in any grouping).
     stats: ScanStats,
+}
+
+/// Decodes the records `records` of `input` (the first is its point `first`) into `pieces`
+/// of [`PIECE_RECORDS`] each, `group` at most, in parallel: each piece's outcome, in order.
+fn decode_group(
+    input: &ScanInput<'_>,
+    grid: TileGrid,
+    first: u64,
+    records: &[u8],
+    pieces: &mut Vec<Piece>,
+    group: usize,
+) -> Vec<Result<()>> {
+    let piece_bytes = PIECE_RECORDS * input.source.record_length();
+    pieces.resize_with(group, Piece::default);
+    records
+        .par_chunks(piece_bytes)
+        .zip(pieces.par_iter_mut())
+        .enumerate()
+        .map(|(j, (r, piece))| {
+            decode_piece(input, grid, first + (j * PIECE_RECORDS) as u64, r, piece)
+        })
+        .collect()
+}
+
+/// Appends the decoded `pieces` to the buckets in file order, so that every bucket receives
+/// its points in file order, as a one-thread scan appends them; the first error (`decoded`) is
+/// the first bad point's.
+fn append(
+    pieces: &[Piece],
+    decoded: Vec<Result<()>>,
+    held: &mut Held,
+    stats: &mut ScanStats,
+) -> Result<()> {
+    for (piece, decoded) in pieces.iter().zip(decoded) {
+        decoded?;
+        stats.merge(&piece.stats);
+        held.bytes += piece.points.len() * POINT_BYTES;
+        let mut start = 0;
+        for &(key, len) in &piece.runs {
+            let run = &piece.points[start..start + len];
+            // One push at a time, as the one-thread scan grew the buckets: extending by whole
+            // runs gave capacities that are not powers of two, and 60 MiB more peak RSS on the
+            // 20M terrain.
+            let bucket = held.mem.entry(key).or_default();
+            for p in run {
+                bucket.push(*p);
+            }
+            start += len;
+        }
+    }
+    Ok(())
 }
 
 /// Decodes the records `records` of `input`, the first of which is its point `first`, into
