@@ -8,7 +8,8 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crossbeam_channel::bounded;
+use crossbeam_channel::{bounded, Receiver, Sender};
+use rayon::prelude::*;
 
 use crate::config::OrientMode;
 use crate::core::compute::PointResult;
@@ -76,6 +77,7 @@ pub fn assemble_outputs(
             chunk_points: chunk,
             reporter: exec.reporter,
             cancel: exec.cancel,
+            pool: &exec.pool,
         };
         undefined += assemble(
             &merge,
@@ -109,6 +111,8 @@ pub struct Merge<'a> {
     pub reporter: &'a dyn Reporter,
     /// Set on a signal: the merge stops.
     pub cancel: &'a AtomicBool,
+    /// The threads that decode and encode.
+    pub pool: &'a rayon::ThreadPool,
 }
 
 /// Writes `output` from `m.source` (whose point 0 has global id `m.first_id`) and the next
@@ -137,30 +141,45 @@ pub fn assemble(
 /// Bytes of output records the merge hands to the writer at a time: small enough that the
 /// buffers in flight stay a few MiB whatever the chunk size, large enough that a hand-off per
 /// buffer costs nothing.
-const HANDOFF_BYTES: usize = 4 << 20;
+const HANDOFF_BYTES: usize = 2 << 20;
+
+/// Buffers filled at a time (each by one thread of the pool), and so at most in flight.
+const GROUP: usize = 4;
+
+/// The filled buffers' way to the writer, and the written ones' way back.
+struct HandOff {
+    full: Sender<Vec<u8>>,
+    free: Receiver<Vec<u8>>,
+}
+
+impl HandOff {
+    /// An empty buffer, a written one if any came back.
+    fn buffer(&self) -> Vec<u8> {
+        self.free.try_recv().unwrap_or_default()
+    }
+
+    /// Hands `buf` to the writer; a failed send means the writer stopped, and it reports why.
+    fn send(&self, buf: Vec<u8>) -> Result<()> {
+        self.full.send(buf).map_err(|_| Error::Interrupted)
+    }
+}
 
 /// Merges the results into `source`'s records ([`merge_records`]) and writes them to `writer`.
 /// The merge (reading, decoding, encoding) runs on a thread of its own and hands filled buffers
-/// to this one, which writes them: the write system calls, whose copying into the page cache
-/// was most of this phase's time, overlap the merge instead of following it. Two buffers
-/// circulate, so memory does not grow. The output's bytes are those of one thread: the buffers
-/// are written in the order they were filled.
+/// to this one, which writes them: the writes overlap the merge instead of following it. At
+/// most [`GROUP`] buffers circulate, so memory does not grow. The output's bytes are those of
+/// one thread: the buffers are written in the order of the records they hold.
 fn merge_into(writer: &mut dyn PointSink, m: &Merge<'_>, merger: &mut Merger) -> Result<u64> {
-    let (full_tx, full_rx) = bounded::<Vec<u8>>(1);
-    let (free_tx, free_rx) = bounded::<Vec<u8>>(2);
+    let (full_tx, full_rx) = bounded::<Vec<u8>>(GROUP);
+    let (free_tx, free_rx) = bounded::<Vec<u8>>(GROUP);
     std::thread::scope(|s| {
+        let hand = HandOff {
+            full: full_tx,
+            free: free_rx,
+        };
         let merge = std::thread::Builder::new()
             .name("assemble merge".into())
-            .spawn_scoped(s, move || {
-                // A failed send means the writer stopped, and it reports why.
-                let mut hand_off = |buf: &mut Vec<u8>| {
-                    let empty = free_rx.try_recv().unwrap_or_default();
-                    full_tx
-                        .send(std::mem::replace(buf, empty))
-                        .map_err(|_| Error::Interrupted)
-                };
-                merge_records(m, merger, &mut hand_off)
-            });
+            .spawn_scoped(s, move || merge_records(m, merger, &hand));
         let merge = match merge {
             Ok(m) => m,
             Err(e) => {
@@ -191,75 +210,173 @@ fn merge_into(writer: &mut dyn PointSink, m: &Merge<'_>, merger: &mut Merger) ->
     })
 }
 
-/// Streams `m.source` in chunks and appends to a buffer each record followed by its encoded
-/// result (taken from `merger` in id order; not computed for the points `m.select` leaves
-/// out), handing the buffer to `hand_off` whenever it holds [`HANDOFF_BYTES`], and at the end.
-/// Returns the number of points whose curvature is undefined.
-fn merge_records(
-    m: &Merge<'_>,
-    merger: &mut Merger,
-    hand_off: &mut dyn FnMut(&mut Vec<u8>) -> Result<()>,
-) -> Result<u64> {
-    let Merge {
-        source,
-        first_id,
-        flips,
-        stored,
-        cols,
-        select,
-        chunk_points,
-        reporter,
-        cancel,
-    } = *m;
-    let rl = source.record_length();
-    let mut out = Vec::new();
+/// The results of a group of records, in record order, and where each piece's begin.
+#[derive(Default)]
+struct GroupResults {
+    /// The results' bytes (global patch, then the stored columns), one after the other.
+    bytes: Vec<u8>,
+    /// Where result r starts in `bytes` (with the end as the last entry).
+    starts: Vec<usize>,
+    /// Per piece of the group, the index of its first result.
+    pieces: Vec<usize>,
+}
+
+/// Streams `m.source` in chunks, in groups of [`GROUP`] pieces of about [`HANDOFF_BYTES`] of
+/// output. A group's results are taken from `merger` in id order (one thread: the merge is
+/// sequential) while the previous group is encoded ([`encode_group`], on `m.pool`'s other
+/// threads), whose buffers then go to the writer in order: the decoding and encoding were two
+/// thirds of this thread's time. Returns the number of points whose curvature is undefined.
+fn merge_records(m: &Merge<'_>, merger: &mut Merger, hand: &HandOff) -> Result<u64> {
+    let rl = m.source.record_length();
+    let piece = (HANDOFF_BYTES / (rl + m.cols.record_size())).max(1);
+    let mut results: [GroupResults; 2] = Default::default();
     let mut rec = Vec::new();
     let mut undefined = 0u64;
-    source.for_each_chunk(chunk_points, &mut |first, records| {
-        if cancel.load(Ordering::Relaxed) {
-            return Err(Error::Interrupted);
-        }
-        for (j, r) in records.chunks_exact(rl).enumerate() {
-            if out.len() >= HANDOFF_BYTES {
-                hand_off(&mut out)?;
+    m.source
+        .for_each_chunk(m.chunk_points, &mut |first, records| {
+            if m.cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
             }
-            let id = first_id + first + j as u64;
-            if !select.selects(source.class_of(r)) {
-                // Left out of the buckets by the scan: no result, NaN and flag 128.
-                out.extend_from_slice(r);
-                cols.encode(&PointResult::not_computed(id), &mut out);
-                continue;
-            }
-            match merger.next(&mut rec)? {
-                Some(rid) if rid == id => {}
-                Some(rid) => {
-                    return Err(Error::Internal(format!(
-                        "result for point {rid} where point {id} was expected"
-                    )))
+            let groups: Vec<&[u8]> = records.chunks(GROUP * piece * rl).collect();
+            let first_of = |g: usize| m.first_id + first + (g * GROUP * piece) as u64;
+            let [ready, next] = &mut results;
+            for g in 0..=groups.len() {
+                let (taken, encoded) = m.pool.install(|| {
+                    rayon::join(
+                        || match groups.get(g) {
+                            Some(records) => group_results(
+                                m,
+                                merger,
+                                first_of(g),
+                                records,
+                                piece,
+                                next,
+                                &mut rec,
+                            ),
+                            None => Ok(()),
+                        },
+                        || match g.checked_sub(1) {
+                            Some(p) => encode_group(m, hand, first_of(p), groups[p], piece, ready),
+                            None => Vec::new(),
+                        },
+                    )
+                });
+                for (buf, u) in encoded {
+                    undefined += u;
+                    hand.send(buf)?;
                 }
-                None => return Err(Error::Internal(format!("no result for point {id}"))),
+                taken?;
+                std::mem::swap(ready, next);
             }
-            // The record is the point's global patch (u64) then its columns.
-            let (patch, columns) = rec.split_at(8);
-            let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
-            out.extend_from_slice(r);
-            let flip = flips
-                .zip(patch.parts())
-                .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
-                .unwrap_or(false);
-            let result = stored.decode_result(columns);
-            undefined += (result.curvature.flags & flags::UNDEFINED != 0) as u64;
-            if flip {
-                cols.encode(&result.flipped(&stored.extra), &mut out);
-            } else {
-                cols.encode(&result, &mut out);
-            }
-        }
-        reporter.advance((records.len() / rl) as u64);
-        Ok(())
-    })?;
-    if !out.is_empty() {
-        hand_off(&mut out)?;
-    }
+            m.reporter.advance((records.len() / rl) as u64);
+            Ok(())
+        })?;
     Ok(undefined)
+}
+
+/// The buffers of a group of `records` (the first is point `first_id`) with their `results`:
+/// each piece of `piece` records fills one, in parallel, and comes back with its number of
+/// undefined points, in order.
+fn encode_group(
+    m: &Merge<'_>,
+    hand: &HandOff,
+    first_id: u64,
+    records: &[u8],
+    piece: usize,
+    results: &GroupResults,
+) -> Vec<(Vec<u8>, u64)> {
+    let rl = m.source.record_length();
+    let encode = |(p, records): (usize, &[u8])| {
+        let mut buf = hand.buffer();
+        let first_id = first_id + (p * piece) as u64;
+        let u = encode_piece(m, first_id, records, results, p, &mut buf);
+        (buf, u)
+    };
+    records
+        .par_chunks(piece * rl)
+        .enumerate()
+        .map(encode)
+        .collect()
+}
+
+/// Takes from `merger` the results of the selected points among `records` (the first is point
+/// `first_id`), in pieces of `piece` records, into `out`; an error if the next result is
+/// another point's (`rec` is scratch).
+fn group_results(
+    m: &Merge<'_>,
+    merger: &mut Merger,
+    first_id: u64,
+    records: &[u8],
+    piece: usize,
+    out: &mut GroupResults,
+    rec: &mut Vec<u8>,
+) -> Result<()> {
+    let rl = m.source.record_length();
+    out.bytes.clear();
+    out.starts.clear();
+    out.starts.push(0);
+    out.pieces.clear();
+    for (j, r) in records.chunks_exact(rl).enumerate() {
+        if j % piece == 0 {
+            out.pieces.push(out.starts.len() - 1);
+        }
+        if !m.select.selects(m.source.class_of(r)) {
+            continue;
+        }
+        let id = first_id + j as u64;
+        match merger.next(rec)? {
+            Some(rid) if rid == id => {}
+            Some(rid) => {
+                return Err(Error::Internal(format!(
+                    "result for point {rid} where point {id} was expected"
+                )))
+            }
+            None => return Err(Error::Internal(format!("no result for point {id}"))),
+        }
+        out.bytes.extend_from_slice(rec);
+        out.starts.push(out.bytes.len());
+    }
+    Ok(())
+}
+
+/// Appends to `out` each of `records` (piece `p` of its group; the first is point `first_id`)
+/// followed by its encoded result from `results` (not computed for the points `m.select`
+/// leaves out; with `m.flips`, the patches marked there flipped). Returns the number of points
+/// whose curvature is undefined.
+fn encode_piece(
+    m: &Merge<'_>,
+    first_id: u64,
+    records: &[u8],
+    results: &GroupResults,
+    p: usize,
+    out: &mut Vec<u8>,
+) -> u64 {
+    let rl = m.source.record_length();
+    let mut next = results.pieces[p];
+    let mut undefined = 0;
+    for (j, r) in records.chunks_exact(rl).enumerate() {
+        out.extend_from_slice(r);
+        if !m.select.selects(m.source.class_of(r)) {
+            // Left out of the buckets by the scan: no result, NaN and flag 128.
+            let id = first_id + j as u64;
+            m.cols.encode(&PointResult::not_computed(id), out);
+            continue;
+        }
+        let rec = &results.bytes[results.starts[next]..results.starts[next + 1]];
+        next += 1;
+        // The record is the point's global patch (u64) then its columns.
+        let (patch, columns) = rec.split_at(8);
+        let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
+        let flip = (m.flips.zip(patch.parts()))
+            .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
+            .unwrap_or(false);
+        let result = m.stored.decode_result(columns);
+        undefined += (result.curvature.flags & flags::UNDEFINED != 0) as u64;
+        if flip {
+            m.cols.encode(&result.flipped(&m.stored.extra), out);
+        } else {
+            m.cols.encode(&result, out);
+        }
+    }
+    undefined
 }

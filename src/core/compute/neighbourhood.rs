@@ -39,8 +39,13 @@ impl NeighbourhoodBuf {
         list: &[u32],
         extra: &mut [f64],
     ) -> Curvature {
-        self.pos.clear();
-        self.nrm.clear();
+        // Grown to the list's length and written by index: pushing (a capacity check and a
+        // length update each) was a third of this gather's instructions.
+        if self.pos.len() < list.len() {
+            self.pos.resize(list.len(), [0.0; 3]);
+            self.nrm.resize(list.len(), [0.0; 3]);
+        }
+        let mut m = 0;
         let q = xyz[i];
         // The squared radius of the neighbourhood, for the SHARPER_THAN_NEIGHBOURHOOD flag.
         let mut r2 = 0.0f64;
@@ -48,17 +53,18 @@ impl NeighbourhoodBuf {
             if let Some(nj) = normals[j as usize] {
                 let d = sub(xyz[j as usize], q);
                 r2 = r2.max(dot(d, d));
-                self.pos.push(d);
-                self.nrm.push(nj);
+                self.pos[m] = d;
+                self.nrm[m] = nj;
+                m += 1;
             }
         }
-        if self.pos.len() < 3 {
+        if m < 3 {
             return Curvature::undefined(flags::FEW_NEIGHBOURS);
         }
         let mut c = estimator.estimate_extra(
             &Neighbourhood {
-                positions: &self.pos,
-                normals: &self.nrm,
+                positions: &self.pos[..m],
+                normals: &self.nrm[..m],
                 key: position_key(&q),
             },
             &mut self.scratch,
