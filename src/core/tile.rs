@@ -54,17 +54,12 @@ impl TilePoints {
                 .clone()
                 .map(|i| (key(&self.xyz[i]) as u64, i as u32))
                 .collect();
-            crate::core::radix::sort_by_key(&mut order, &mut spare);
             // Points sharing a key (rare: 1/65536 of the region's width apart) by position, then
             // id, whatever order they were loaded in.
-            for run in order.chunk_by_mut(|a, b| a.0 == b.0) {
-                if run.len() > 1 {
-                    run.sort_unstable_by(|a, b| {
-                        let (i, j) = (a.1 as usize, b.1 as usize);
-                        cmp_point((&self.xyz[i], self.ids[i]), (&self.xyz[j], self.ids[j]))
-                    });
-                }
-            }
+            crate::core::radix::sort_by_key_then(&mut order, &mut spare, |i, j| {
+                let (i, j) = (i as usize, j as usize);
+                cmp_point((&self.xyz[i], self.ids[i]), (&self.xyz[j], self.ids[j]))
+            });
             let xyz: Vec<V3> = order.iter().map(|&(_, i)| self.xyz[i as usize]).collect();
             let ids: Vec<u64> = order.iter().map(|&(_, i)| self.ids[i as usize]).collect();
             let nrm: Vec<Option<V3>> = (order.iter())

@@ -20,7 +20,7 @@ use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns, Steps};
 use crate::io::columns::{ColumnSet, ColumnType, Group};
-use crate::io::results::{scene_stats, tile_path, Merger};
+use crate::io::results::{record_size, scene_stats, tile_path, Merger};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::WorkDir;
@@ -213,10 +213,9 @@ fn merge_into(writer: &mut dyn PointSink, m: &Merge<'_>, merger: &mut Merger) ->
 /// The results of a group of records, in record order, and where each piece's begin.
 #[derive(Default)]
 struct GroupResults {
-    /// The results' bytes (global patch, then the stored columns), one after the other.
+    /// The results' records (global patch, then the stored columns: [`record_size`] bytes
+    /// each, as every result file gives them back), one after the other.
     bytes: Vec<u8>,
-    /// Where result r starts in `bytes` (with the end as the last entry).
-    starts: Vec<usize>,
     /// Per piece of the group, the index of its first result.
     pieces: Vec<usize>,
 }
@@ -312,13 +311,12 @@ fn group_results(
     rec: &mut Vec<u8>,
 ) -> Result<()> {
     let rl = m.source.record_length();
+    let size = record_size(m.stored);
     out.bytes.clear();
-    out.starts.clear();
-    out.starts.push(0);
     out.pieces.clear();
     for (j, r) in records.chunks_exact(rl).enumerate() {
         if j % piece == 0 {
-            out.pieces.push(out.starts.len() - 1);
+            out.pieces.push(out.bytes.len() / size);
         }
         if !m.select.selects(m.source.class_of(r)) {
             continue;
@@ -334,7 +332,6 @@ fn group_results(
             None => return Err(Error::Internal(format!("no result for point {id}"))),
         }
         out.bytes.extend_from_slice(rec);
-        out.starts.push(out.bytes.len());
     }
     Ok(())
 }
@@ -351,7 +348,7 @@ fn encode_piece(
     p: usize,
     out: &mut Vec<u8>,
 ) -> u64 {
-    let rl = m.source.record_length();
+    let (rl, size) = (m.source.record_length(), record_size(m.stored));
     let mut next = results.pieces[p];
     let mut undefined = 0;
     for (j, r) in records.chunks_exact(rl).enumerate() {
@@ -362,7 +359,7 @@ fn encode_piece(
             m.cols.encode(&PointResult::not_computed(id), out);
             continue;
         }
-        let rec = &results.bytes[results.starts[next]..results.starts[next + 1]];
+        let rec = &results.bytes[next * size..(next + 1) * size];
         next += 1;
         // The record is the point's global patch (u64) then its columns.
         let (patch, columns) = rec.split_at(8);

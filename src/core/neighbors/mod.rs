@@ -99,15 +99,11 @@ fn position_ranks(xyz: &[V3], ids: &[u64]) -> Vec<u32> {
     let mut order: Vec<(u64, u32)> = (xyz.iter().enumerate())
         .map(|(i, p)| (key(p[0]), i as u32))
         .collect();
-    crate::core::radix::sort_by_key(&mut order, &mut Vec::new());
-    for run in order.chunk_by_mut(|a, b| a.0 == b.0) {
-        if run.len() > 1 {
-            run.sort_unstable_by_key(|&(_, i)| {
-                let p = xyz[i as usize];
-                (key(p[1]), key(p[2]), ids[i as usize], i)
-            });
-        }
-    }
+    let rest = |i: u32| {
+        let p = xyz[i as usize];
+        (key(p[1]), key(p[2]), ids[i as usize], i)
+    };
+    crate::core::radix::sort_by_key_then(&mut order, &mut Vec::new(), |i, j| rest(i).cmp(&rest(j)));
     let mut ranks = vec![0u32; xyz.len()];
     for (r, o) in order.iter().enumerate() {
         ranks[o.1 as usize] = r as u32;
