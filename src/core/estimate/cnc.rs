@@ -2,6 +2,7 @@
 //! per-triangle measures and their accumulation (shared by every CNC variant) and the default
 //! variant, CNC-Avg-Hexagram.
 
+use super::hexagon::{hexagon_frame, hexagon_normal, sector_sums, HEX};
 use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{add, cross, dot, normalize, scale, sub, tangent_basis, M3, V3};
 
@@ -89,66 +90,6 @@ impl CncMeasures {
     }
 }
 
-/// The in-plane frame of the reference code's hexagon (section 1.7): `e` is the axis after the
-/// normal's largest component, `u = n x e`, `v = n x u`.
-fn hexagon_frame(n: V3) -> (V3, V3) {
-    let a = n.map(f64::abs);
-    let e = if a[0] >= a[1] && a[0] >= a[2] {
-        [0.0, 1.0, 0.0]
-    } else if a[1] >= a[2] {
-        [0.0, 0.0, 1.0]
-    } else {
-        [1.0, 0.0, 0.0]
-    };
-    let u = normalize(cross(n, e)).unwrap_or([1.0, 0.0, 0.0]);
-    let v = normalize(cross(n, u)).unwrap_or([0.0, 1.0, 0.0]);
-    (u, v)
-}
-
-/// Directions of the six hexagon vertices, (cos k pi/3, sin k pi/3) for k = 0..5.
-const HEX: [[f64; 2]; 6] = [
-    [1.0, 0.0],
-    [0.5, 0.866_025_403_784_438_6],
-    [-0.5, 0.866_025_403_784_438_6],
-    [-1.0, 0.0],
-    [-0.5, -0.866_025_403_784_438_6],
-    [0.5, -0.866_025_403_784_438_6],
-];
-
-/// The hexagon sector (0..6) of a neighbour at relative position `d`: the Voronoi region of the
-/// nearest hexagon vertex. The vertices are equidistant from the centre, so the nearest one
-/// maximises <d | w_k> and the radius drops out (section 1.7 note): the sectors are the 60
-/// degree wedges centred on the vertex directions, bounded by the three lines at 30, 90 and
-/// 150 degrees. The side of each line (a sign test, no branch) names the wedge; a point on a
-/// line goes to one of its two wedges. Returns None for a point whose tangential projection is
-/// exactly zero (equidistant from all six vertices, like the query point itself).
-#[inline]
-pub fn hexagon_sector(d: V3, u: V3, v: V3) -> Option<usize> {
-    /// Wedge by (above 30 deg line, above 90 deg line, above 150 deg line); codes 2 and 5 are
-    /// impossible but for rounding next to the centre.
-    const WEDGE: [u8; 8] = [0, 5, 3, 4, 1, 0, 2, 3];
-    let (a, b) = (dot(d, u), dot(d, v));
-    if a == 0.0 && b == 0.0 {
-        return None;
-    }
-    let s = 0.866_025_403_784_438_6 * b;
-    let code = (((s - 0.5 * a > 0.0) as usize) << 2)
-        | (((a < 0.0) as usize) << 1)
-        | ((-0.5 * a - s > 0.0) as usize);
-    Some(WEDGE[code] as usize)
-}
-
-/// The hexagon plane normal of the reference code: the query normal blended half and half with
-/// the normalised mean neighbour normal (section 1.7, W = 0.5).
-pub fn hexagon_normal(nb: &Neighbourhood<'_>) -> V3 {
-    let n0 = nb.normals[0];
-    let mean = nb.normals.iter().fold([0.0; 3], |acc, &u| add(acc, u));
-    match normalize(mean) {
-        Some(m) => normalize(add(scale(n0, 0.5), scale(m, 0.5))).unwrap_or(n0),
-        None => n0,
-    }
-}
-
 /// CNC-Avg-Hexagram (section 1.7): the K neighbours are split into the six Voronoi sectors of a
 /// hexagon around the query point; each sector's mean position and renormalised mean normal is
 /// a virtual sample; triangles (0, 2, 4) and (1, 3, 5). The query point itself is left out of the
@@ -165,25 +106,18 @@ impl Estimator for CncAvgHexagram {
     fn estimate(&self, nb: &Neighbourhood<'_>, _scratch: &mut Scratch) -> Curvature {
         let n0 = nb.normals[0];
         let (u, v) = hexagon_frame(hexagon_normal(nb));
+        let sums = sector_sums(nb, u, v);
         let mut pos = [[0.0; 3]; 6];
         let mut nrm = [[0.0; 3]; 6];
-        let mut count = [0u32; 6];
-        for (&p, &q) in nb.positions.iter().zip(nb.normals).skip(1) {
-            if let Some(s) = hexagon_sector(p, u, v) {
-                pos[s] = add(pos[s], p);
-                nrm[s] = add(nrm[s], q);
-                count[s] += 1;
-            }
-        }
         let mut extra = 0;
-        for s in 0..6 {
-            if count[s] == 0 {
-                pos[s] = [0.0; 3];
+        for (s, sum) in sums.iter().take(6).enumerate() {
+            // Lane 3 counts the sector's points (exact in f64).
+            if sum[3] == 0.0 {
                 nrm[s] = n0;
                 extra |= flags::BOUNDARY;
             } else {
-                pos[s] = scale(pos[s], 1.0 / count[s] as f64);
-                nrm[s] = normalize(nrm[s]).unwrap_or(n0);
+                pos[s] = scale([sum[0], sum[1], sum[2]], 1.0 / sum[3]);
+                nrm[s] = normalize([sum[4], sum[5], sum[6]]).unwrap_or(n0);
             }
         }
         let mut m = CncMeasures::default();
@@ -317,28 +251,6 @@ mod tests {
             "K = {}",
             out.k
         );
-    }
-
-    /// The sign tests pick the hexagon vertex nearest to the projected point (the definition).
-    #[test]
-    fn hexagon_sector_is_the_nearest_vertex() {
-        let (u, v) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
-        for step in 0..3600 {
-            let t = (step as f64 + 0.37) * std::f64::consts::PI / 1800.0;
-            let r = 0.1 + (step % 7) as f64;
-            let d = [r * t.cos(), r * t.sin(), 0.3];
-            let nearest = HEX
-                .iter()
-                .enumerate()
-                .min_by(|a, b| {
-                    let da = (d[0] - r * a.1[0]).powi(2) + (d[1] - r * a.1[1]).powi(2);
-                    let db = (d[0] - r * b.1[0]).powi(2) + (d[1] - r * b.1[1]).powi(2);
-                    da.total_cmp(&db)
-                })
-                .map(|(k, _)| k);
-            assert_eq!(hexagon_sector(d, u, v), nearest, "angle {t}");
-        }
-        assert_eq!(hexagon_sector([0.0, 0.0, 2.0], u, v), None);
     }
 
     /// Flipping every normal negates H and keeps K (section 0.1).

@@ -9,6 +9,7 @@ pub mod apss;
 pub mod aso;
 pub mod cnc;
 pub mod cnc_delaunay;
+pub mod hexagon;
 pub mod jet;
 pub mod local;
 pub mod vcm;
