@@ -191,6 +191,18 @@ impl Grid {
         room - self.face_eps
     }
 
+    /// Appends the points `run` (in cell order) to the block `b`.
+    fn copy_run(&self, run: std::ops::Range<usize>, b: &mut Block) {
+        // One pass per array over a contiguous run: no per-element capacity checks.
+        let pts = &self.xyz[run.clone()];
+        b.x.extend(pts.iter().map(|p| (p[0] - b.centre[0]) as f32));
+        b.y.extend(pts.iter().map(|p| (p[1] - b.centre[1]) as f32));
+        b.z.extend(pts.iter().map(|p| (p[2] - b.centre[2]) as f32));
+        b.xyz.extend_from_slice(pts);
+        b.local.extend_from_slice(&self.order[run.clone()]);
+        b.rank.extend_from_slice(&self.ranks[run]);
+    }
+
     /// Gathers the points of the 3 x 3 x 3 cells around cell `c` into `b`.
     fn gather(&self, c: [usize; 3], b: &mut Block) {
         b.cell = Some((self.uid, c));
@@ -203,6 +215,9 @@ impl Grid {
         b.rank.clear();
         let (z_lo, z_hi) = (c[2].saturating_sub(1) as u32, (c[2] + 1) as u32);
         for x in c[0].saturating_sub(1)..(c[0] + 2).min(self.dims[0]) {
+            // The columns (x, y - 1..=y + 1) are consecutive in the grid's order: where their
+            // runs of points touch (one z cell a column, as on terrain), one copy takes them.
+            let mut run = 0..0;
             for y in c[1].saturating_sub(1)..(c[1] + 2).min(self.dims[1]) {
                 let col = x * self.dims[1] + y;
                 let cells = self.cols[col] as usize..self.cols[col + 1] as usize;
@@ -210,16 +225,15 @@ impl Grid {
                 let first =
                     cells.start + self.zcells[cells.clone()].partition_point(|z| z.0 < z_lo);
                 let last = cells.start + self.zcells[cells].partition_point(|z| z.0 <= z_hi);
-                let run = self.zcells[first].1 as usize..self.zcells[last].1 as usize;
-                // One pass per array over a contiguous run: no per-element capacity checks.
-                let pts = &self.xyz[run.clone()];
-                b.x.extend(pts.iter().map(|p| (p[0] - b.centre[0]) as f32));
-                b.y.extend(pts.iter().map(|p| (p[1] - b.centre[1]) as f32));
-                b.z.extend(pts.iter().map(|p| (p[2] - b.centre[2]) as f32));
-                b.xyz.extend_from_slice(pts);
-                b.local.extend_from_slice(&self.order[run.clone()]);
-                b.rank.extend_from_slice(&self.ranks[run]);
+                let next = self.zcells[first].1 as usize..self.zcells[last].1 as usize;
+                if next.start == run.end {
+                    run.end = next.end;
+                } else {
+                    self.copy_run(run, b);
+                    run = next;
+                }
             }
+            self.copy_run(run, b);
         }
         // Gathered coordinates are within 1.5 cells of the centre on each axis, so the error of
         // an f32 squared distance (inputs, difference, products, sum) is at most
