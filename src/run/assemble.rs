@@ -19,7 +19,7 @@ use crate::core::plan::TilePlan;
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns, Steps};
-use crate::io::columns::{ColumnSet, ColumnType, Group};
+use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout};
 use crate::io::results::{record_size, scene_stats, tile_path, Merger};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
@@ -64,6 +64,7 @@ pub fn assemble_outputs(
     exec.reporter.phase("write", spec.total_points);
     let chunk = chunk_points(spec, exec);
     let mut undefined = 0;
+    let layout = spec.cols.layout();
     for ((source, output), first) in spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids) {
         let out_cols = output_columns(output, &spec.cols, encoding)?;
         let provenance = format!("{}{}", spec.provenance(), out_cols.provenance());
@@ -72,6 +73,7 @@ pub fn assemble_outputs(
             first_id: *first,
             flips: flips.as_deref(),
             stored: &spec.cols,
+            layout: &layout,
             cols: &out_cols,
             select: &spec.select,
             chunk_points: chunk,
@@ -101,6 +103,8 @@ pub struct Merge<'a> {
     pub flips: Option<&'a [Vec<bool>]>,
     /// The run's column set, as the result files store it.
     pub stored: &'a ColumnSet,
+    /// Its records' layout.
+    pub layout: &'a ResultLayout,
     /// The output's columns.
     pub cols: &'a OutputColumns,
     /// The points the run computed (the others are written as not computed).
@@ -229,7 +233,6 @@ fn merge_records(m: &Merge<'_>, merger: &mut Merger, hand: &HandOff) -> Result<u
     let rl = m.source.record_length();
     let piece = (HANDOFF_BYTES / (rl + m.cols.record_size())).max(1);
     let mut results: [GroupResults; 2] = Default::default();
-    let mut rec = Vec::new();
     let mut undefined = 0u64;
     m.source
         .for_each_chunk(m.chunk_points, &mut |first, records| {
@@ -243,15 +246,9 @@ fn merge_records(m: &Merge<'_>, merger: &mut Merger, hand: &HandOff) -> Result<u
                 let (taken, encoded) = m.pool.install(|| {
                     rayon::join(
                         || match groups.get(g) {
-                            Some(records) => group_results(
-                                m,
-                                merger,
-                                first_of(g),
-                                records,
-                                piece,
-                                next,
-                                &mut rec,
-                            ),
+                            Some(records) => {
+                                group_results(m, merger, first_of(g), records, piece, next)
+                            }
                             None => Ok(()),
                         },
                         || match g.checked_sub(1) {
@@ -300,7 +297,7 @@ fn encode_group(
 
 /// Takes from `merger` the results of the selected points among `records` (the first is point
 /// `first_id`), in pieces of `piece` records, into `out`; an error if the next result is
-/// another point's (`rec` is scratch).
+/// another point's.
 fn group_results(
     m: &Merge<'_>,
     merger: &mut Merger,
@@ -308,7 +305,6 @@ fn group_results(
     records: &[u8],
     piece: usize,
     out: &mut GroupResults,
-    rec: &mut Vec<u8>,
 ) -> Result<()> {
     let rl = m.source.record_length();
     let size = record_size(m.stored);
@@ -322,7 +318,7 @@ fn group_results(
             continue;
         }
         let id = first_id + j as u64;
-        match merger.next(rec)? {
+        match merger.append_next(&mut out.bytes)? {
             Some(rid) if rid == id => {}
             Some(rid) => {
                 return Err(Error::Internal(format!(
@@ -331,7 +327,6 @@ fn group_results(
             }
             None => return Err(Error::Internal(format!("no result for point {id}"))),
         }
-        out.bytes.extend_from_slice(rec);
     }
     Ok(())
 }
@@ -367,7 +362,7 @@ fn encode_piece(
         let flip = (m.flips.zip(patch.parts()))
             .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
             .unwrap_or(false);
-        let result = m.stored.decode_result(columns);
+        let result = m.layout.decode(columns);
         undefined += (result.curvature.flags & flags::UNDEFINED != 0) as u64;
         if flip {
             m.cols.encode(&result.flipped(&m.stored.extra), out);

@@ -293,13 +293,18 @@ impl Merger {
 
     /// The next record in id order: its id, with its column bytes copied to `out`.
     pub fn next(&mut self, out: &mut Vec<u8>) -> Result<Option<u64>> {
+        out.clear();
+        self.append_next(out)
+    }
+
+    /// [`Merger::next`] appending the column bytes to `out` (no copy in between).
+    pub fn append_next(&mut self, out: &mut Vec<u8>) -> Result<Option<u64>> {
         // The top is replaced in place: one sift, which stops at once while the same file
         // holds the smallest ids (runs of consecutive points in one tile are the common case).
         let Some(mut top) = self.heap.peek_mut() else {
             return Ok(None);
         };
         let Reverse((id, i)) = *top;
-        out.clear();
         out.extend_from_slice(&self.heads[i]);
         match self.readers[i].next(&mut self.heads[i])? {
             Some(next) => *top = Reverse((next, i)),
