@@ -19,7 +19,10 @@ pub(super) fn hexagon_frame(n: V3) -> (V3, V3) {
         [1.0, 0.0, 0.0]
     };
     let u = normalize(cross(n, e)).unwrap_or([1.0, 0.0, 0.0]);
-    let v = normalize(cross(n, u)).unwrap_or([0.0, 1.0, 0.0]);
+    // n and u are unit and orthogonal (to rounding), so n x u is unit to a few ulps: its
+    // length would only scale the sector tests, which compare signs (a normalisation here
+    // was a tenth of this estimator's latency).
+    let v = cross(n, u);
     (u, v)
 }
 
@@ -65,7 +68,16 @@ pub fn hexagon_sector(d: V3, u: V3, v: V3) -> Option<usize> {
 /// the normalised mean neighbour normal (section 1.7, W = 0.5).
 pub fn hexagon_normal(nb: &Neighbourhood<'_>) -> V3 {
     let n0 = nb.normals[0];
-    let mean = nb.normals.iter().fold([0.0; 3], |acc, &u| add(acc, u));
+    // Four partial sums: one running sum was a chain of K dependent additions.
+    let fours = nb.normals.chunks_exact(4);
+    let rest = fours
+        .remainder()
+        .iter()
+        .fold([0.0; 3], |acc, &u| add(acc, u));
+    let part = fours.fold([[0.0; 3]; 4], |acc, q| {
+        [0, 1, 2, 3].map(|l| add(acc[l], q[l]))
+    });
+    let mean = add(add(add(part[0], part[1]), add(part[2], part[3])), rest);
     match normalize(mean) {
         Some(m) => normalize(add(scale(n0, 0.5), scale(m, 0.5))).unwrap_or(n0),
         None => n0,

@@ -140,8 +140,12 @@ fn sort_ranked(v: &mut Vec<Cand>, keys: &mut Vec<u64>, spare: &mut Vec<Cand>) {
         keys.sort_unstable();
         spare.extend(keys.iter().map(|&key| v[(key & low) as usize]));
     }
+    // In order already unless within a tie window (rare): one pass of comparisons.
+    if spare.windows(2).all(|w| w[0].0 < w[1].0) {
+        std::mem::swap(v, spare);
+        return;
+    }
     for x in 1..spare.len() {
-        // In order already unless within a tie window: one comparison in the common case.
         if spare[x - 1].0 < spare[x].0 {
             continue;
         }
@@ -171,7 +175,7 @@ fn network_order(v: &[Cand], low: u64, spare: &mut Vec<Cand>) -> bool {
         return false;
     }
     let mut k = [f64::INFINITY; 32];
-    for (slot, e) in k.iter_mut().zip(v.iter().enumerate()) {
+    for (slot, e) in k[..v.len()].iter_mut().zip(v.iter().enumerate()) {
         *slot = f64::from_bits(sort_key(e, low));
     }
     // SAFETY: compiled only where the build enables AVX2, whose absence main.rs refuses at
