@@ -46,7 +46,7 @@ pub(super) fn compute_auto(
         prefix: ladder.normal_k(ladder.rungs() - 1),
     };
     // The core lists, those of their 64 nearest, and of those points' neighbours (normals).
-    neighbour_lists(t, index, scene, reach, &[SMOOTH, k], bufs, cancel);
+    neighbour_lists(t, index, scene, reach, &[SMOOTH, k], (bufs, None), cancel);
     stop()?;
     let bufs = &*bufs;
     let normals = rung_normals(t, p, ladder, bufs, cancel);

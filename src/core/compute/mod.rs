@@ -234,6 +234,14 @@ fn knn_into(
     }
 }
 
+/// Where the list pass also writes the normal of each point it lists ([`normal_of`] over the
+/// whole list, found while the list's points are in cache): one fixed k.
+struct ListNormals<'a> {
+    p: &'a ComputeParams<'a>,
+    /// Indexed like the tile's points.
+    out: &'a mut [Option<V3>],
+}
+
 /// Points per task of [`lists_for`].
 const LIST_CHUNK: usize = 1024;
 
@@ -247,7 +255,7 @@ fn lists_for(
     index: &NeighbourIndex<'_>,
     scene: &Rect,
     reach: Reach,
-    bufs: &mut TileBuffers,
+    (bufs, normals): (&mut TileBuffers, Option<&mut ListNormals<'_>>),
     which: &[bool],
     cancel: &AtomicBool,
 ) {
@@ -262,28 +270,42 @@ fn lists_for(
         )
     };
     let TileBuffers { lists, info } = bufs;
+    let chunks = info.len().div_ceil(LIST_CHUNK);
+    // The normals each task finds (none: an empty slice per task).
+    let (p, mut outs): (_, Vec<&mut [Option<V3>]>) = match normals {
+        Some(ListNormals { p, out }) => (Some(*p), out.chunks_mut(LIST_CHUNK).collect()),
+        None => (None, (0..chunks).map(|_| Default::default()).collect()),
+    };
     lists
         .par_chunks_mut(LIST_CHUNK * k)
         .zip(info.par_chunks_mut(LIST_CHUNK))
+        .zip(outs.par_iter_mut())
         .enumerate()
-        .for_each_init(scratch, |(s, list, todo, spare), (c, (slots, infos))| {
-            let first = c * LIST_CHUNK;
-            todo.clear();
-            todo.extend(
-                (0..infos.len())
-                    .filter(|&o| infos[o].len == 0 && which[first + o])
-                    .map(|o| (index.query_key(first + o), o as u32)),
-            );
-            crate::core::radix::sort_by_key(todo, spare);
-            for &(_, o) in todo.iter() {
-                if cancel.load(Ordering::Relaxed) {
-                    return;
+        .for_each_init(
+            scratch,
+            |(s, list, todo, spare), (c, ((slots, infos), nrm))| {
+                let first = c * LIST_CHUNK;
+                todo.clear();
+                todo.extend(
+                    (0..infos.len())
+                        .filter(|&o| infos[o].len == 0 && which[first + o])
+                        .map(|o| (index.query_key(first + o), o as u32)),
+                );
+                crate::core::radix::sort_by_key(todo, spare);
+                for &(_, o) in todo.iter() {
+                    if cancel.load(Ordering::Relaxed) {
+                        return;
+                    }
+                    let (o, i) = (o as usize, first + o as usize);
+                    let slot = &mut slots[o * k..(o + 1) * k];
+                    infos[o] = knn_into(t, index, scene, reach, i, (s, list), slot);
+                    // The normal now, while the list's points are in cache.
+                    if let (Some(p), Some(n)) = (p, nrm.get_mut(o)) {
+                        *n = normal_of(t, p, &slot[..infos[o].len as usize], reach.k);
+                    }
                 }
-                let (o, i) = (o as usize, first + o as usize);
-                let slot = &mut slots[o * k..(o + 1) * k];
-                infos[o] = knn_into(t, index, scene, reach, i, (s, list), slot);
-            }
-        });
+            },
+        );
 }
 
 /// The points within the first `prefix` entries of the lists of the points `from` marks.
@@ -303,14 +325,14 @@ fn mark(bufs: &TileBuffers, k: usize, from: &[bool], prefix: usize) -> Vec<bool>
 /// Steps 1 and 2: the neighbour lists of the core points, then level by level of the points
 /// the previous level's lists reach (the first `levels[l]` entries of each), into `bufs`
 /// (point i: `lists[i k ..][..len]`). One fixed k needs one level (the neighbours, whose
-/// normals are used); `-k auto` two (auto.rs).
+/// normals are used); `-k auto` two (auto.rs). With `normals`, step 3 too, point by point.
 fn neighbour_lists(
     t: &TilePoints,
     index: &NeighbourIndex<'_>,
     scene: &Rect,
     reach: Reach,
     levels: &[usize],
-    bufs: &mut TileBuffers,
+    (bufs, mut normals): (&mut TileBuffers, Option<ListNormals<'_>>),
     cancel: &AtomicBool,
 ) {
     let n = t.xyz.len();
@@ -322,10 +344,26 @@ fn neighbour_lists(
     bufs.info.clear();
     bufs.info.resize(n, ListInfo::default());
     let mut level: Vec<bool> = (0..n).map(|i| i < t.n_core).collect();
-    lists_for(t, index, scene, reach, bufs, &level, cancel);
+    lists_for(
+        t,
+        index,
+        scene,
+        reach,
+        (bufs, normals.as_mut()),
+        &level,
+        cancel,
+    );
     for &prefix in levels {
         level = mark(bufs, reach.k, &level, prefix);
-        lists_for(t, index, scene, reach, bufs, &level, cancel);
+        lists_for(
+            t,
+            index,
+            scene,
+            reach,
+            (bufs, normals.as_mut()),
+            &level,
+            cancel,
+        );
     }
 }
 
@@ -347,9 +385,9 @@ impl TileBuffers {
     }
 }
 
-/// Step 3: the normal of every point with a neighbour list: the file's, or PCA over the first
-/// `prefix` entries of its list (all of them for one k; half a rung's K under `-k auto`),
-/// oriented.
+/// Step 3 after the lists (`-k auto`, whose rungs take different prefixes; one fixed k finds
+/// the normals with the lists, [`ListNormals`]): the normal of every point with a neighbour
+/// list, [`normal_of`] over the first `prefix` entries of its list.
 fn tile_normals(
     t: &TilePoints,
     p: &ComputeParams<'_>,
@@ -363,16 +401,22 @@ fn tile_normals(
             if bufs.info[i].len == 0 || cancel.load(Ordering::Relaxed) {
                 return None;
             }
-            if p.use_file_normals {
-                if let Some(fnorm) = t.file_normals[i] {
-                    return crate::core::geometry::normalize(fnorm);
-                }
-            }
-            let l = bufs.list(i, p.k);
-            pca_normal(&t.xyz, &l[..l.len().min(prefix)])
-                .map(|nrm| orient(nrm, t.xyz[i], p.orientation))
+            normal_of(t, p, bufs.list(i, p.k), prefix)
         })
         .collect()
+}
+
+/// The normal of the point whose neighbour list is `list` (the point first): the file's, or
+/// PCA over the first `prefix` entries, oriented.
+fn normal_of(t: &TilePoints, p: &ComputeParams<'_>, list: &[u32], prefix: usize) -> Option<V3> {
+    let i = *list.first()? as usize;
+    if p.use_file_normals {
+        if let Some(fnorm) = t.file_normals[i] {
+            return crate::core::geometry::normalize(fnorm);
+        }
+    }
+    pca_normal(&t.xyz, &list[..list.len().min(prefix)])
+        .map(|nrm| orient(nrm, t.xyz[i], p.orientation))
 }
 
 /// The estimator at point `i` with the neighbour list `list` and the tile's `normals`: its
@@ -480,11 +524,16 @@ pub fn compute_tile(
         radius: p.radius,
         prefix: k,
     };
-    neighbour_lists(t, &index, scene, reach, &[k], bufs, cancel);
+    // Steps 1-3: each point's normal is found right after its list (`tile_normals` would
+    // read every list and its points again).
+    let mut normals = vec![None; n];
+    let out = ListNormals {
+        p,
+        out: &mut normals,
+    };
+    neighbour_lists(t, &index, scene, reach, &[k], (bufs, Some(out)), cancel);
     stop()?;
     let bufs = &*bufs;
-    let mut normals = tile_normals(t, p, bufs, k, cancel);
-    stop()?;
     // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.
     let orientation = p.propagate.filter(|_| !p.use_file_normals).map(|centre| {
         let lists: Vec<&[u32]> = (0..n).map(|i| bufs.list(i, k)).collect();
