@@ -90,9 +90,9 @@ const NO_SECTOR: u8 = 6;
 /// Per hexagon sector: the sums of its neighbours' positions (lanes 0-2), their count (lane 3)
 /// and the sums of their normals (lanes 4-6); the query point (first) is left out, and so is
 /// a point in no sector (row 6 takes it). The sectors of a run of neighbours are found first,
-/// then the run is added in order: adding each neighbour as soon as its sector was known
-/// stored to an address known late, and the CPU replayed the loads after it (this estimator
-/// took 15% longer).
+/// then the run is added in order: adding each neighbour as soon as its sector was known took
+/// this estimator 15% longer for 1% fewer instructions (its stores go to an address known
+/// late, which holds up the loads after them).
 pub(super) fn sector_sums(nb: &Neighbourhood<'_>, u: V3, v: V3) -> [[f64; 8]; 7] {
     const RUN: usize = 32;
     let mut sums = [[0.0f64; 8]; 7];
