@@ -344,26 +344,13 @@ fn neighbour_lists(
     bufs.info.clear();
     bufs.info.resize(n, ListInfo::default());
     let mut level: Vec<bool> = (0..n).map(|i| i < t.n_core).collect();
-    lists_for(
-        t,
-        index,
-        scene,
-        reach,
-        (bufs, normals.as_mut()),
-        &level,
-        cancel,
-    );
-    for &prefix in levels {
-        level = mark(bufs, reach.k, &level, prefix);
-        lists_for(
-            t,
-            index,
-            scene,
-            reach,
-            (bufs, normals.as_mut()),
-            &level,
-            cancel,
-        );
+    // The core level, then one level per prefix, each marked from the one before.
+    for prefix in std::iter::once(None).chain(levels.iter().map(Some)) {
+        if let Some(&prefix) = prefix {
+            level = mark(bufs, reach.k, &level, prefix);
+        }
+        let out = normals.as_mut();
+        lists_for(t, index, scene, reach, (bufs, out), &level, cancel);
     }
 }
 
