@@ -19,7 +19,7 @@ use crate::core::plan::TilePlan;
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns, Steps};
-use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout};
+use crate::io::columns::{ColumnSet, ColumnType, Group};
 use crate::io::results::{record_size, scene_stats, tile_path, Merger};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
@@ -64,7 +64,6 @@ pub fn assemble_outputs(
     exec.reporter.phase("write", spec.total_points);
     let chunk = chunk_points(spec, exec);
     let mut undefined = 0;
-    let layout = spec.cols.layout();
     for ((source, output), first) in spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids) {
         let out_cols = output_columns(output, &spec.cols, encoding)?;
         let provenance = format!("{}{}", spec.provenance(), out_cols.provenance());
@@ -73,7 +72,6 @@ pub fn assemble_outputs(
             first_id: *first,
             flips: flips.as_deref(),
             stored: &spec.cols,
-            layout: &layout,
             cols: &out_cols,
             select: &spec.select,
             chunk_points: chunk,
@@ -103,8 +101,6 @@ pub struct Merge<'a> {
     pub flips: Option<&'a [Vec<bool>]>,
     /// The run's column set, as the result files store it.
     pub stored: &'a ColumnSet,
-    /// Its records' layout.
-    pub layout: &'a ResultLayout,
     /// The output's columns.
     pub cols: &'a OutputColumns,
     /// The points the run computed (the others are written as not computed).
@@ -344,6 +340,8 @@ fn encode_piece(
     out: &mut Vec<u8>,
 ) -> u64 {
     let (rl, size) = (m.source.record_length(), record_size(m.stored));
+    // Found once a piece (thousands of records), not per record.
+    let layout = m.stored.layout();
     let mut next = results.pieces[p];
     let mut undefined = 0;
     for (j, r) in records.chunks_exact(rl).enumerate() {
@@ -362,7 +360,7 @@ fn encode_piece(
         let flip = (m.flips.zip(patch.parts()))
             .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
             .unwrap_or(false);
-        let result = m.layout.decode(columns);
+        let result = layout.decode(columns);
         undefined += (result.curvature.flags & flags::UNDEFINED != 0) as u64;
         if flip {
             m.cols.encode(&result.flipped(&m.stored.extra), out);

@@ -450,19 +450,31 @@ impl ColumnSet {
 
     /// The order and width of the stored values, for decoding many records.
     pub fn layout(&self) -> ResultLayout {
+        let mut values = [Value::H; MAX_STORED];
+        let mut len = 0;
+        for (slot, v) in values.iter_mut().zip(self.stored()) {
+            *slot = v;
+            len += 1;
+        }
         ResultLayout {
-            values: self.stored().collect(),
+            values,
+            len,
             width: self.value_size(),
         }
     }
 }
 
+/// The most values [`ColumnSet::stored`] lists: the normal (3), H, K, k1, k2, the two
+/// directions (6), the extra values, the scale and its flags.
+const MAX_STORED: usize = 3 + 4 + 6 + MAX_EXTRA + 2;
+
 /// The values of a result record in their order and their width ([`ColumnSet::layout`]):
 /// found once rather than per record (the chain of optional groups was half the cost of a
-/// decode).
-#[derive(Debug, Clone)]
+/// decode). No allocation, so that it can be made for each piece of an output.
+#[derive(Debug, Clone, Copy)]
 pub struct ResultLayout {
-    values: Vec<Value>,
+    values: [Value; MAX_STORED],
+    len: usize,
     width: usize,
 }
 
@@ -479,7 +491,7 @@ impl ResultLayout {
             scale_flags: 0,
         };
         let (mut at, w) = (0, self.width);
-        for v in &self.values {
+        for v in &self.values[..self.len] {
             let value = match rec.get(at..at + w) {
                 Some(b) if w == 8 => b.try_into().map(f64::from_le_bytes).ok(),
                 Some(b) => b.try_into().map(|b| f32::from_le_bytes(b) as f64).ok(),

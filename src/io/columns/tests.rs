@@ -68,6 +68,21 @@ fn columns_in_record_order() {
     assert_eq!(cols.result_size(), 8 * 6 + 1);
 }
 
+/// The layout (a fixed array) holds the fullest column set, every group with the most extra
+/// values: exactly [`ColumnSet::stored`]'s list, which fills it. A group added later fails
+/// here until the bound grows.
+#[test]
+fn the_layout_holds_the_fullest_column_set() {
+    let mut cols = vcm_columns();
+    assert_eq!(cols.extra.len(), MAX_EXTRA);
+    let all: Vec<&str> = Group::ALL.iter().map(|g| g.name()).collect();
+    cols.choice = ColumnChoice::parse(&all.join(",")).expect("valid");
+    let layout = cols.layout();
+    let stored: Vec<Value> = cols.stored().collect();
+    assert_eq!(stored.len(), MAX_STORED);
+    assert_eq!(layout.values[..layout.len], stored[..]);
+}
+
 /// The one flip, on decoded results: normal, H and the VCM normal negated, k1' = -k2,
 /// k2' = -k1, directions swapped, K, the feature score and the flags kept; NaN stays the
 /// same NaN; twice is the identity, byte for byte.
