@@ -14,7 +14,8 @@ pub struct TilePoints {
     pub xyz: Vec<V3>,
     /// Original point ids.
     pub ids: Vec<u64>,
-    /// Normals stored in the file, per point (None when the file has none).
+    /// Normals stored in the file, per point; empty while no loaded point has one
+    /// ([`crate::core::point::push_normal`]): read them with [`TilePoints::file_normal`].
     pub file_normals: Vec<Option<V3>>,
     /// Number of leading points to compute.
     pub n_core: usize,
@@ -25,9 +26,14 @@ pub struct TilePoints {
 impl TilePoints {
     /// Appends a point (as context unless it is counted in `n_core` afterwards).
     pub fn push(&mut self, p: &crate::core::point::SourcePoint) {
+        crate::core::point::push_normal(&mut self.file_normals, self.xyz.len(), p.normal);
         self.xyz.push(p.xyz);
         self.ids.push(p.id);
-        self.file_normals.push(p.normal);
+    }
+
+    /// The file's normal of point `i`, if it has one.
+    pub fn file_normal(&self, i: usize) -> Option<V3> {
+        self.file_normals.get(i).copied().flatten()
     }
 
     /// Reorders the points to follow a Z-order (Morton) curve over x/y, core and context
@@ -62,12 +68,14 @@ impl TilePoints {
             });
             let xyz: Vec<V3> = order.iter().map(|&(_, i)| self.xyz[i as usize]).collect();
             let ids: Vec<u64> = order.iter().map(|&(_, i)| self.ids[i as usize]).collect();
-            let nrm: Vec<Option<V3>> = (order.iter())
-                .map(|&(_, i)| self.file_normals[i as usize])
-                .collect();
             self.xyz[range.clone()].copy_from_slice(&xyz);
             self.ids[range.clone()].copy_from_slice(&ids);
-            self.file_normals[range].copy_from_slice(&nrm);
+            if !self.file_normals.is_empty() {
+                let nrm: Vec<Option<V3>> = (order.iter())
+                    .map(|&(_, i)| self.file_normals[i as usize])
+                    .collect();
+                self.file_normals[range].copy_from_slice(&nrm);
+            }
         }
     }
 }
@@ -141,17 +149,13 @@ impl Part {
     }
 }
 
-/// Splits a tile whose `points` (its core) are too many into quadtree parts of at most
-/// `max_points` each (never deeper than 10 levels: duplicates cannot be split).
-pub fn split_parts(
-    points: &[crate::core::point::SourcePoint],
-    whole: Part,
-    max_points: usize,
-) -> Vec<Part> {
+/// Splits a tile whose points (the positions of its core, `points`) are too many into quadtree
+/// parts of at most `max_points` each (never deeper than 10 levels: duplicates cannot be split).
+pub fn split_parts(points: &[V3], whole: Part, max_points: usize) -> Vec<Part> {
     let mut out = Vec::new();
     let mut stack = vec![whole];
     while let Some(part) = stack.pop() {
-        let n = points.iter().filter(|p| part.contains(&p.xyz)).count();
+        let n = points.iter().filter(|p| part.contains(p)).count();
         if n == 0 {
             continue;
         }
@@ -224,7 +228,8 @@ mod tests {
                 normal: None,
             });
         }
-        let parts = split_parts(&pts, Part::whole(rect), 8);
+        let xyz: Vec<V3> = pts.iter().map(|p| p.xyz).collect();
+        let parts = split_parts(&xyz, Part::whole(rect), 8);
         assert!(parts.len() > 4);
         for p in &pts {
             assert_eq!(

@@ -103,7 +103,11 @@ impl TileJob<'_> {
         let parts = if (spec.count as usize) <= self.max_core_points {
             vec![whole]
         } else {
-            split_parts(&self.buckets.core(spec.key)?, whole, self.max_core_points)
+            split_parts(
+                self.buckets.core(spec.key)?.xyz(),
+                whole,
+                self.max_core_points,
+            )
         };
         let mut gathered = Vec::new();
         let mut sidecar = TileSidecar::default();

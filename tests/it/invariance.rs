@@ -282,11 +282,11 @@ fn generated_terrain_tiles_threads_chunks_and_formats_do_not_change_results() {
 
 #[test]
 fn generated_terrain_memory_budget_does_not_change_results() {
-    // 500k points: their bucket entries (72 bytes a point, 36 MB) exceed the share of a 64M
-    // budget kept for buckets in memory, so buckets spill to the work directory. With one tile
-    // holding everything, the tile's raw bucket alone exceeds its share of the budget, so it is
-    // computed in quadtree parts.
-    let points = 500_000;
+    // 1M points: their bucket entries (32 bytes a point and the columns' growth, over 32 MB)
+    // exceed the share of a 64M budget kept for buckets in memory (2/5, 26.8 MB), so buckets
+    // spill to the work directory. With one tile holding everything, the tile's raw bucket
+    // alone exceeds its share of the budget, so it is computed in quadtree parts.
+    let points = 1_000_000;
     let dir = tempfile::tempdir().expect("temp dir");
     let input = dir.path().join("t.las");
     generate(&input, points, 12);
@@ -305,7 +305,7 @@ fn generated_terrain_memory_budget_does_not_change_results() {
     );
     assert!(
         err.contains("buckets spilled to the work directory"),
-        "500k points must spill with a 64M budget: {err}"
+        "1M points must spill with a 64M budget: {err}"
     );
     assert!(planned_tiles(&err) >= min_tiles(points, 10.0), "{err}");
     assert_same_output(&reference, &small_tiles);
@@ -319,7 +319,7 @@ fn generated_terrain_memory_budget_does_not_change_results() {
     );
     assert!(
         err.contains("buckets spilled to the work directory"),
-        "500k points must spill with a 64M budget: {err}"
+        "1M points must spill with a 64M budget: {err}"
     );
     assert_eq!(planned_tiles(&err), 1, "{err}");
     assert!(

@@ -398,7 +398,7 @@ fn tile_normals(
 fn normal_of(t: &TilePoints, p: &ComputeParams<'_>, list: &[u32], prefix: usize) -> Option<V3> {
     let i = *list.first()? as usize;
     if p.use_file_normals {
-        if let Some(fnorm) = t.file_normals[i] {
+        if let Some(fnorm) = t.file_normal(i) {
             return crate::core::geometry::normalize(fnorm);
         }
     }
@@ -417,7 +417,7 @@ fn estimate_one(
     list: &[u32],
     s: &mut NeighbourhoodBuf,
 ) -> (Curvature, [f64; MAX_EXTRA]) {
-    let file_flag = if p.use_file_normals && t.file_normals[i].is_some() {
+    let file_flag = if p.use_file_normals && t.file_normal(i).is_some() {
         flags::FILE_NORMAL
     } else {
         0

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::core::plan::TileKey;
-use crate::core::point::SourcePoint;
+use crate::core::point::{Points, SourcePoint};
 use crate::error::{Error, Result};
 use crate::io::pack::{get_planes, put_planes, put_varint, unzigzag, zigzag, Cursor};
 
@@ -167,32 +167,40 @@ fn get_column(c: &mut Cursor<'_>, n: usize) -> Option<Vec<f64>> {
     Some((0..n).map(|i| value(word(i))).collect())
 }
 
-/// Appends one run: points of one input (`grids` input `input`).
-fn put_run(out: &mut Vec<u8>, points: &[SourcePoint], grids: &Grids, input: usize) {
-    out.extend_from_slice(&(points.len() as u32).to_le_bytes());
+/// Appends one run: the points `run` of `points`, of one input (`grids` input `input`).
+fn put_run(
+    out: &mut Vec<u8>,
+    points: &Points,
+    run: std::ops::Range<usize>,
+    grids: &Grids,
+    input: usize,
+) {
+    out.extend_from_slice(&(run.len() as u32).to_le_bytes());
     let mut prev = 0u64;
-    for p in points {
-        put_varint(out, zigzag(p.id.wrapping_sub(prev) as i64));
-        prev = p.id;
+    for &id in &points.ids()[run.clone()] {
+        put_varint(out, zigzag(id.wrapping_sub(prev) as i64));
+        prev = id;
     }
+    let xyz = &points.xyz()[run.clone()];
     for axis in 0..3 {
-        let v: Vec<f64> = points.iter().map(|p| p.xyz[axis]).collect();
+        let v: Vec<f64> = xyz.iter().map(|p| p[axis]).collect();
         put_column(out, &v, grids.axis(input, axis));
     }
-    let with = points.iter().filter(|p| p.normal.is_some()).count();
+    let normals: Vec<Option<[f64; 3]>> = run.map(|i| points.get(i).normal).collect();
+    let with = normals.iter().filter(|n| n.is_some()).count();
     match with {
         0 => out.push(0),
-        n if n == points.len() => out.push(1),
+        n if n == normals.len() => out.push(1),
         _ => {
             out.push(2);
-            out.extend(points.iter().map(|p| p.normal.is_some() as u8));
+            out.extend(normals.iter().map(|n| n.is_some() as u8));
         }
     }
     if with > 0 {
         for axis in 0..3 {
-            let v: Vec<f64> = points
+            let v: Vec<f64> = normals
                 .iter()
-                .filter_map(|p| Some(p.normal?[axis]))
+                .filter_map(|n| Some(n.as_ref()?[axis]))
                 .collect();
             put_column(out, &v, None);
         }
@@ -200,7 +208,7 @@ fn put_run(out: &mut Vec<u8>, points: &[SourcePoint], grids: &Grids, input: usiz
 }
 
 /// Reads one run ([`put_run`]), appending its points to `out`.
-fn get_run(c: &mut Cursor<'_>, out: &mut Vec<SourcePoint>) -> Option<()> {
+fn get_run(c: &mut Cursor<'_>, out: &mut Points) -> Option<()> {
     let n = c.u32()? as usize;
     // Every point takes at least its id's byte: a larger count is damage, not an allocation.
     if n > c.remaining() {
@@ -240,7 +248,7 @@ fn get_run(c: &mut Cursor<'_>, out: &mut Vec<SourcePoint>) -> Option<()> {
             k += 1;
             [normals[0][k - 1], normals[1][k - 1], normals[2][k - 1]]
         });
-        out.push(SourcePoint {
+        out.push(&SourcePoint {
             id,
             xyz: [xyz[0][i], xyz[1][i], xyz[2][i]],
             normal,
@@ -250,14 +258,15 @@ fn get_run(c: &mut Cursor<'_>, out: &mut Vec<SourcePoint>) -> Option<()> {
 }
 
 /// Encodes points (in scan order) as one frame: runs of one input each.
-pub fn encode_frame(points: &[SourcePoint], grids: &Grids) -> std::io::Result<Vec<u8>> {
+pub fn encode_frame(points: &Points, grids: &Grids) -> std::io::Result<Vec<u8>> {
     let mut runs = Vec::new();
     let mut start = 0;
-    while start < points.len() {
-        let input = grids.input_of(points[start].id);
-        let len = points[start..]
+    let ids = points.ids();
+    while start < ids.len() {
+        let input = grids.input_of(ids[start]);
+        let len = ids[start..]
             .iter()
-            .take_while(|p| grids.input_of(p.id) == input)
+            .take_while(|&&id| grids.input_of(id) == input)
             .count();
         runs.push((start..start + len, input));
         start += len;
@@ -266,18 +275,18 @@ pub fn encode_frame(points: &[SourcePoint], grids: &Grids) -> std::io::Result<Ve
     raw.extend_from_slice(MAGIC);
     raw.extend_from_slice(&(runs.len() as u32).to_le_bytes());
     for (range, input) in runs {
-        put_run(&mut raw, &points[range], grids, input);
+        put_run(&mut raw, points, range, grids, input);
     }
     crate::io::pack::compress(&raw)
 }
 
 /// Decodes every frame of a bucket file (`bytes`, read from `path`). A damaged or truncated
 /// file, or one of another format, is an error that names it.
-pub fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Vec<SourcePoint>> {
+pub fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Points> {
     let bad = |what: &str| Error::damaged_work(path, &format!("bucket file {what}"));
     let raw = zstd::stream::decode_all(bytes).map_err(|_| bad("is damaged or truncated"))?;
     let mut c = Cursor::new(&raw);
-    let mut out = Vec::new();
+    let mut out = Points::default();
     while !c.is_done() {
         if c.take(MAGIC.len()) != Some(&MAGIC[..]) {
             return Err(bad("is not of this version of tilecurv"));
@@ -292,7 +301,7 @@ pub fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Vec<SourcePoint>> {
 
 /// Appends one frame per bucket of `buckets` to its bucket file. The frames are compressed in
 /// parallel (on the caller's rayon pool), then appended in the given order.
-pub fn spill(dir: &Path, buckets: Vec<(TileKey, Vec<SourcePoint>)>, grids: &Grids) -> Result<()> {
+pub fn spill(dir: &Path, buckets: Vec<(TileKey, Points)>, grids: &Grids) -> Result<()> {
     let frames: Vec<(TileKey, std::io::Result<Vec<u8>>)> = buckets
         .into_par_iter()
         .map(|(key, points)| (key, encode_frame(&points, grids)))

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use crate::core::plan::{Rect, ScanStats, TileGrid, TileKey};
-use crate::core::point::{SourcePoint, BUCKET_POINT_BYTES as POINT_BYTES};
+use crate::core::point::{Points, SourcePoint};
 use crate::core::tile::{Part, TilePoints};
 use crate::error::{Error, Result};
 use frames::{bucket_file, decode_frames};
@@ -34,14 +34,14 @@ struct TaskDir {
 /// The points of every tile core.
 pub struct Buckets {
     grid: TileGrid,
-    mem: HashMap<TileKey, Arc<Vec<SourcePoint>>>,
+    mem: HashMap<TileKey, Arc<Points>>,
     dirs: Vec<TaskDir>,
     cache: Mutex<Cache>,
 }
 
 #[derive(Default)]
 struct Cache {
-    entries: HashMap<TileKey, (Arc<Vec<SourcePoint>>, u64)>,
+    entries: HashMap<TileKey, (Arc<Points>, u64)>,
     bytes: usize,
     budget: usize,
     clock: u64,
@@ -53,7 +53,7 @@ pub fn task_stats(dir: &Path) -> Option<ScanStats> {
 }
 
 impl Buckets {
-    fn in_memory(grid: TileGrid, mem: HashMap<TileKey, Arc<Vec<SourcePoint>>>) -> Self {
+    fn in_memory(grid: TileGrid, mem: HashMap<TileKey, Arc<Points>>) -> Self {
         Buckets {
             grid,
             mem,
@@ -112,12 +112,12 @@ impl Buckets {
     }
 
     /// The core points of a tile.
-    pub fn core(&self, key: TileKey) -> Result<Arc<Vec<SourcePoint>>> {
+    pub fn core(&self, key: TileKey) -> Result<Arc<Points>> {
         if let Some(v) = self.mem.get(&key) {
             return Ok(v.clone());
         }
         if self.dirs.is_empty() {
-            return Ok(Arc::new(Vec::new()));
+            return Ok(Arc::new(Points::default()));
         }
         if let Ok(mut c) = self.cache.lock() {
             c.clock += 1;
@@ -128,7 +128,7 @@ impl Buckets {
             }
         }
         // The task directories in task order: the points in scan order, as one scan gives them.
-        let mut all = Vec::new();
+        let mut all = Points::default();
         for dir in &self.dirs {
             let Some(&count) = dir.tiles.get(&key) else {
                 continue;
@@ -143,11 +143,15 @@ impl Buckets {
                     &format!("bucket file holds {} points, not {count}", points.len()),
                 ));
             }
-            all.extend(points);
+            if all.is_empty() {
+                all = points;
+            } else {
+                all.extend_from(&points);
+            }
         }
         let points = Arc::new(all);
         if let Ok(mut c) = self.cache.lock() {
-            let size = points.len() * POINT_BYTES;
+            let size = points.heap_bytes();
             while c.bytes + size > c.budget && !c.entries.is_empty() {
                 let oldest = c
                     .entries
@@ -156,7 +160,7 @@ impl Buckets {
                     .map(|(k, _)| *k);
                 if let Some(k) = oldest {
                     if let Some((v, _)) = c.entries.remove(&k) {
-                        c.bytes -= v.len() * POINT_BYTES;
+                        c.bytes -= v.heap_bytes();
                     }
                 }
             }
@@ -176,7 +180,7 @@ impl Buckets {
         region: &Rect,
         exclude: TileKey,
         known: &BTreeMap<TileKey, u64>,
-        mut f: impl FnMut(&SourcePoint),
+        mut f: impl FnMut(SourcePoint),
     ) -> Result<()> {
         let lo = self.grid.key(region.min[0], region.min[1]);
         let hi = self.grid.key(region.max[0], region.max[1]);
@@ -186,9 +190,10 @@ impl Buckets {
             if key.1 < lo.1 || key.1 > hi.1 || key == exclude {
                 continue;
             }
-            for p in self.core(key)?.iter() {
-                if region.contains(p.xyz[0], p.xyz[1]) {
-                    f(p);
+            let core = self.core(key)?;
+            for (i, p) in core.xyz().iter().enumerate() {
+                if region.contains(p[0], p[1]) {
+                    f(core.get(i));
                 }
             }
         }
@@ -220,9 +225,9 @@ pub fn load_tile(
     t.ids.reserve(room);
     t.file_normals.reserve(room);
     let selected =
-        |p: &&SourcePoint| part.contains(&p.xyz) && only.is_none_or(|s| s.contains(&p.id));
+        |p: &SourcePoint| part.contains(&p.xyz) && only.is_none_or(|s| s.contains(&p.id));
     for p in core.iter().filter(selected) {
-        t.push(p);
+        t.push(&p);
     }
     t.n_core = t.xyz.len();
     // The rest of this tile's bucket in the region is context (other parts, or on a retry the
@@ -231,9 +236,9 @@ pub fn load_tile(
         .iter()
         .filter(|p| !selected(p) && region.contains(p.xyz[0], p.xyz[1]))
     {
-        t.push(p);
+        t.push(&p);
     }
-    buckets.gather(&region, key, known, |p| t.push(p))?;
+    buckets.gather(&region, key, known, |p| t.push(&p))?;
     t.morton_order();
     Ok(t)
 }

@@ -14,7 +14,7 @@ use super::frames::{bucket_file, spill, AxisGrid, Grids};
 use super::stats::stats_text;
 use super::{Buckets, TaskDir, DONE};
 use crate::core::plan::{computable, MemoryPlan, ScanStats, TileGrid, TileKey, MAX_COORDINATE};
-use crate::core::point::{SourcePoint, BUCKET_POINT_BYTES as POINT_BYTES};
+use crate::core::point::{Points, SourcePoint};
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::source::PointSource;
@@ -46,7 +46,8 @@ fn rescale_z(p: &mut SourcePoint, s: f64) {
 
 /// Buckets held in memory during a scan, and where they spill.
 struct Held {
-    mem: HashMap<TileKey, Vec<SourcePoint>>,
+    mem: HashMap<TileKey, Points>,
+    /// The held buckets' heap bytes ([`Points::heap_bytes`]).
     bytes: usize,
     tmp: PathBuf,
     spilled: bool,
@@ -63,13 +64,13 @@ impl Held {
             self.mem.iter().map(|(k, v)| (v.len(), *k)).collect();
         sizes.sort_unstable_by(|a, b| b.cmp(a));
         let mut out = Vec::new();
-        for (len, key) in sizes {
+        for (_, key) in sizes {
             if self.bytes <= down_to {
                 break;
             }
             if let Some(v) = self.mem.remove(&key) {
+                self.bytes -= v.heap_bytes();
                 out.push((key, v));
-                self.bytes -= len * POINT_BYTES;
             }
         }
         spill(&self.tmp, out, &self.grids)
@@ -201,7 +202,6 @@ fn append(
     for (piece, decoded) in pieces.iter().zip(decoded) {
         decoded?;
         stats.merge(&piece.stats);
-        held.bytes += piece.points.len() * POINT_BYTES;
         let mut start = 0;
         for &(key, len) in &piece.runs {
             let run = &piece.points[start..start + len];
@@ -209,9 +209,11 @@ fn append(
             // runs gave capacities that are not powers of two, and 60 MiB more peak RSS on the
             // 20M terrain.
             let bucket = held.mem.entry(key).or_default();
+            let before = bucket.heap_bytes();
             for p in run {
-                bucket.push(*p);
+                bucket.push(p);
             }
+            held.bytes += bucket.heap_bytes() - before;
             start += len;
         }
     }
