@@ -12,7 +12,7 @@
 #
 # Environment: TILECURV_SCALE_DIR (inputs, outputs and work directories; default
 # /tmp/tilecurv-scale; 100M points need about 6 GB of input, 9 GB of output and a few GB of
-# work directory), MEMORY (default 2G; 1G makes the buckets of 10M points spill), THREADS
+# work directory), MEMORY (default 2G; 512M makes the buckets of 10M points spill), THREADS
 # (default: all cores), FORMAT (las or laz, default las), SEED (default 1), STAGES (process, the
 # default, or split: plan, bucket, run-tile and assemble as separate commands, whose buckets
 # always go to disk), TILECURV (the binary; default: built here with cargo build --release, in

@@ -86,13 +86,14 @@ pub fn sym2_eigen(a: f64, b: f64, c: f64) -> ([f64; 2], [[f64; 2]; 2]) {
     ([l1, l2], [v1, v2])
 }
 
-/// Eigenvalues (ascending) of a symmetric 3x3 matrix and the unit eigenvector of the smallest,
-/// in closed form: trigonometric eigenvalues, and the eigenvector as the longest cross product
-/// of two rows of M - l0 I (orthogonal to both). About ten times cheaper than the iterative
-/// [`sym3_eigen`], and as accurate for the eigenvector when l0 is separated from l1 (its error
-/// grows like eps * l2 / (l1 - l0), the case where a PCA normal means something). None when
-/// that eigenvector is undefined: all eigenvalues equal, or a non-finite matrix.
-pub fn sym3_smallest(m: &M3) -> Option<([f64; 3], V3)> {
+/// The unit eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix, in closed form:
+/// the trigonometric smallest eigenvalue l0, and the eigenvector as the longest cross product of
+/// two rows of M - l0 I (orthogonal to both). About ten times cheaper than the iterative
+/// [`sym3_eigen`], and as accurate when l0 is separated from l1 (the error grows like
+/// eps * l2 / (l1 - l0), the case where a PCA normal means something). None when that
+/// eigenvector is undefined: all eigenvalues equal, or a non-finite matrix. The other two
+/// eigenvalues are [`other_two`]'s.
+pub fn sym3_smallest(m: &M3) -> Option<V3> {
     let off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
     let q = (m[0][0] + m[1][1] + m[2][2]) / 3.0;
     let d = [m[0][0] - q, m[1][1] - q, m[2][2] - q];
@@ -114,15 +115,30 @@ pub fn sym3_smallest(m: &M3) -> Option<([f64; 3], V3)> {
     let best = [cross(r0, r1), cross(r0, r2), cross(r1, r2)]
         .into_iter()
         .max_by(|a, b| dot(*a, *a).total_cmp(&dot(*b, *b)))?;
-    let v = normalize(best)?;
-    // The trigonometric values lose about half the digits near a double eigenvalue (acos near
-    // +-1): take the eigenvalues as Rayleigh quotients instead, v's and those of the 2x2
-    // compression of M onto the plane orthogonal to v (exact to rounding whatever the gaps).
-    let mv = |a: V3| [dot(m[0], a), dot(m[1], a), dot(m[2], a)];
-    let (e1, e2) = tangent_basis(v);
-    let (t, _) = sym2_eigen(dot(e1, mv(e1)), dot(e1, mv(e2)), dot(e2, mv(e2)));
-    let l0 = dot(v, mv(v));
-    Some(([l0.min(t[0]), t[0].max(l0), t[1]], v))
+    normalize(best)
+}
+
+/// The sum and the product of the two eigenvalues of a symmetric 3x3 matrix `m` other than the
+/// one of its unit eigenvector `v`: the trace and the determinant of m's compression onto the
+/// plane orthogonal to v, as tr(m) - v'mv and v' adj(m) v (the cofactor form). Exact to
+/// rounding whatever the gaps (the trigonometric eigenvalues lose about half the digits near a
+/// double one), and without a square root: a ratio test on the two needs none
+/// ([`crate::core::normals::pca_normal`]).
+pub fn other_two(m: &M3, v: V3) -> (f64, f64) {
+    let mv = [dot(m[0], v), dot(m[1], v), dot(m[2], v)];
+    let sum = m[0][0] + m[1][1] + m[2][2] - dot(v, mv);
+    // The cofactors of the symmetric m (adj(m) is symmetric too).
+    let a00 = m[1][1] * m[2][2] - m[1][2] * m[1][2];
+    let a11 = m[0][0] * m[2][2] - m[0][2] * m[0][2];
+    let a22 = m[0][0] * m[1][1] - m[0][1] * m[0][1];
+    let a01 = m[0][2] * m[1][2] - m[0][1] * m[2][2];
+    let a02 = m[0][1] * m[1][2] - m[0][2] * m[1][1];
+    let a12 = m[0][1] * m[0][2] - m[0][0] * m[1][2];
+    let product = a00 * v[0] * v[0]
+        + a11 * v[1] * v[1]
+        + a22 * v[2] * v[2]
+        + 2.0 * (a01 * v[0] * v[1] + a02 * v[0] * v[2] + a12 * v[1] * v[2]);
+    (sum, product)
 }
 
 /// Eigen-decomposition of a symmetric 3x3 matrix: eigenvalues ascending and the matching unit
@@ -167,17 +183,22 @@ mod tests {
                 }
             }
             let (want_l, want_v) = sym3_eigen(&m);
-            let Some((l, v)) = sym3_smallest(&m) else {
+            let Some(v) = sym3_smallest(&m) else {
                 // Undefined only for a multiple of the identity (up to rounding).
                 assert!(spread[1] == 1.0 && spread[2] == 1.0, "case {case}: {m:?}");
                 continue;
             };
-            for a in 0..3 {
-                assert!(
-                    (l[a] - want_l[a]).abs() <= 1e-13 * want_l[2],
-                    "case {case}: eigenvalues {l:?} vs {want_l:?}"
-                );
-            }
+            // The other two eigenvalues' sum and product, from v (Rayleigh-accurate).
+            let (sum, product) = other_two(&m, v);
+            let l2 = want_l[2];
+            assert!(
+                (sum - (want_l[1] + l2)).abs() <= 1e-13 * l2,
+                "case {case}: sum {sum} vs {want_l:?}"
+            );
+            assert!(
+                (product - want_l[1] * l2).abs() <= 1e-13 * l2 * l2,
+                "case {case}: product {product} vs {want_l:?}"
+            );
             let gap = (want_l[1] - want_l[0]) / want_l[2];
             if gap > 1e-6 {
                 let cos = dot(v, want_v[0]).abs();

@@ -1,7 +1,7 @@
 //! Normals: PCA over a point's neighbours (the same K-NN the estimator uses) and orientation.
 //! Pure: works on coordinates and neighbour lists.
 
-use crate::core::geometry::{dot, scale, sub, sym3_smallest, V3};
+use crate::core::geometry::{dot, other_two, scale, sub, sym3_smallest, V3};
 
 /// How PCA normals are oriented (their sign is otherwise arbitrary).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,11 +46,15 @@ pub fn pca_normal(xyz: &[V3], nbrs: &[u32]) -> Option<V3> {
     c[1][0] = c[0][1];
     c[2][0] = c[0][2];
     c[2][1] = c[1][2];
-    let (vals, normal) = sym3_smallest(&c)?;
-    if vals[2].is_nan() || vals[2] <= 0.0 || vals[1] <= 1e-12 * vals[2] {
-        return None;
-    }
-    Some(normal)
+    let normal = sym3_smallest(&c)?;
+    // Degenerate unless the other eigenvalues l1 <= l2 have l2 > 0 and l1 > EPS l2. With their
+    // sum s and product p, l1 is at most t = EPS s / (1 + EPS) iff x^2 - s x + p <= 0 at t
+    // (t <= s / 2 lies between the roots then), that is p <= t (s - t): a test without the
+    // roots' square root. NaN sums and products are degenerate.
+    const EPS: f64 = 1e-12;
+    let (s, p) = other_two(&c, normal);
+    let t = EPS * s / (1.0 + EPS);
+    (s > 0.0 && p > t * (s - t)).then_some(normal)
 }
 
 /// Orients `n` at absolute position `p`. A normal exactly orthogonal to the reference direction
