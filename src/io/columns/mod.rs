@@ -441,14 +441,8 @@ impl ColumnSet {
         out.push(r.curvature.flags);
     }
 
-    /// Decodes one point's stored values (as [`ColumnSet::encode_result`] wrote them) into a
-    /// result with id 0 and no patch; values not stored are NaN (directions zero). Many
-    /// records: [`ColumnSet::layout`] once, then [`ResultLayout::decode`].
-    pub fn decode_result(&self, rec: &[u8]) -> PointResult {
-        self.layout().decode(rec)
-    }
-
-    /// The order and width of the stored values, for decoding many records.
+    /// The order and width of the stored values, for decoding records
+    /// ([`ResultLayout::decode`]).
     pub fn layout(&self) -> ResultLayout {
         let mut values = [Value::H; MAX_STORED];
         let mut len = 0;
@@ -479,7 +473,8 @@ pub struct ResultLayout {
 }
 
 impl ResultLayout {
-    /// [`ColumnSet::decode_result`] of `rec`.
+    /// Decodes one point's stored values (as [`ColumnSet::encode_result`] wrote them) into a
+    /// result with id 0 and no patch; values not stored are NaN (directions zero).
     pub fn decode(&self, rec: &[u8]) -> PointResult {
         let mut r = PointResult {
             id: 0,

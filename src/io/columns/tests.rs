@@ -109,8 +109,8 @@ fn flipping_decoded_results_is_exact() {
     let mut rec = Vec::new();
     cols.encode_result(&r, &mut rec);
     assert_eq!(rec.len(), cols.result_size());
-    assert_eq!(cols.decode_result(&rec).curvature, r.curvature);
-    let f = cols.decode_result(&rec).flipped(&cols.extra);
+    assert_eq!(cols.layout().decode(&rec).curvature, r.curvature);
+    let f = cols.layout().decode(&rec).flipped(&cols.extra);
     assert_eq!(f.normal, [-0.0, -0.6, -0.8]);
     let c = f.curvature;
     assert_eq!((c.h, c.k, c.k1, c.k2), (-0.5, 0.06, -0.3, -0.2));
@@ -122,7 +122,7 @@ fn flipping_decoded_results_is_exact() {
     cols.encode_result(&f, &mut flipped);
     let mut back = Vec::new();
     cols.encode_result(
-        &cols.decode_result(&flipped).flipped(&cols.extra),
+        &cols.layout().decode(&flipped).flipped(&cols.extra),
         &mut back,
     );
     assert_eq!(back, rec);
@@ -136,7 +136,7 @@ fn flipping_decoded_results_is_exact() {
     narrow.encode_result(&r, &mut small);
     assert_eq!(small.len(), narrow.result_size());
     assert_eq!(narrow.result_size() - 1, (cols.result_size() - 1) / 2);
-    let d = narrow.decode_result(&small);
+    let d = narrow.layout().decode(&small);
     assert_eq!(d.curvature.h, 0.5f32 as f64);
     assert_eq!(d.curvature.k, 0.06f32 as f64);
     assert_eq!(d.normal, r.normal.map(|v| v as f32 as f64));
