@@ -68,12 +68,17 @@ impl Points {
         &self.ids
     }
 
+    /// The file's normal of point `i`, if it has one.
+    pub fn normal(&self, i: usize) -> Option<[f64; 3]> {
+        self.normals.get(i).copied().flatten()
+    }
+
     /// Point `i` (which must be below `len`).
     pub fn get(&self, i: usize) -> SourcePoint {
         SourcePoint {
             id: self.ids[i],
             xyz: self.xyz[i],
-            normal: self.normals.get(i).copied().flatten(),
+            normal: self.normal(i),
         }
     }
 
@@ -148,10 +153,14 @@ mod tests {
             .map(|i| p(i, (i % 2 == 0).then_some([0.0, 0.6, 0.8])))
             .collect();
         let a: Points = plain.iter().copied().collect();
-        assert_eq!(a.heap_bytes(), a.ids.capacity() * 8 + a.xyz.capacity() * 24);
-        assert!(a.normals.is_empty());
+        // Without normals no normal column is allocated: 32 bytes a point and the growth.
+        assert_eq!(a.normals.capacity(), 0);
+        assert!(a.heap_bytes() >= 32 * a.len());
         let b: Points = mixed.iter().copied().collect();
         assert_eq!(b.normals.len(), b.len());
+        assert!(b.heap_bytes() >= 64 * b.len());
+        assert_eq!(b.normal(0), None);
+        assert_eq!(b.normal(1), Some([0.0, 0.6, 0.8]));
         for (x, y) in [(&a, &b), (&b, &a)] {
             let mut joined = x.clone();
             joined.extend_from(y);

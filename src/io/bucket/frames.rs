@@ -186,21 +186,21 @@ fn put_run(
         let v: Vec<f64> = xyz.iter().map(|p| p[axis]).collect();
         put_column(out, &v, grids.axis(input, axis));
     }
-    let normals: Vec<Option<[f64; 3]>> = run.map(|i| points.get(i).normal).collect();
-    let with = normals.iter().filter(|n| n.is_some()).count();
+    // Counted and read by index: no column of 32-byte options built per run while spilling.
+    let with = run.clone().filter(|&i| points.normal(i).is_some()).count();
     match with {
         0 => out.push(0),
-        n if n == normals.len() => out.push(1),
+        n if n == run.len() => out.push(1),
         _ => {
             out.push(2);
-            out.extend(normals.iter().map(|n| n.is_some() as u8));
+            out.extend(run.clone().map(|i| points.normal(i).is_some() as u8));
         }
     }
     if with > 0 {
         for axis in 0..3 {
-            let v: Vec<f64> = normals
-                .iter()
-                .filter_map(|n| Some(n.as_ref()?[axis]))
+            let v: Vec<f64> = run
+                .clone()
+                .filter_map(|i| Some(points.normal(i)?[axis]))
                 .collect();
             put_column(out, &v, None);
         }
