@@ -3,9 +3,10 @@
 
 use std::path::PathBuf;
 
+use crate::config::parse_count;
 use crate::progress::say;
 use crate::tools::generate::{
-    generate_shape, generate_terrain, parse_count, Noise, Shape, ShapeOptions, TerrainOptions,
+    generate_shape, generate_terrain, Noise, Shape, ShapeOptions, TerrainOptions,
 };
 
 use super::{exit, fail, CANCEL, EXIT_HELP};

@@ -1,5 +1,5 @@
-//! The command line: clap definitions (in `args`), turned once into a validated [`Config`],
-//! the commands run, and the exit codes. The binary (`main.rs`) only calls [`main_with_args`].
+//! The command line: clap definitions (in `args`), turned once into a validated run
+//! (`config::RunParams`, `run::Process`), the commands run, and the exit codes. The binary (`main.rs`) only calls [`main_with_args`].
 
 mod args;
 mod generate;
@@ -10,7 +10,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 
-use crate::config::Config;
 use crate::error::{Error, ExitClass};
 use crate::progress::TermReporter;
 use args::{AssembleArgs, BucketArgs, InfoArgs, PlanArgs, ProcessArgs, RunTileArgs, StatusArgs};
@@ -122,9 +121,10 @@ fn exit_code(e: &Error) -> i32 {
     }
 }
 
-/// A terminal reporter, or the exit code of the error that prevented it.
-fn reporter(quiet: bool, cfg: &Config) -> Result<TermReporter, i32> {
-    TermReporter::new(quiet, cfg.progress_json.as_deref()).map_err(|e| fail(&e))
+/// A terminal reporter (`progress_json`: `--progress-json`), or the exit code of the error
+/// that prevented it.
+fn reporter(quiet: bool, progress_json: Option<&std::path::Path>) -> Result<TermReporter, i32> {
+    TermReporter::new(quiet, progress_json).map_err(|e| fail(&e))
 }
 
 /// Prints an error (and what to do after an interruption) and returns its exit code.
@@ -188,13 +188,14 @@ pub(crate) fn summary_event(reporter: &TermReporter, s: &crate::run::Summary) {
 /// `tilecurv process`.
 fn process(args: ProcessArgs) -> Result<i32, i32> {
     let quiet = args.quiet();
-    let cfg = args.into_config();
-    let reporter = reporter(quiet, &cfg)?;
-    let s = crate::run::process(&cfg, &reporter, &CANCEL).map_err(|e| fail(&e))?;
-    if !cfg.dry_run {
+    let exec = args.exec();
+    let job = args.into_process().map_err(|e| fail(&e))?;
+    let reporter = reporter(quiet, exec.progress_json.as_deref())?;
+    let s = crate::run::process(&job, &exec, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    if !job.dry_run {
         summary_event(&reporter, &s);
     }
-    if !quiet && !cfg.dry_run {
+    if !quiet && !job.dry_run {
         say!(
             "done: {} points in {:.1} s ({}), {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
             s.points,
@@ -205,7 +206,7 @@ fn process(args: ProcessArgs) -> Result<i32, i32> {
             s.undefined,
             100.0 * s.undefined as f64 / s.points.max(1) as f64,
             s.retried,
-            cfg.output.display()
+            job.output.display()
         );
     }
     Ok(exit::OK)

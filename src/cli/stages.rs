@@ -3,16 +3,16 @@
 
 use super::args::{AssembleArgs, BucketArgs, PlanArgs, RunTileArgs, StatusArgs};
 use super::{exit, fail, reporter, CANCEL};
-use crate::config::Config;
 use crate::progress::{out, say};
 use crate::run::cluster;
 
 /// `tilecurv plan`: prints `bucket tasks: B`, `tiles per task: K`, then `tasks: N` (the last
 /// line of stdout).
 pub fn plan(a: PlanArgs) -> Result<i32, i32> {
-    let cfg = a.config();
-    let reporter = reporter(a.quiet, &cfg)?;
-    let p = cluster::plan(&cfg, &a.work, a.tiles_per_task, &reporter).map_err(|e| fail(&e))?;
+    let params = a.params().map_err(|e| fail(&e))?;
+    let reporter = reporter(a.quiet, None)?;
+    let p = cluster::plan(&a.inputs(), params, &a.work, a.tiles_per_task, &reporter)
+        .map_err(|e| fail(&e))?;
     if !a.quiet {
         say!(
             "planned {}: {} bucket tasks, {} tile tasks of {} tiles of the grid each",
@@ -30,14 +30,14 @@ pub fn plan(a: PlanArgs) -> Result<i32, i32> {
 
 /// `tilecurv bucket`.
 pub fn bucket(a: BucketArgs) -> Result<i32, i32> {
-    let cfg = a.exec.config();
-    let reporter = reporter(a.exec.quiet(), &cfg)?;
+    let opts = a.exec.options();
+    let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
     let task = a
         .task
         .map(|t| t.resolve().map(|i| i as usize))
         .transpose()
         .map_err(|e| fail(&e))?;
-    let ran = cluster::bucket(&a.work, &cfg, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    let ran = cluster::bucket(&a.work, &opts, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !a.exec.quiet() {
         say!("done: {ran} bucket tasks run (the others were done)");
     }
@@ -46,10 +46,10 @@ pub fn bucket(a: BucketArgs) -> Result<i32, i32> {
 
 /// `tilecurv run-tile`.
 pub fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
-    let cfg = a.exec.config();
-    let reporter = reporter(a.exec.quiet(), &cfg)?;
+    let opts = a.exec.options();
+    let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
     let task = a.task.resolve().map_err(|e| fail(&e))?;
-    let d = cluster::run_tile(&a.work, &cfg, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    let d = cluster::run_tile(&a.work, &opts, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !a.exec.quiet() {
         say!(
             "done: task {task}: {} tiles already done, {} undefined points among those computed now, {} recomputed with a wider halo",
@@ -61,9 +61,8 @@ pub fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
 
 /// `tilecurv status`: `done D of N tasks`, or the missing indices with --missing.
 pub fn status(a: StatusArgs) -> Result<i32, i32> {
-    let cfg = Config::default();
-    let reporter = reporter(true, &cfg)?;
-    let s = cluster::status(&a.work, &cfg, &reporter).map_err(|e| fail(&e))?;
+    let reporter = reporter(true, None)?;
+    let s = cluster::status(&a.work, &reporter).map_err(|e| fail(&e))?;
     if a.missing {
         if !s.missing.is_empty() {
             out!("{}", crate::core::tasks::array_syntax(&s.missing));
@@ -76,12 +75,10 @@ pub fn status(a: StatusArgs) -> Result<i32, i32> {
 
 /// `tilecurv assemble`.
 pub fn assemble(a: AssembleArgs) -> Result<i32, i32> {
-    let cfg = Config {
-        output: a.output.clone(),
-        ..a.exec.config()
-    };
-    let reporter = reporter(a.exec.quiet(), &cfg)?;
-    let s = cluster::assemble(&a.work, &cfg, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    let opts = a.exec.options();
+    let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
+    let s =
+        cluster::assemble(&a.work, &a.output, &opts, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     super::summary_event(&reporter, &s);
     if !a.exec.quiet() {
         say!(

@@ -1,6 +1,6 @@
 //! A loaded tile: its core points (the ones it answers for) followed by the halo points that
 //! their neighbourhoods may reach; the quadtree parts of a tile too dense for the budget; the
-//! Morton order of the points. Pure: `io::bucket::load_tile` fills it from the buckets.
+//! Morton order of the points. Pure: `io::workdir::bucket::load_tile` fills it from the buckets.
 
 use crate::core::geometry::V3;
 use crate::core::plan::Rect;

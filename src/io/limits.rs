@@ -3,7 +3,7 @@
 //! address-space limit and the cgroup's memory limit, which `run::limits` fits the budget to).
 
 /// Raises the soft limit on open files to the hard limit (a run opens up to
-/// [`MAX_FAN_IN`](crate::io::results::MAX_FAN_IN) result files at once when it merges them,
+/// [`MAX_FAN_IN`](crate::io::workdir::results::MAX_FAN_IN) result files at once when it merges them,
 /// as its memory budget allows);
 /// a limit that cannot be raised is left as it is, and the merge fits itself to it.
 pub fn raise_open_files() {

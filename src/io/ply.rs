@@ -16,8 +16,9 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
 use crate::io::direct::DirectFile;
+use crate::io::durable::TempFile;
 use crate::io::las::extra_bytes::ScalarType;
-use crate::io::output::{PointSink, TempFile};
+use crate::io::output::PointSink;
 use crate::io::source::ply::ply_type_name;
 use crate::io::source::{encode_le, PointSource, Property};
 

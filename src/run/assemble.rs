@@ -5,13 +5,12 @@
 //! run shares one encoding); with `--orient propagate` the cross-tile signs are solved first
 //! too (run::orientation).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crossbeam_channel::{bounded, Receiver, Sender};
 use rayon::prelude::*;
 
-use crate::config::OrientMode;
 use crate::core::compute::PointResult;
 use crate::core::estimate::flags;
 use crate::core::orient::GlobalPatch;
@@ -20,47 +19,37 @@ use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns, Steps};
 use crate::io::columns::{ColumnSet, ColumnType, Group};
-use crate::io::results::{record_size, scene_stats, tile_path, Merger};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
-use crate::io::workdir::WorkDir;
+use crate::io::workdir::results::{record_size, scene_stats, Merger};
 use crate::progress::Reporter;
 use crate::run::bucket::chunk_points;
 use crate::run::orientation::resolve_orientation;
-use crate::run::spec::RunSpec;
-use crate::run::Exec;
+use crate::run::{Exec, Run};
 
-/// Writes every output of `spec` from the tile results in `work` (the tiles of `tiles`, all
-/// finished). Returns the number of points written whose curvature is undefined (from every
-/// tile's results, whichever run computed them; points the class filter left out are not
-/// counted).
-pub fn assemble_outputs(
-    work: &WorkDir,
-    spec: &RunSpec,
-    tiles: &TilePlan,
-    exec: &Exec<'_>,
-) -> Result<u64> {
-    let results_dir = work.path().join("results");
-    let files: Vec<PathBuf> = tiles
-        .tiles
-        .iter()
-        .map(|t| tile_path(&results_dir, t.key))
-        .collect();
-    let flips = match spec.orientation {
-        OrientMode::Propagate => Some(resolve_orientation(&results_dir, tiles, exec.reporter)?),
-        _ => None,
+/// Writes every output of `run` from its tile results (the tiles of `tiles`, all finished).
+/// Returns the number of points written whose curvature is undefined (from every tile's
+/// results, whichever run computed them; points the class filter left out are not counted).
+pub fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> Result<u64> {
+    let spec = &run.spec;
+    let store = run.work.results()?;
+    let files = store.files(&tiles.tiles);
+    let flips = match spec.propagates() {
+        true => Some(resolve_orientation(store.dir(), tiles, exec.reporter)?),
+        false => None,
     };
     let steps = Steps::from_stats(&scene_stats(&files, &spec.cols)?);
     let curvature = [Group::H, Group::K, Group::K1, Group::K2];
-    if spec.column_type == ColumnType::Scaled && curvature.iter().any(|&g| spec.cols.choice.has(g))
+    if spec.params.column_type == ColumnType::Scaled
+        && curvature.iter().any(|&g| spec.cols.choice.has(g))
     {
         exec.reporter.info(&format!(
             "scaled columns (LAS/LAZ outputs): unit vectors i16 at 1/32767; H, K, and k1 with k2 i32 at steps {:e}, {:e}, {:e} (the error is at most half a step)",
             steps.h, steps.k, steps.principal
         ));
     }
-    let encoding = Encoding::new(spec.column_type, steps);
-    let mut merger = Merger::open(&results_dir, &files, &spec.cols, exec.memory.budget_bytes)?;
+    let encoding = Encoding::new(spec.params.column_type, steps);
+    let mut merger = Merger::open(store.dir(), &files, &spec.cols, exec.memory.budget_bytes)?;
     exec.reporter.phase("write", spec.total_points);
     let chunk = chunk_points(spec, exec);
     let mut undefined = 0;
@@ -73,7 +62,7 @@ pub fn assemble_outputs(
             flips: flips.as_deref(),
             stored: &spec.cols,
             cols: &out_cols,
-            select: &spec.select,
+            select: &spec.params.select,
             chunk_points: chunk,
             reporter: exec.reporter,
             cancel: exec.cancel,

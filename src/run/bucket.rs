@@ -5,16 +5,13 @@
 //! every input and keeps its buckets in memory while they fit. A task whose directory is
 //! complete is not run again.
 
-use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 
 use crate::core::plan::ScanStats;
-use crate::core::tasks::TaskLayout;
 use crate::error::{Error, Result};
-use crate::io::bucket::{scan, task_stats, Buckets, ScanInput};
-use crate::io::workdir::{sweep_dead_temps, WorkDir};
+use crate::io::workdir::bucket::{scan, task_stats, Buckets, ScanInput};
 use crate::run::spec::RunSpec;
-use crate::run::Exec;
+use crate::run::{Exec, Run};
 
 /// The scan's product: the buckets and what the scan learned.
 pub struct Bucketed {
@@ -35,23 +32,16 @@ pub fn chunk_points(spec: &RunSpec, exec: &Exec<'_>) -> usize {
     exec.memory.chunk_points(exec.chunk_points, widest)
 }
 
-/// The directory of bucket task `task`.
-pub fn task_dir(work: &WorkDir, task: usize) -> PathBuf {
-    work.path().join("buckets").join(format!("t{task}"))
-}
-
-/// Runs bucket task `task` of `layout` unless its directory is already complete (then None).
-/// With
-/// `keep_in_memory` (`process`), buckets that fit the budget are returned in memory and not
-/// written.
+/// Runs bucket task `task` of `run` unless its directory is already complete (then None).
+/// With `keep_in_memory` (`process`), buckets that fit the budget are returned in memory and
+/// not written.
 pub fn bucket_task(
-    work: &WorkDir,
-    spec: &RunSpec,
-    layout: &TaskLayout,
+    run: &Run,
     task: usize,
     keep_in_memory: bool,
     exec: &Exec<'_>,
 ) -> Result<Option<Bucketed>> {
+    let (spec, layout) = (&run.spec, &run.layout);
     let inputs = layout.bucket_tasks.get(task).cloned().ok_or_else(|| {
         Error::Usage(format!(
             "--task {task}: there are {} bucket tasks (0 to {})",
@@ -59,21 +49,18 @@ pub fn bucket_task(
             layout.bucket_tasks.len().saturating_sub(1)
         ))
     })?;
-    let dir = task_dir(work, task);
+    let dir = run.work.bucket_task_dir(task);
     if task_stats(&dir).is_some() {
         return Ok(None);
     }
-    let buckets = work.path().join("buckets");
-    std::fs::create_dir_all(&buckets).map_err(|e| Error::write(&buckets, e))?;
-    // A scan killed after spilling leaves its attempt's frames; they are never reused.
-    sweep_dead_temps(&buckets);
+    run.work.prepare_buckets()?;
     let scan_inputs: Vec<ScanInput<'_>> = inputs
         .clone()
         .map(|i| ScanInput {
             source: spec.sources[i].as_ref(),
             first_id: spec.first_ids[i],
-            z_scale: spec.z_scale,
-            select: &spec.select,
+            z_scale: spec.resolved.z_scale,
+            select: &spec.params.select,
         })
         .collect();
     let points = scan_inputs.iter().map(|s| s.source.len()).sum();
@@ -101,13 +88,11 @@ pub fn bucket_task(
     Ok(Some(Bucketed { buckets, stats }))
 }
 
-/// The buckets of every bucket task of `layout`, from their directories; an error naming the
+/// The buckets of every bucket task of `run`, from their directories; an error naming the
 /// tasks that are not done yet.
-pub fn open_buckets(work: &WorkDir, spec: &RunSpec, layout: &TaskLayout) -> Result<Bucketed> {
-    let dirs: Vec<PathBuf> = (0..layout.bucket_tasks.len())
-        .map(|t| task_dir(work, t))
-        .collect();
-    match Buckets::open(spec.grid, &dirs) {
+pub fn open_buckets(run: &Run) -> Result<Bucketed> {
+    let dirs = run.work.bucket_task_dirs(run.layout.bucket_tasks.len());
+    match Buckets::open(run.spec.grid, &dirs) {
         Ok((buckets, stats)) => Ok(Bucketed { buckets, stats }),
         Err(missing) => Err(Error::TasksMissing {
             stage: "bucket",
@@ -116,7 +101,7 @@ pub fn open_buckets(work: &WorkDir, spec: &RunSpec, layout: &TaskLayout) -> Resu
             ),
             hint: format!(
                 "run `tilecurv bucket --work {} --task I` for each (or once without --task)",
-                work.path().display()
+                run.work.path().display()
             ),
         }),
     }
@@ -125,18 +110,13 @@ pub fn open_buckets(work: &WorkDir, spec: &RunSpec, layout: &TaskLayout) -> Resu
 /// The bucket stage of `process` (its layout has one bucket task over every input): the scan,
 /// in memory while the buckets fit, or the buckets an interrupted run of the same manifest left
 /// complete.
-pub fn bucket_all(
-    work: &WorkDir,
-    spec: &RunSpec,
-    layout: &TaskLayout,
-    exec: &Exec<'_>,
-) -> Result<Bucketed> {
-    match bucket_task(work, spec, layout, 0, true, exec)? {
+pub fn bucket_all(run: &Run, exec: &Exec<'_>) -> Result<Bucketed> {
+    match bucket_task(run, 0, true, exec)? {
         Some(b) => Ok(b),
         None => {
             exec.reporter
                 .info("reusing the buckets of the interrupted run");
-            open_buckets(work, spec, layout)
+            open_buckets(run)
         }
     }
 }

@@ -7,22 +7,21 @@
 //! without its lock. They call the very stage functions `process` runs, so the outputs are the
 //! same bytes.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use crate::config::Config;
-use crate::core::plan::{plan as plan_tiles, TileKey};
+use crate::config::{ExecOptions, RunParams};
+use crate::core::plan::TileKey;
 use crate::core::tasks::{array_syntax, TaskLayout};
 use crate::error::{Error, Result};
 use crate::io::source::declared_bounds;
-use crate::io::workdir::{WorkDir, TASKS};
 use crate::progress::Reporter;
 use crate::run::bucket::{bucket_task, open_buckets};
 use crate::run::prepare::{check_output_columns, check_outputs, open_inputs, output_paths};
-use crate::run::spec::{manifest_params, RunSpec};
-use crate::run::tiles::{missing_tiles, tiles, TilesDone};
-use crate::run::{Exec, Summary};
+use crate::run::spec::RunSpec;
+use crate::run::tiles::{tiles, TilesDone};
+use crate::run::{Exec, Run, Summary};
 
 /// What `plan` made.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -56,11 +55,13 @@ fn grid_bounds(spec: &RunSpec) -> Result<(TileKey, TileKey)> {
     })
 }
 
-/// `tilecurv plan`: opens and checks the inputs of `cfg`, creates the work directory `work` if
-/// needed and writes its manifest and task layout (one bucket task per input; tile tasks of
-/// `tiles_per_task` tiles of the grid over the inputs' bounds).
+/// `tilecurv plan`: opens and checks `inputs` (absolute paths: the tasks run elsewhere),
+/// creates the work directory `work` if needed and writes its manifest and task layout (one
+/// bucket task per input; tile tasks of `tiles_per_task` tiles of the grid over the inputs'
+/// bounds).
 pub fn plan(
-    cfg: &Config,
+    inputs: &[PathBuf],
+    params: RunParams,
     work: &Path,
     tiles_per_task: Option<u64>,
     reporter: &dyn Reporter,
@@ -68,67 +69,15 @@ pub fn plan(
     if tiles_per_task == Some(0) {
         return Err(Error::Usage("--tiles-per-task must be at least 1".into()));
     }
-    let spec = open_inputs(cfg, reporter)?;
+    let spec = open_inputs(inputs, params, reporter)?;
     let (lo, hi) = grid_bounds(&spec)?;
     let buckets = (0..spec.sources.len()).map(|i| i..i + 1).collect();
     let layout = TaskLayout::new(buckets, lo, hi, tiles_per_task);
-    drop(super::plan(work, &spec, &layout, reporter)?);
+    let run = Run::plan(spec, work, layout, reporter)?;
     Ok(Planned {
-        bucket_tasks: layout.bucket_tasks.len(),
-        tile_tasks: layout.tile_tasks(),
-        tiles_per_task: layout.tiles_per_task,
-    })
-}
-
-/// A planned work directory, attached without its lock, with the run it holds.
-struct Attached {
-    work: WorkDir,
-    spec: RunSpec,
-    layout: TaskLayout,
-    cfg: Config,
-}
-
-/// Attaches to the planned work directory at `path`: the run's options from its manifest,
-/// how to execute from `exec_cfg` (threads, memory, chunk size, output). The inputs must be the
-/// ones `plan` saw.
-fn attach(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result<Attached> {
-    let (work, manifest) = WorkDir::attach(path)?;
-    let mut cfg = Config {
-        inputs: Vec::new(),
-        ..exec_cfg.clone()
-    };
-    for (k, v) in manifest_params(&manifest) {
-        cfg.set_param(&k, &v).map_err(|e| {
-            Error::Internal(format!(
-                "{}: manifest: {e}; run `tilecurv plan` again",
-                path.display()
-            ))
-        })?;
-    }
-    let spec = open_inputs(&cfg, reporter)?;
-    if spec.manifest() != manifest {
-        return Err(Error::Usage(format!(
-            "{}: the inputs changed since `tilecurv plan` (size, time or points differ), or another version of tilecurv planned it; run `tilecurv plan` again",
-            path.display()
-        )));
-    }
-    let tasks = path.join(TASKS);
-    let layout = std::fs::read_to_string(&tasks)
-        .ok()
-        .and_then(|t| TaskLayout::parse(&t))
-        // Its input ranges index the inputs: one past them is damage, not a panic.
-        .filter(|l| l.bucket_tasks.iter().all(|r| r.end <= spec.sources.len()))
-        .ok_or_else(|| {
-            Error::Usage(format!(
-                "{}: no task layout; run `tilecurv plan` again",
-                tasks.display()
-            ))
-        })?;
-    Ok(Attached {
-        work,
-        spec,
-        layout,
-        cfg,
+        bucket_tasks: run.layout.bucket_tasks.len(),
+        tile_tasks: run.layout.tile_tasks(),
+        tiles_per_task: run.layout.tiles_per_task,
     })
 }
 
@@ -136,20 +85,20 @@ fn attach(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result<Att
 /// of tasks run (done ones are skipped).
 pub fn bucket(
     path: &Path,
-    exec_cfg: &Config,
+    opts: &ExecOptions,
     task: Option<usize>,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<usize> {
-    let a = attach(path, exec_cfg, reporter)?;
-    let exec = Exec::new(exec_cfg, &a.spec, reporter, cancel)?;
+    let run = Run::attach(path, reporter)?;
+    let exec = Exec::new(opts, &run.spec, reporter, cancel)?;
     let tasks: Vec<usize> = match task {
         Some(t) => vec![t],
-        None => (0..a.layout.bucket_tasks.len()).collect(),
+        None => (0..run.layout.bucket_tasks.len()).collect(),
     };
     let mut ran = 0;
     for t in tasks {
-        ran += bucket_task(&a.work, &a.spec, &a.layout, t, false, &exec)?.is_some() as usize;
+        ran += bucket_task(&run, t, false, &exec)?.is_some() as usize;
     }
     Ok(ran)
 }
@@ -157,22 +106,22 @@ pub fn bucket(
 /// `tilecurv run-tile`: the tiles of tile task `task` that are not done yet.
 pub fn run_tile(
     path: &Path,
-    exec_cfg: &Config,
+    opts: &ExecOptions,
     task: u64,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<TilesDone> {
-    let a = attach(path, exec_cfg, reporter)?;
-    let n = a.layout.tile_tasks();
+    let run = Run::attach(path, reporter)?;
+    let n = run.layout.tile_tasks();
     if task >= n {
         return Err(Error::Usage(format!(
             "--task {task}: there are {n} tile tasks (0 to {})",
             n - 1
         )));
     }
-    let exec = Exec::new(exec_cfg, &a.spec, reporter, cancel)?;
-    let scan = open_buckets(&a.work, &a.spec, &a.layout)?;
-    tiles(&a.work, &a.spec, &scan, &a.layout, Some(task), &exec)
+    let exec = Exec::new(opts, &run.spec, reporter, cancel)?;
+    let scan = open_buckets(&run)?;
+    tiles(&run, &scan, Some(task), &exec)
 }
 
 /// Which tile tasks are done.
@@ -187,17 +136,17 @@ pub struct Status {
 }
 
 /// `tilecurv status`: the tile tasks done and missing (all missing until the buckets are).
-pub fn status(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result<Status> {
-    let a = attach(path, exec_cfg, reporter)?;
-    let total = a.layout.tile_tasks();
-    let missing: Vec<u64> = match open_buckets(&a.work, &a.spec, &a.layout) {
+pub fn status(path: &Path, reporter: &dyn Reporter) -> Result<Status> {
+    let run = Run::attach(path, reporter)?;
+    let total = run.layout.tile_tasks();
+    let missing: Vec<u64> = match open_buckets(&run) {
         Ok(scan) => {
-            let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k, a.spec.radius);
-            let mut m: Vec<u64> =
-                missing_tiles(&a.work.path().join("results"), &a.spec, &tplan, &a.layout)
-                    .into_iter()
-                    .map(|(task, _)| task)
-                    .collect();
+            let tplan = run.spec.tile_plan(&scan.stats);
+            let mut m: Vec<u64> = run
+                .missing_tiles(&tplan)?
+                .into_iter()
+                .map(|(task, _)| task)
+                .collect();
             m.sort_unstable();
             m.dedup();
             m
@@ -212,21 +161,21 @@ pub fn status(path: &Path, exec_cfg: &Config, reporter: &dyn Reporter) -> Result
     })
 }
 
-/// `tilecurv assemble`: one output per input from the finished tiles (`exec_cfg.output` names
-/// them as `process -o` does); refuses, writing nothing, while tile tasks are missing.
+/// `tilecurv assemble`: one output per input from the finished tiles (`output` names them as
+/// `process -o` does); refuses, writing nothing, while tile tasks are missing.
 pub fn assemble(
     path: &Path,
-    exec_cfg: &Config,
+    output: &Path,
+    opts: &ExecOptions,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<Summary> {
     let started = Instant::now();
-    let mut a = attach(path, exec_cfg, reporter)?;
-    let exec = Exec::new(exec_cfg, &a.spec, reporter, cancel)?;
-    let scan = open_buckets(&a.work, &a.spec, &a.layout)?;
-    let tplan = plan_tiles(&scan.stats, a.spec.grid.size, a.spec.k, a.spec.radius);
-    let results = a.work.path().join("results");
-    let missing = missing_tiles(&results, &a.spec, &tplan, &a.layout);
+    let mut run = Run::attach(path, reporter)?;
+    let exec = Exec::new(opts, &run.spec, reporter, cancel)?;
+    let scan = open_buckets(&run)?;
+    let tplan = run.spec.tile_plan(&scan.stats);
+    let missing = run.missing_tiles(&tplan)?;
     if !missing.is_empty() {
         let tasks: Vec<u64> = missing.iter().map(|(t, _)| *t).collect();
         return Err(Error::TasksMissing {
@@ -239,22 +188,27 @@ pub fn assemble(
             ),
         });
     }
-    let outputs = output_paths(&a.cfg)?;
-    check_outputs(&a.cfg, &outputs)?;
-    a.spec.outputs = outputs;
-    let s = &a.spec;
-    let ply = s.output_options.ply_names;
-    for note in check_output_columns(&a.cfg, &s.sources, &s.outputs, &s.cols, ply)? {
-        reporter.warn(&note);
-    }
-    let undefined = super::assemble::assemble_outputs(&a.work, &a.spec, &tplan, &exec)?;
+    set_outputs(&mut run.spec, output, reporter)?;
+    let undefined = super::assemble::assemble_outputs(&run, &tplan, &exec)?;
     Ok(Summary {
-        points: a.spec.total_points,
+        points: run.spec.total_points,
         undefined,
         tiles: tplan.tiles.len(),
         tiles_resumed: tplan.tiles.len(),
         retried: 0,
         seconds: started.elapsed().as_secs_f64(),
-        outputs: a.spec.outputs.clone(),
+        outputs: run.spec.outputs.clone(),
     })
+}
+
+/// Gives `spec` the outputs `output` names, after the checks `process` makes of them.
+fn set_outputs(spec: &mut RunSpec, output: &Path, reporter: &dyn Reporter) -> Result<()> {
+    let outputs = output_paths(&spec.inputs, output)?;
+    check_outputs(&spec.inputs, &outputs)?;
+    let ply = spec.output_options.ply_names;
+    for note in check_output_columns(&spec.params, &spec.sources, &outputs, &spec.cols, ply)? {
+        reporter.warn(&note);
+    }
+    spec.outputs = outputs;
+    Ok(())
 }

@@ -8,23 +8,29 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::core::compute::TileBuffers;
-use crate::core::plan::{plan, TileSpec};
+use crate::core::plan::TileSpec;
 use crate::core::point::BUCKET_POINT_BYTES;
 use crate::core::tasks::TaskLayout;
 use crate::core::tile::Part;
 use crate::error::Result;
-use crate::io::bucket::load_tile;
+use crate::io::workdir::bucket::load_tile;
 use crate::io::workdir::WorkDir;
 use crate::run::bucket::bucket_all;
 use crate::run::spec::RunSpec;
-use crate::run::tiles::{compute_params, TileJob};
-use crate::run::Exec;
+use crate::run::tiles::TileJob;
+use crate::run::{Exec, Run};
 
 /// Runs the dry run for `spec`, whose real work directory would be `work_path`.
-pub fn dry_run(spec: &RunSpec, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
-    let scratch = WorkDir::open(&work_path.with_extension("dryrun"), &spec.manifest())?;
-    let r = estimate(&scratch, spec, exec, work_path);
-    scratch.remove();
+pub fn dry_run(spec: RunSpec, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
+    let scratch = WorkDir::open_scratch(work_path, &spec.manifest())?;
+    let layout = TaskLayout::single(spec.sources.len());
+    let run = Run {
+        spec,
+        work: scratch,
+        layout,
+    };
+    let r = estimate(&run, exec, work_path);
+    run.work.remove();
     r
 }
 
@@ -34,13 +40,13 @@ fn estimated_loaded_points(t: &TileSpec, size: f64) -> usize {
     (t.count as f64 * ring) as usize
 }
 
-fn estimate(scratch: &WorkDir, spec: &RunSpec, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
+fn estimate(run: &Run, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
+    let spec = &run.spec;
     let t0 = Instant::now();
-    let layout = TaskLayout::single(spec.sources.len());
-    let scan = bucket_all(scratch, spec, &layout, exec)?;
+    let scan = bucket_all(run, exec)?;
     let scan_s = t0.elapsed().as_secs_f64();
-    let params = compute_params(spec, &scan.stats);
-    let tplan = plan(&scan.stats, spec.grid.size, spec.k, spec.radius);
+    let params = spec.compute_params(&scan.stats);
+    let tplan = spec.tile_plan(&scan.stats);
     let mut counts: Vec<u64> = tplan.tiles.iter().map(|t| t.count).collect();
     counts.sort_unstable();
     let median = counts[counts.len() / 2];
@@ -65,8 +71,8 @@ fn estimate(scratch: &WorkDir, spec: &RunSpec, exec: &Exec<'_>, work_path: &Path
             max_core_points: exec.memory.max_core_points,
         };
         let t1 = Instant::now();
-        let (r, _, _) = job.compute(sample, exec, &exec.pool, &mut TileBuffers::default())?;
-        us_per_point = t1.elapsed().as_secs_f64() * 1e6 / r.len().max(1) as f64;
+        let t = job.compute(sample, exec, &exec.pool, &mut TileBuffers::default())?;
+        us_per_point = t1.elapsed().as_secs_f64() * 1e6 / t.results.len().max(1) as f64;
     }
     let n = scan.stats.count as f64;
     let m = &exec.memory;

@@ -5,7 +5,7 @@
 //! allocation past a limit aborts the process (exit 134, nothing the tool can catch), so this
 //! is checked before any work.
 
-use crate::config::Config;
+use crate::config::ExecOptions;
 use crate::core::plan::{fit_budget, BudgetFit, MIN_BUDGET_BYTES};
 use crate::error::{Error, Result};
 use crate::io::limits::{address_space_limit, cgroup_memory_limit};
@@ -24,10 +24,10 @@ const STACK_BYTES: u64 = 2 << 20;
 
 const MIB: u64 = 1 << 20;
 
-/// The budget for a run of `spec` as `cfg` asks: `--memory`, lowered to what the address-space
+/// The budget for a run of `spec` as `exec` asks: `--memory`, lowered to what the address-space
 /// limit and the cgroup's memory limit leave, with a message; a usage error (exit 2) naming the
 /// limit and what to raise it to when it cannot hold even the smallest budget.
-pub fn fit_memory(cfg: &Config, spec: &RunSpec, reporter: &dyn Reporter) -> Result<u64> {
+pub fn fit_memory(exec: &ExecOptions, spec: &RunSpec, reporter: &dyn Reporter) -> Result<u64> {
     let mapped: u64 = spec
         .sources
         .iter()
@@ -36,11 +36,11 @@ pub fn fit_memory(cfg: &Config, spec: &RunSpec, reporter: &dyn Reporter) -> Resu
     // The run's pool and the tile drivers' own workers (large stacks), rayon's global pool
     // (the LAZ compressor's), the tile drivers (one per thread, at least 2), the rest.
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
-    let threads = cfg.threads as u64;
+    let threads = exec.threads as u64;
     let own = PROGRAM_BYTES
         + 2 * threads * super::WORKER_STACK as u64
         + (cores + threads.max(2) + 2) * STACK_BYTES;
-    let mut budget = cfg.memory_bytes;
+    let mut budget = exec.memory_bytes;
     if let Some(limit) = address_space_limit() {
         let besides = format!(
             "the mapped inputs take {} MiB and tilecurv {} MiB besides its budget",

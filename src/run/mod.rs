@@ -30,11 +30,11 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use crate::config::Config;
-use crate::core::plan::MemoryPlan;
+use crate::config::{ExecOptions, RunOptions, RunParams};
+use crate::core::plan::{MemoryPlan, TilePlan, TileSpec};
 use crate::core::tasks::TaskLayout;
 use crate::error::{Error, Result};
-use crate::io::workdir::{write_durably, Resume, WorkDir, TASKS};
+use crate::io::workdir::{Resume, WorkDir};
 use crate::progress::Reporter;
 use crate::run::spec::RunSpec;
 
@@ -74,127 +74,259 @@ pub struct Exec<'a> {
 
 /// Stack of each worker thread, which decodes LAZ chunks (the laz crate's decompressors keep
 /// their models on the stack) and runs the estimators: 8x rayon's 2 MiB default, so that a
-/// malformed chunk cannot overflow it (issue 12 item 2 reported an abort there). Address space
-/// only: pages are touched as used.
+/// malformed chunk cannot overflow it. Address space only: pages are touched as used.
 pub(crate) const WORKER_STACK: usize = 16 << 20;
 
 impl<'a> Exec<'a> {
-    /// The execution settings of `cfg` for a run of `spec`: its budget fitted to the machine's
-    /// memory limits ([`limits::fit_memory`]).
+    /// The execution settings `opts` for a run of `spec`: its budget fitted to the machine's
+    /// memory limits ([`limits::fit_memory`]) and shared as the run's parameters need
+    /// ([`RunSpec::memory_plan`]), whichever command runs it.
     pub fn new(
-        cfg: &Config,
+        opts: &ExecOptions,
         spec: &RunSpec,
         reporter: &'a dyn Reporter,
         cancel: &'a AtomicBool,
     ) -> Result<Self> {
-        let budget = limits::fit_memory(cfg, spec, reporter)?;
+        opts.validate()?;
+        let budget = limits::fit_memory(opts, spec, reporter)?;
         let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(cfg.threads)
+            .num_threads(opts.threads)
             .stack_size(WORKER_STACK)
             .build()
             .map_err(|e| {
                 Error::Resource(format!(
                     "cannot start {} worker threads: {e}; lower --threads, or raise the limits on processes (ulimit -u) or memory (ulimit -v)",
-                    cfg.threads
+                    opts.threads
                 ))
             })?;
         Ok(Exec {
             pool,
-            memory: MemoryPlan::new(
-                budget as usize,
-                cfg.k,
-                cfg.scale.map_or(1, |l| l.rungs()),
-                cfg.threads,
-            ),
-            chunk_points: cfg.chunk_points,
+            memory: spec.memory_plan(budget as usize, opts.threads),
+            chunk_points: opts.chunk_points,
             reporter,
             cancel,
         })
     }
 }
 
-/// The work directory of a run: `--work-dir`, or `.<first output name>.tilecurv` beside it.
-pub fn work_path(cfg: &Config, spec: &RunSpec) -> PathBuf {
-    cfg.work_dir
-        .clone()
-        .unwrap_or_else(|| crate::io::workdir::default_path(&spec.outputs[0]))
+/// What `tilecurv process` is asked to do.
+#[derive(Debug, Clone)]
+pub struct Process {
+    /// The input files: one scene (halos cross file borders), one output per input.
+    pub inputs: Vec<PathBuf>,
+    /// The output file for one input, or a directory for several.
+    pub output: PathBuf,
+    /// The work directory (default: `.<first output name>.tilecurv` beside it).
+    pub work_dir: Option<PathBuf>,
+    /// Print the plan and estimates, compute nothing.
+    pub dry_run: bool,
+    /// The options that change the output.
+    pub params: RunParams,
 }
 
-/// The plan stage: opens (creating it if needed) and locks the work directory at `path`,
-/// writes the manifest of `spec` and the task layout; work left there by another manifest is
-/// discarded, and buckets made under another task layout are.
-pub fn plan(
-    path: &Path,
-    spec: &RunSpec,
-    layout: &TaskLayout,
-    reporter: &dyn Reporter,
-) -> Result<WorkDir> {
-    let work = WorkDir::open(path, &spec.manifest())?;
-    let tasks = work.path().join(TASKS);
-    let text = layout.to_text();
-    if std::fs::read_to_string(&tasks).ok().as_deref() != Some(text.as_str()) {
-        let buckets = work.path().join("buckets");
-        if buckets.exists() {
-            std::fs::remove_dir_all(&buckets).map_err(|e| Error::write(&buckets, e))?;
+impl Process {
+    /// A run of `inputs` into `output` with `options`, validated.
+    pub fn new(inputs: Vec<PathBuf>, output: PathBuf, options: RunOptions) -> Result<Self> {
+        if inputs.is_empty() {
+            return Err(Error::Usage("no input file given".into()));
         }
-        write_durably(&tasks, text.as_bytes())?;
+        Ok(Process {
+            inputs,
+            output,
+            work_dir: None,
+            dry_run: false,
+            params: RunParams::new(options)?,
+        })
     }
-    match work.resume {
-        Resume::Fresh => {}
-        Resume::Resumed => reporter.info(&format!(
-            "resuming the interrupted run in {}",
-            work.path().display()
-        )),
-        Resume::Discarded => reporter.warn(&format!(
-            "{}: the work left there came from other inputs or parameters: discarded, starting over",
-            work.path().display()
-        )),
-    }
-    Ok(work)
 }
 
-/// Runs `tilecurv process` as configured: every stage, in one process.
-pub fn process(cfg: &Config, reporter: &dyn Reporter, cancel: &AtomicBool) -> Result<Summary> {
+/// A run over its work directory: the checked spec, the directory and the task layout. Made
+/// by [`Run::plan`] (`process`, `plan`) or [`Run::attach`] (the other cluster stages), so that
+/// every command runs the same stages on the same spec.
+pub struct Run {
+    /// The checked run.
+    pub spec: RunSpec,
+    /// Its work directory.
+    pub work: WorkDir,
+    /// How its stages are split into tasks.
+    pub layout: TaskLayout,
+}
+
+impl Run {
+    /// Opens (creating it if needed) and locks the work directory at `path` for `spec`, writes
+    /// its manifest and the task `layout`; work left there by another manifest is discarded,
+    /// and buckets made under another task layout are.
+    pub fn plan(
+        spec: RunSpec,
+        path: &Path,
+        layout: TaskLayout,
+        reporter: &dyn Reporter,
+    ) -> Result<Run> {
+        let work = WorkDir::open(path, &spec.manifest())?;
+        work.set_task_layout(&layout.to_text())?;
+        match work.resume {
+            Resume::Fresh => {}
+            Resume::Resumed => reporter.info(&format!(
+                "resuming the interrupted run in {}",
+                work.path().display()
+            )),
+            Resume::Discarded => reporter.warn(&format!(
+                "{}: the work left there came from other inputs or parameters: discarded, starting over",
+                work.path().display()
+            )),
+        }
+        Ok(Run { spec, work, layout })
+    }
+
+    /// Attaches to the planned work directory at `path`, without its lock: the run's inputs and
+    /// options from its manifest, which must still describe the inputs.
+    pub fn attach(path: &Path, reporter: &dyn Reporter) -> Result<Run> {
+        let (work, planned, manifest) = WorkDir::attach(path)?;
+        let mut options = RunOptions::default();
+        for (k, v) in &planned.params {
+            options.set(k, v).map_err(|e| {
+                Error::damaged_work(
+                    path,
+                    &format!("its manifest has {e}; run `tilecurv plan` again"),
+                )
+            })?;
+        }
+        let params = RunParams::new(options)?;
+        let spec = prepare::open_inputs(&planned.inputs, params, reporter)?;
+        if spec.manifest() != manifest {
+            return Err(Error::Usage(format!(
+                "{}: the inputs changed since `tilecurv plan` (size, time or points differ), or another version of tilecurv planned it; run `tilecurv plan` again",
+                path.display()
+            )));
+        }
+        let n = spec.sources.len();
+        // Its input ranges index the inputs: one past them is damage, not a panic.
+        let layout = work.task_layout(|t| {
+            TaskLayout::parse(t).filter(|l| l.bucket_tasks.iter().all(|r| r.end <= n))
+        })?;
+        Ok(Run { spec, work, layout })
+    }
+
+    /// The tiles of `tplan` that are not finished, with the tile task of each.
+    pub fn missing_tiles<'p>(&self, tplan: &'p TilePlan) -> Result<Vec<(u64, &'p TileSpec)>> {
+        let store = self.work.results()?;
+        let propagate = self.spec.propagates();
+        Ok(tplan
+            .tiles
+            .iter()
+            .filter(|t| !store.tile_done(t, &self.spec.cols, propagate))
+            .map(|t| (self.layout.task_of(t.key), t))
+            .collect())
+    }
+}
+
+/// Runs `tilecurv process`: every stage, in one process.
+pub fn process(
+    job: &Process,
+    opts: &ExecOptions,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<Summary> {
     let started = Instant::now();
-    let spec = prepare::prepare(cfg, reporter)?;
-    let exec = Exec::new(cfg, &spec, reporter, cancel)?;
-    let path = work_path(cfg, &spec);
-    let summary = |tiles: usize, resumed: usize, undefined: u64, retried: u64| Summary {
-        points: spec.total_points,
-        undefined,
-        tiles,
-        tiles_resumed: resumed,
-        retried,
-        seconds: started.elapsed().as_secs_f64(),
-        outputs: spec.outputs.clone(),
-    };
-    if cfg.dry_run {
-        dry_run::dry_run(&spec, &exec, &path)?;
-        return Ok(summary(0, 0, 0, 0));
+    let spec = prepare::prepare(&job.inputs, &job.output, job.params.clone(), reporter)?;
+    let exec = Exec::new(opts, &spec, reporter, cancel)?;
+    let path = job
+        .work_dir
+        .clone()
+        .unwrap_or_else(|| crate::io::workdir::default_path(&spec.outputs[0]));
+    let summary =
+        |spec: &RunSpec, tiles: usize, resumed: usize, undefined: u64, retried: u64| Summary {
+            points: spec.total_points,
+            undefined,
+            tiles,
+            tiles_resumed: resumed,
+            retried,
+            seconds: started.elapsed().as_secs_f64(),
+            outputs: spec.outputs.clone(),
+        };
+    if job.dry_run {
+        let nothing = summary(&spec, 0, 0, 0, 0);
+        dry_run::dry_run(spec, &exec, &path)?;
+        return Ok(nothing);
     }
     let layout = TaskLayout::single(spec.sources.len());
-    let work = plan(&path, &spec, &layout, reporter)?;
+    let run = Run::plan(spec, &path, layout, reporter)?;
     let r = (|| {
-        let scan = bucket::bucket_all(&work, &spec, &layout, &exec)?;
-        let done = tiles::tiles(&work, &spec, &scan, &layout, None, &exec)?;
+        let scan = bucket::bucket_all(&run, &exec)?;
+        let done = tiles::tiles(&run, &scan, None, &exec)?;
         drop(scan);
         crate::io::limits::return_free_memory();
-        let undefined = assemble::assemble_outputs(&work, &spec, &done.plan, &exec)?;
+        let undefined = assemble::assemble_outputs(&run, &done.plan, &exec)?;
         Ok((done, undefined))
     })();
-    match &r {
-        Ok(_) => work.remove(),
+    let s = r.map(|(d, undefined)| {
+        summary(
+            &run.spec,
+            d.plan.tiles.len(),
+            d.resumed,
+            undefined,
+            d.retried,
+        )
+    });
+    match &s {
+        Ok(_) => run.work.remove(),
         // Every failure keeps the work (an interruption says so itself): the same command
         // resumes from it once the cause is fixed, whether it was a full disk, a limit, or an
         // input that a rerun finds different (its work is then discarded).
-        Err(Error::Interrupted) => drop(work),
-        Err(_) => {
-            reporter.warn(&format!(
-                "the finished work is kept in {}: the same command resumes from it (delete it to start over)",
-                work.path().display()
-            ));
-            drop(work);
-        }
+        Err(Error::Interrupted) => {}
+        Err(_) => reporter.warn(&format!(
+            "the finished work is kept in {}: the same command resumes from it (delete it to start over)",
+            run.work.path().display()
+        )),
     }
-    r.map(|(d, undefined)| summary(d.plan.tiles.len(), d.resumed, undefined, d.retried))
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::Silent;
+
+    /// `process` and the cluster stages (which rebuild the run from the manifest) share the
+    /// memory budget alike for every kind of neighbourhood: the plan follows the run's k and
+    /// ladder, not a default.
+    #[test]
+    fn process_and_run_tile_plan_memory_alike() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let input = std::path::absolute("data/Haystack_Rock.las").expect("sample");
+        let cancel = AtomicBool::new(false);
+        let opts = ExecOptions {
+            threads: 2,
+            memory_bytes: 128 << 20,
+            ..ExecOptions::default()
+        };
+        let mut seen = Vec::new();
+        for (i, pairs) in [&[("k", "30")][..], &[("k", "auto")], &[("radius", "3m")]]
+            .iter()
+            .enumerate()
+        {
+            let mut options = RunOptions::default();
+            for (k, v) in *pairs {
+                options.set(k, v).expect("option");
+            }
+            let params = RunParams::new(options).expect("valid");
+            let out = dir.path().join(format!("o{i}.las"));
+            let spec = prepare::prepare(&[input.clone()], &out, params.clone(), &Silent)
+                .expect("prepared");
+            let of_process = Exec::new(&opts, &spec, &Silent, &cancel)
+                .expect("exec")
+                .memory;
+            let work = dir.path().join(format!("w{i}"));
+            let spec = prepare::open_inputs(&[input.clone()], params, &Silent).expect("opened");
+            drop(Run::plan(spec, &work, TaskLayout::single(1), &Silent).expect("planned"));
+            let attached = Run::attach(&work, &Silent).expect("attached");
+            let of_task = Exec::new(&opts, &attached.spec, &Silent, &cancel)
+                .expect("exec")
+                .memory;
+            assert_eq!(of_process, of_task, "{pairs:?}");
+            seen.push(of_task.tile_point_bytes);
+        }
+        // -k auto's rungs and --radius's cap on neighbours take more memory a point than -k 30.
+        assert!(seen[1] > seen[0] && seen[2] > seen[0], "{seen:?}");
+    }
 }

@@ -22,8 +22,8 @@ pub fn resolve_orientation(
     let mut offsets = Vec::with_capacity(tplan.tiles.len() + 1);
     offsets.push(0u32);
     for t in &tplan.tiles {
-        let path = crate::io::results::orientation_path(dir, t.key);
-        let sc = crate::io::results::read_sidecar(&path)?;
+        let path = crate::io::workdir::results::orientation_path(dir, t.key);
+        let sc = crate::io::workdir::results::read_sidecar(&path)?;
         let base = *offsets.last().unwrap_or(&0);
         // Patch numbers are u32 across the scene: a sum past that is damage, not data.
         let next = u32::try_from(sc.anchors.len())

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::config::Config;
+use crate::config::{Resolved, RunParams};
 use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnSet, Group};
@@ -13,7 +13,7 @@ use crate::io::crs::UnitSource;
 use crate::io::sink::OutputOptions;
 use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
-use crate::run::spec::{parameters, RunSpec};
+use crate::run::spec::RunSpec;
 
 fn same_file(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
@@ -22,32 +22,32 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// The output path of each input: the output itself for one input (or a file in it if it is a
+/// The output path of each input: `output` itself for one input (or a file in it if it is a
 /// directory), `<output dir>/<input file name>` for several.
-pub fn output_paths(cfg: &Config) -> Result<Vec<PathBuf>> {
-    let is_dir = cfg.output.is_dir() || cfg.output.as_os_str().to_string_lossy().ends_with('/');
-    if cfg.inputs.len() == 1 && !is_dir {
-        return Ok(vec![cfg.output.clone()]);
+pub fn output_paths(inputs: &[PathBuf], output: &Path) -> Result<Vec<PathBuf>> {
+    let is_dir = output.is_dir() || output.as_os_str().to_string_lossy().ends_with('/');
+    if inputs.len() == 1 && !is_dir {
+        return Ok(vec![output.to_path_buf()]);
     }
     if !is_dir {
         return Err(Error::Usage(format!(
             "{}: with {} inputs the output must be a directory (one output per input, same file name); end it with / to create it",
-            cfg.output.display(),
-            cfg.inputs.len()
+            output.display(),
+            inputs.len()
         )));
     }
-    std::fs::create_dir_all(&cfg.output).map_err(|e| Error::write(&cfg.output, e))?;
+    std::fs::create_dir_all(output).map_err(|e| Error::write(output, e))?;
     let mut outs: Vec<PathBuf> = Vec::new();
-    for input in &cfg.inputs {
+    for input in inputs {
         let name = input
             .file_name()
             .ok_or_else(|| Error::Usage(format!("{}: not a file name", input.display())))?;
-        let out = cfg.output.join(name);
+        let out = output.join(name);
         if outs.contains(&out) {
             return Err(Error::Usage(format!(
                 "two inputs are named {}: their outputs would collide in {}",
                 name.to_string_lossy(),
-                cfg.output.display()
+                output.display()
             )));
         }
         outs.push(out);
@@ -56,10 +56,10 @@ pub fn output_paths(cfg: &Config) -> Result<Vec<PathBuf>> {
 }
 
 /// Checks the outputs: a supported extension, and never one of the inputs.
-pub fn check_outputs(cfg: &Config, outputs: &[PathBuf]) -> Result<()> {
+pub fn check_outputs(inputs: &[PathBuf], outputs: &[PathBuf]) -> Result<()> {
     for output in outputs {
         crate::io::sink::check_output_path(output)?;
-        if cfg.inputs.iter().any(|i| same_file(i, output)) {
+        if inputs.iter().any(|i| same_file(i, output)) {
             return Err(Error::Usage(format!(
                 "{}: the output would overwrite an input; choose another output path",
                 output.display()
@@ -73,7 +73,7 @@ pub fn check_outputs(cfg: &Config, outputs: &[PathBuf]) -> Result<()> {
 /// error): its symbol ("unit" without one), with a CRS its length in metres, and its words for
 /// the log ("unit m", or "no length unit (why)").
 fn common_unit(
-    cfg: &Config,
+    cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     reporter: &dyn Reporter,
 ) -> Result<(String, Option<crate::io::crs::LengthUnit>, String)> {
@@ -116,8 +116,8 @@ fn common_unit(
 }
 
 /// The factor from the inputs' z unit to their horizontal unit, and its words for the
-/// provenance when it is not 1 (issue 13 item 3: a compound CRS in metres with heights in US
-/// survey feet made H 2.5x and K 5.1x too large). Without a horizontal unit there is nothing to
+/// provenance when it is not 1: heights in another unit than x and y would scale H and K
+/// (feet under metres: H 3.3x, K 10.8x). Without a horizontal unit there is nothing to
 /// convert to; a vertical CRS whose unit cannot be read is warned about; inputs whose factors
 /// differ are refused, as for the horizontal unit.
 fn vertical_scale(
@@ -176,7 +176,7 @@ fn vertical_scale(
 
 /// Refuses a class filter beyond the default on an input without LAS classes (PLY, XYZ, ...):
 /// it would silently compute on every point.
-fn check_classes(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<()> {
+fn check_classes(cfg: &RunParams, sources: &[Box<dyn PointSource>]) -> Result<()> {
     if !cfg.select.needs_classes() {
         return Ok(());
     }
@@ -204,7 +204,7 @@ fn named_normals(s: &dyn PointSource) -> bool {
 /// Whether the file's normals are used: all inputs have them (and --ignore-file-normals is not
 /// given) or none has; a mix is an error, and so is ignoring normals whose names the estimated
 /// ones would need.
-fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bool> {
+fn use_file_normals(cfg: &RunParams, sources: &[Box<dyn PointSource>]) -> Result<bool> {
     let with_normals = sources.iter().filter(|s| s.has_normals()).count();
     if with_normals != 0 && with_normals != sources.len() && !cfg.ignore_file_normals {
         return Err(Error::Usage(
@@ -228,7 +228,7 @@ fn use_file_normals(cfg: &Config, sources: &[Box<dyn PointSource>]) -> Result<bo
 ///
 /// [`check_ply_names`]: crate::run::rerun::check_ply_names
 pub fn check_output_columns(
-    cfg: &Config,
+    cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     outputs: &[PathBuf],
     cols: &ColumnSet,
@@ -243,7 +243,7 @@ pub fn check_output_columns(
 /// LAS version before 1.4, which has no EVLRs to hold them. Returns the warnings for the LAS
 /// 1.4 outputs that get them as an EVLR instead, which some readers ignore.
 fn check_extra_bytes(
-    cfg: &Config,
+    cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     outputs: &[PathBuf],
     cols: &ColumnSet,
@@ -297,43 +297,54 @@ fn check_extent(sources: &[Box<dyn PointSource>], grid: TileGrid) -> Result<()> 
     Ok(())
 }
 
-/// Opens and checks the inputs of `cfg`, checks its outputs, and resolves the run. Nothing is
-/// written except the output directory of a multi-input run.
-pub fn prepare(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
-    cfg.validate()?;
-    let outputs = output_paths(cfg)?;
-    check_outputs(cfg, &outputs)?;
-    open_checked(cfg, outputs, reporter)
+/// Opens and checks `inputs`, checks the outputs `output` names, and resolves the run with
+/// `params`. Nothing is written except the output directory of a multi-input run.
+pub fn prepare(
+    inputs: &[PathBuf],
+    output: &Path,
+    params: RunParams,
+    reporter: &dyn Reporter,
+) -> Result<RunSpec> {
+    let outputs = output_paths(inputs, output)?;
+    check_outputs(inputs, &outputs)?;
+    open_checked(inputs, params, outputs, reporter)
 }
 
-/// Opens and checks the inputs of `cfg` and resolves the run, without outputs (the stages of a
-/// cluster run that write none).
-pub fn open_inputs(cfg: &Config, reporter: &dyn Reporter) -> Result<RunSpec> {
-    cfg.validate()?;
-    open_checked(cfg, Vec::new(), reporter)
+/// Opens and checks `inputs` and resolves the run with `params`, without outputs (the stages
+/// of a cluster run that write none).
+pub fn open_inputs(
+    inputs: &[PathBuf],
+    params: RunParams,
+    reporter: &dyn Reporter,
+) -> Result<RunSpec> {
+    open_checked(inputs, params, Vec::new(), reporter)
 }
 
 /// The log line's words for `--radius` (`radius`: in file units, named `units`), empty without.
-fn radius_words(cfg: &Config, radius: Option<f64>, units: &str) -> String {
+fn radius_words(cfg: &RunParams, radius: Option<f64>, units: &str) -> String {
     match (cfg.radius, radius) {
         (Some(r), Some(size)) => format!(
             "; radius {r} = {size:.3} {units}, at most {} neighbours",
             cfg.k
         ),
-        _ => match cfg.scale {
+        _ => match cfg.ladder {
             Some(l) => format!("; k auto, chosen per point among {l}"),
             None => String::new(),
         },
     }
 }
 
-/// Opens the inputs of `cfg` (a tilecurv output without its own columns, `run::rerun`),
-/// adding to `notes` the warnings to give once every check passed.
-fn open_sources(cfg: &Config, notes: &mut Vec<String>) -> Result<Vec<Box<dyn PointSource>>> {
-    cfg.inputs
+/// Opens `inputs` (a tilecurv output without its own columns, `run::rerun`), adding to
+/// `notes` the warnings to give once every check passed.
+fn open_sources(
+    inputs: &[PathBuf],
+    cfg: &RunParams,
+    notes: &mut Vec<String>,
+) -> Result<Vec<Box<dyn PointSource>>> {
+    inputs
         .iter()
         .map(|p| match cfg.sample_faces {
-            Some(n) => crate::io::source::open_sampled(p, n, cfg.params.seed),
+            Some(n) => crate::io::source::open_sampled(p, n, cfg.estimator_params.seed),
             None => crate::run::rerun::open_input(p).map(|(s, note)| {
                 notes.extend(note);
                 s
@@ -343,7 +354,7 @@ fn open_sources(cfg: &Config, notes: &mut Vec<String>) -> Result<Vec<Box<dyn Poi
 }
 
 /// How `cfg` writes its outputs besides their columns.
-fn output_options(cfg: &Config) -> OutputOptions {
+fn output_options(cfg: &RunParams) -> OutputOptions {
     OutputOptions {
         keep_las_version: cfg.keep_version,
         ply_names: if cfg.ply_las_names {
@@ -354,12 +365,16 @@ fn output_options(cfg: &Config) -> OutputOptions {
     }
 }
 
-/// [`open_inputs`] for a configuration already validated, with the `outputs` of the inputs
-/// (none for the stages that write none).
-fn open_checked(cfg: &Config, outputs: Vec<PathBuf>, reporter: &dyn Reporter) -> Result<RunSpec> {
+/// [`open_inputs`] with the `outputs` of the inputs (none for the stages that write none).
+fn open_checked(
+    inputs: &[PathBuf],
+    cfg: RunParams,
+    outputs: Vec<PathBuf>,
+    reporter: &dyn Reporter,
+) -> Result<RunSpec> {
     let mut notes = Vec::new();
-    let sources = open_sources(cfg, &mut notes)?;
-    let (unit_name, unit, unit_words) = common_unit(cfg, &sources, reporter)?;
+    let sources = open_sources(inputs, &cfg, &mut notes)?;
+    let (unit_name, unit, unit_words) = common_unit(&cfg, &sources, reporter)?;
     let tile_units = match unit {
         Some(_) => unit_name.clone(),
         None => "file units".to_string(),
@@ -368,35 +383,24 @@ fn open_checked(cfg: &Config, outputs: Vec<PathBuf>, reporter: &dyn Reporter) ->
     let radius = cfg.radius.map(|r| r.in_file_units(unit.as_ref()));
     let (z_scale, z_words) = vertical_scale(&sources, unit.as_ref(), reporter)?;
     check_extent(&sources, TileGrid { size: tile_size })?;
-    check_classes(cfg, &sources)?;
-    let file_normals = use_file_normals(cfg, &sources)?;
-    let estimator = cfg.estimator.build(&cfg.params);
-    // The input's own normals (used, or ignored but named so) are kept as they are.
-    let keeps_normals = file_normals || sources.iter().any(|s| named_normals(s.as_ref()));
-    let cols = ColumnSet {
-        // -k auto always writes the scale it chose.
-        choice: if keeps_normals {
-            cfg.columns.without(Group::Normals)
-        } else {
-            cfg.columns
-        }
-        .with_if(cfg.scale.is_some(), Group::Scale),
-        extra: if cfg.columns.has(Group::Features) {
-            estimator.extra_columns().to_vec()
-        } else {
-            Vec::new()
-        },
-        unit: unit_name.clone(),
-        wide: cfg.column_type == crate::io::columns::ColumnType::F64,
-    };
-    let output_options = output_options(cfg);
-    crate::run::rerun::check_new_names(cfg, &sources, &cols)?;
+    check_classes(&cfg, &sources)?;
+    let file_normals = use_file_normals(&cfg, &sources)?;
+    let estimator = cfg.estimator.build(&cfg.estimator_params);
+    let cols = column_set(
+        &cfg,
+        &sources,
+        file_normals,
+        estimator.extra_columns(),
+        &unit_name,
+    );
+    let output_options = output_options(&cfg);
+    crate::run::rerun::check_new_names(&cfg, &sources, &cols)?;
     let ply = output_options.ply_names;
-    notes.extend(check_output_columns(cfg, &sources, &outputs, &cols, ply)?);
+    notes.extend(check_output_columns(&cfg, &sources, &outputs, &cols, ply)?);
     for note in &notes {
         reporter.warn(note);
     }
-    let radius_words = radius_words(cfg, radius, &tile_units);
+    let radius_words = radius_words(&cfg, radius, &tile_units);
     for s in &sources {
         reporter.info(&format!(
             "{}: {} points, {}, {unit_words}; tile {} = {tile_size:.3} {tile_units}{radius_words}; normals {}",
@@ -420,31 +424,51 @@ fn open_checked(cfg: &Config, outputs: Vec<PathBuf>, reporter: &dyn Reporter) ->
         })
         .collect();
     Ok(RunSpec {
+        inputs: inputs.to_vec(),
         total_points: sources.iter().map(|s| s.len()).sum(),
         first_ids,
         outputs,
         grid: TileGrid { size: tile_size },
-        params: {
-            let mut p = parameters(cfg, (tile_size, radius), &unit_name, file_normals);
-            p.extend(z_words.map(|value| crate::run::spec::Param {
-                key: "z_scale",
-                value,
-            }));
-            p
+        resolved: Resolved {
+            tile_size,
+            radius,
+            unit_name,
+            z_scale,
+            z_words,
+            file_normals,
         },
-        z_scale,
-        select: cfg.select.clone(),
-        config: cfg.params(),
+        params: cfg,
         output_options,
-        unit_name,
-        file_normals,
         cols,
-        column_type: cfg.column_type,
-        k: cfg.k,
-        ladder: cfg.scale,
-        radius,
-        orientation: cfg.orientation,
         estimator,
         sources,
     })
+}
+
+/// The columns a run computes: those asked for, less the normals when the inputs keep their
+/// own (used, or ignored but named so), plus the scale `-k auto` chose, and the estimator's
+/// extra columns with `--features`.
+fn column_set(
+    cfg: &RunParams,
+    sources: &[Box<dyn PointSource>],
+    file_normals: bool,
+    extra: &[crate::core::estimate::ExtraColumn],
+    unit_name: &str,
+) -> ColumnSet {
+    let keeps_normals = file_normals || sources.iter().any(|s| named_normals(s.as_ref()));
+    ColumnSet {
+        choice: if keeps_normals {
+            cfg.columns.without(Group::Normals)
+        } else {
+            cfg.columns
+        }
+        .with_if(cfg.ladder.is_some(), Group::Scale),
+        extra: if cfg.columns.has(Group::Features) {
+            extra.to_vec()
+        } else {
+            Vec::new()
+        },
+        unit: unit_name.to_string(),
+        wide: cfg.column_type == crate::io::columns::ColumnType::F64,
+    }
 }

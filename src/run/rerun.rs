@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::config::Config;
+use crate::config::RunParams;
 use crate::error::{Error, Result};
 use crate::io::columns::{every_name, Column, ColumnSet};
 use crate::io::las::provenance::{self, is_process_record, PreviousRun};
@@ -88,7 +88,7 @@ fn replaced_note(path: &Path, run: &PreviousRun) -> String {
 
 /// The refusal of a new column whose name the input already has (`what`: its dimension or
 /// property, named), with what to do: `--columns` without the column's group, or a rename.
-fn clash(cfg: &Config, source: &dyn PointSource, what: &str, column: &Column) -> Error {
+fn clash(cfg: &RunParams, source: &dyn PointSource, what: &str, column: &Column) -> Error {
     let texts = match source.layout() {
         SourceLayout::Las(p) => record_texts(p.vlrs, p.evlrs),
         SourceLayout::Converted => Vec::new(),
@@ -118,7 +118,7 @@ fn clash(cfg: &Config, source: &dyn PointSource, what: &str, column: &Column) ->
 /// of the new columns (any case, as LAS readers match names): the output would hold two.
 /// Tilecurv's own columns are gone by now ([`open_input`]), so this is someone else's column.
 pub fn check_new_names(
-    cfg: &Config,
+    cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     cols: &ColumnSet,
 ) -> Result<()> {
@@ -137,7 +137,7 @@ pub fn check_new_names(
 /// Refuses, before any work, a PLY output (among `outputs`, one per source) whose new
 /// columns' PLY names (`scalar_H`, `nx`, as `style` names them) an input property already has.
 pub fn check_ply_names(
-    cfg: &Config,
+    cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     outputs: &[PathBuf],
     (cols, style): (&ColumnSet, PlyNames),

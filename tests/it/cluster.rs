@@ -54,7 +54,10 @@ fn stages_by_hand_give_the_bytes_of_process() {
     assert!(tasks > 2, "{printed}");
     // A leftover of a killed attempt of bucket task 1 on this host: swept by the next attempt.
     let host = std::fs::read_to_string("/proc/sys/kernel/hostname").expect("hostname");
-    let dead = work.join(format!("buckets/t1.tmp.{}.2147483646", host.trim()));
+    let dead = work.join(format!(
+        "buckets/.t1.tilecurv-{}-2147483646.tmp",
+        host.trim()
+    ));
     std::fs::create_dir_all(&dead).expect("fake leftover");
     assert_eq!(
         run(&["status", "--work", s(&work), "--missing"], 0).trim(),

@@ -286,14 +286,13 @@ fn dead_pid() -> u32 {
     pid
 }
 
-/// Issue 12 item 8: the temporary files of killed runs were never removed. A rerun removes
-/// those of dead processes of this host, beside the outputs (`.<name>.tilecurv-<host>-<pid>.tmp`)
-/// and in the work directory (`<name>.tmp.<host>.<pid>`: manifest, result files, bucket task
-/// directories), and keeps those of live processes (this test's) and of other hosts.
+/// A rerun removes the temporary files (`.<name>.tilecurv-<host>-<pid>.tmp`) of dead processes
+/// of this host, beside the outputs and in the work directory (manifest, result files, bucket
+/// task directories), and keeps those of live processes (this test's) and of other hosts.
 #[test]
 fn reruns_sweep_the_temporary_files_of_dead_processes() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let host = tilecurv::io::workdir::host_name();
+    let host = tilecurv::io::durable::host_name();
     let (dead, live) = (dead_pid(), std::process::id());
     let work = dir.path().join("work");
     let input = sample();
@@ -318,11 +317,19 @@ fn reruns_sweep_the_temporary_files_of_dead_processes() {
         ("buckets", "t0", true),
     ] {
         let d = work.join(sub);
-        gone.push(plant(&d, &format!("{base}.tmp.{host}.{dead}"), is_dir));
-        kept.push(plant(&d, &format!("{base}.tmp.{host}.{live}"), is_dir));
+        gone.push(plant(
+            &d,
+            &format!(".{base}.tilecurv-{host}-{dead}.tmp"),
+            is_dir,
+        ));
         kept.push(plant(
             &d,
-            &format!("{base}.tmp.another-node.{dead}"),
+            &format!(".{base}.tilecurv-{host}-{live}.tmp"),
+            is_dir,
+        ));
+        kept.push(plant(
+            &d,
+            &format!(".{base}.tilecurv-another-node-{dead}.tmp"),
             is_dir,
         ));
     }

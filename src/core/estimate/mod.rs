@@ -287,7 +287,7 @@ impl EstimatorKind {
             EstimatorKind::Apss => "algebraic point set surface: sphere fit, mean curvature only (k1 = k2 = H)",
             EstimatorKind::Aso => "algebraic shape operator: full curvature tensor of the APSS sphere field",
             EstimatorKind::Wme => "Weingarten map estimate by least squares on the normals",
-            EstimatorKind::Jet => "osculating jet (degree-2 height field fit), the classical baseline",
+            EstimatorKind::Jet => "osculating jet (a height-field polynomial of --jet-degree, 2 by default), the classical baseline",
             EstimatorKind::Vcm => "Voronoi covariance measure: unsigned curvature magnitudes; --features adds a sharp-edge score",
         }
     }

@@ -14,11 +14,12 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::direct::DirectFile;
+use crate::io::durable::TempFile;
 use crate::io::las::extra_bytes;
 use crate::io::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
 use crate::io::las::provenance::PROVENANCE;
 use crate::io::las::vlr::{laszip, Vlr};
-use crate::io::output::{PointSink, TempFile};
+use crate::io::output::PointSink;
 
 /// Whether a path names a LAZ file (by extension; anything else that is .las is LAS).
 fn output_is_laz(path: &Path) -> Result<bool> {

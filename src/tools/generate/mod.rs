@@ -174,25 +174,6 @@ impl TerrainOptions {
     }
 }
 
-/// Parses a point count: `2000000`, `2M`, `1.5M`, `20k`, `1G`, `1e6` (k, M, G are powers of ten).
-pub fn parse_count(s: &str) -> std::result::Result<u64, String> {
-    let t = s.trim().replace('_', "");
-    let (num, mult) = match t.chars().last() {
-        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
-        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
-        Some('g' | 'G') => (&t[..t.len() - 1], 1e9),
-        _ => (t.as_str(), 1.0),
-    };
-    let v: f64 = num.parse().map_err(|_| {
-        format!("{s:?} is not a point count: expected e.g. 2000000, 2M, 500k or 1e6")
-    })?;
-    let n = (v * mult).round();
-    if !(1.0..1.8e19).contains(&n) {
-        return Err(format!("{s:?}: a point count must be at least 1"));
-    }
-    Ok(n as u64)
-}
-
 /// What a finished generation reports.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TerrainSummary {
@@ -448,16 +429,6 @@ mod tests {
     use super::*;
     use crate::core::surface::HeightField;
     use crate::io::source::{LasSource, PointSource};
-
-    #[test]
-    fn parse_counts() {
-        assert_eq!(parse_count("2M"), Ok(2_000_000));
-        assert_eq!(parse_count("1.5k"), Ok(1500));
-        assert_eq!(parse_count("1e6"), Ok(1_000_000));
-        assert_eq!(parse_count("20_000"), Ok(20_000));
-        assert!(parse_count("0").is_err());
-        assert!(parse_count("many").is_err());
-    }
 
     /// `--noise 0:0.05`: the west half lies on the surface (to the 0.5 mm of the z
     /// quantisation), the east half is off it by Gaussian noise of sigma 5 cm (measured within

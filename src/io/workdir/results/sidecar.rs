@@ -6,15 +6,15 @@ use std::path::{Path, PathBuf};
 
 use crate::core::plan::TileKey;
 use crate::error::{Error, Result};
+use crate::io::durable::tmp_name;
 use crate::io::pack::{compress, decompress_into, get_planes, put_planes, Cursor};
-use crate::io::workdir::tmp_name;
 
 const ORIENT_MAGIC: &[u8; 8] = b"TCORI003";
 
 /// The orientation sidecar of a tile (`--orient propagate`): its patch anchors and the normals
 /// it shares with other tiles, for the cross-tile sign resolution.
 pub fn orientation_path(dir: &Path, key: TileKey) -> PathBuf {
-    dir.join(format!("tile_{}_{}.ori", key.0, key.1))
+    crate::io::workdir::names::tile_orientation(dir, key)
 }
 
 /// What a tile's passes contribute to the cross-tile orientation.

@@ -10,7 +10,7 @@
 
 use std::fs::OpenOptions;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rayon::prelude::*;
 
@@ -18,6 +18,7 @@ use crate::core::plan::TileKey;
 use crate::core::point::{Points, SourcePoint};
 use crate::error::{Error, Result};
 use crate::io::pack::{get_planes, put_planes, put_varint, unzigzag, zigzag, Cursor};
+use crate::io::workdir::names::bucket_file;
 
 /// The first bytes of every decoded frame: the bucket format and its version.
 const MAGIC: &[u8; 4] = b"TCB2";
@@ -79,11 +80,6 @@ impl Grids {
     fn axis(&self, i: usize, axis: usize) -> Option<AxisGrid> {
         self.inputs.get(i).and_then(|(_, a)| a.map(|a| a[axis]))
     }
-}
-
-/// The bucket file of a tile in a bucket task's directory.
-pub fn bucket_file(dir: &Path, key: TileKey) -> PathBuf {
-    dir.join(format!("b_{}_{}.zst", key.0, key.1))
 }
 
 /// Column encodings (the first byte of a column).

@@ -19,8 +19,8 @@ use crate::core::orient::GlobalPatch;
 use crate::core::quantize::CurvatureStats;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnSet, Value};
+use crate::io::durable::tmp_name;
 use crate::io::pack::{compress, decompress_into, get_planes, put_planes, put_varint, Cursor};
-use crate::io::workdir::tmp_name;
 
 /// The first bytes of a result file: its format and version.
 const MAGIC: &[u8; 8] = b"TCRES005";

@@ -18,12 +18,10 @@ use crate::core::plan::{Rect, ScanStats, TileGrid, TileKey};
 use crate::core::point::{Points, SourcePoint};
 use crate::core::tile::{Part, TilePoints};
 use crate::error::{Error, Result};
-use frames::{bucket_file, decode_frames};
+use crate::io::workdir::names::{bucket_file, BUCKETS_DONE as DONE};
+use frames::decode_frames;
 pub use scan::{scan, ScanInput};
 pub use stats::{parse_stats, stats_text};
-
-/// Name of the file that marks a bucket task's directory complete, with its statistics.
-pub const DONE: &str = "buckets.done";
 
 /// A complete bucket task directory and the tiles it holds points of, with their counts.
 struct TaskDir {

@@ -88,7 +88,7 @@ pub fn fan_in(memory_bytes: usize, cols: &ColumnSet) -> usize {
 
 /// The result file of a tile.
 pub fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
-    dir.join(format!("tile_{}_{}.res", key.0, key.1))
+    crate::io::workdir::names::tile_result(dir, key)
 }
 
 /// Writes one tile's results (in id order) under a temporary name; returns it. Patches are
@@ -175,14 +175,14 @@ impl Journal {
         if self.pending.is_empty() {
             return Ok(());
         }
-        crate::io::workdir::sync_files(
+        crate::io::durable::sync_files(
             &self.dir,
             self.pending.iter().map(|(tmp, _)| tmp.as_path()),
         )?;
         for (tmp, path) in self.pending.drain(..) {
             std::fs::rename(&tmp, &path).map_err(|e| Error::write(&path, e))?;
         }
-        crate::io::workdir::sync_dir(&self.dir);
+        crate::io::durable::sync_dir(&self.dir);
         self.since = std::time::Instant::now();
         Ok(())
     }
@@ -243,7 +243,7 @@ impl Merger {
         while files.len() > fan_in {
             let take = (files.len() - fan_in + 1).min(fan_in);
             let group: Vec<PathBuf> = files.drain(..take).collect();
-            let run = dir.join(format!("run_{}.res", runs.len()));
+            let run = crate::io::workdir::names::merge_run(dir, runs.len());
             let mut m = Merger::open_direct(&group, cols)?;
             // Counts come from the files' headers: a sum past u64 is damage.
             let count = m

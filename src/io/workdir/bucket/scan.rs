@@ -10,15 +10,16 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use super::frames::{bucket_file, spill, AxisGrid, Grids};
+use super::frames::{spill, AxisGrid, Grids};
 use super::stats::stats_text;
 use super::{Buckets, TaskDir, DONE};
 use crate::core::plan::{computable, MemoryPlan, ScanStats, TileGrid, TileKey, MAX_COORDINATE};
 use crate::core::point::{Points, SourcePoint};
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
+use crate::io::durable::{sync_dir, sync_files, tmp_name, write_durably};
 use crate::io::source::PointSource;
-use crate::io::workdir::{sync_dir, sync_files, tmp_name, write_durably};
+use crate::io::workdir::names::bucket_file;
 
 /// One source of a scan and the id of its first point in the scene.
 pub struct ScanInput<'a> {

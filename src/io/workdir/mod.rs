@@ -1,0 +1,334 @@
+//! The work directory of a run and its format: where buckets and per-tile results live between
+//! the stages, and the unit of resumption. [`names`] spells every file in it and describes the
+//! layout. A run that owns the directory (`process`, `plan`) holds its lock, an exclusive
+//! `flock` on `lock` (one run per work directory); the cluster stages attach without it. The
+//! manifest ([`manifest`]) fingerprints the inputs and every option that changes the output,
+//! so stale work is discarded, never mixed in. The bucket store (`buckets/`, [`bucket`]) and
+//! the result store (`results/`, [`results`], [`ResultStore`]) are reached through
+//! [`WorkDir`]; no other module joins a path inside the directory.
+
+pub mod bucket;
+pub mod manifest;
+pub(crate) mod names;
+pub mod results;
+
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::core::plan::TileSpec;
+use crate::error::{Error, Result};
+use crate::io::columns::ColumnSet;
+use crate::io::durable::{sweep_dead_temps, write_durably};
+pub use names::default_path;
+use names::{BUCKETS, LOCK, MANIFEST, RESULTS, TASKS};
+
+/// The version of the work directory's file formats (bucket frames, result files), in every
+/// manifest and its fingerprint: work left by a tilecurv that wrote other formats is discarded
+/// by `process` and refused by the cluster stages, never misread. Each file also starts with
+/// its own magic and version.
+pub const FORMAT_VERSION: u32 = 3;
+
+/// What was found in the work directory when a run started.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Resume {
+    /// Nothing: a fresh start.
+    Fresh,
+    /// Work from the same inputs and parameters: finished steps are reused.
+    Resumed,
+    /// Work from other inputs or parameters: it was discarded.
+    Discarded,
+}
+
+/// An open work directory.
+pub struct WorkDir {
+    path: PathBuf,
+    /// What was found there.
+    pub resume: Resume,
+    /// Whether this process holds the directory's lock (`process`, `plan`); the cluster stages
+    /// attach without it.
+    locked: bool,
+    /// The open lock file, whose `flock` is the lock: the kernel releases it when the process
+    /// ends, however it ends.
+    _lock: Option<File>,
+}
+
+/// Takes the lock of the work directory at `path`: an exclusive `flock` on its lock file, then
+/// our pid written in it (for the message a second run prints). Two runs can never both hold
+/// it: the kernel decides, not the file's contents (a pid file read between another run's
+/// create and write read as empty, pid 0, and both runs went on), and a run that died, even by
+/// `kill -9`, holds nothing. The lock file is removed on drop, so the lock is re-checked to be
+/// on the file the path names now.
+fn take_lock(path: &Path) -> Result<File> {
+    use std::io::Read;
+    use std::os::unix::fs::MetadataExt;
+    use std::os::unix::io::AsRawFd;
+    let lock = path.join(LOCK);
+    loop {
+        let mut f = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&lock)
+            .map_err(|e| Error::write(&lock, e))?;
+        // SAFETY: flock on a file descriptor this function owns; no memory is involved.
+        if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() != std::io::ErrorKind::WouldBlock {
+                return Err(Error::write(&lock, e));
+            }
+            let mut holder = String::new();
+            let _ = f.read_to_string(&mut holder);
+            let holder = match holder.trim() {
+                "" => "starting".to_string(),
+                pid => format!("process {pid}"),
+            };
+            return Err(Error::Usage(format!(
+                "{}: another tilecurv run ({holder}) is using this work directory; wait for it, or use --work-dir",
+                path.display()
+            )));
+        }
+        let same = match (f.metadata(), std::fs::metadata(&lock)) {
+            (Ok(a), Ok(b)) => a.ino() == b.ino() && a.dev() == b.dev(),
+            _ => false,
+        };
+        if !same {
+            continue; // the holder removed the file between our open and our lock
+        }
+        f.set_len(0).map_err(|e| Error::write(&lock, e))?;
+        writeln!(f, "{}", std::process::id()).map_err(|e| Error::write(&lock, e))?;
+        return Ok(f);
+    }
+}
+
+impl WorkDir {
+    /// Opens (creating it if needed) and locks the work directory at `path`, compares its
+    /// manifest with `manifest` (whose first line is the fingerprint), and discards stale work.
+    pub fn open(path: &Path, manifest: &str) -> Result<Self> {
+        std::fs::create_dir_all(path).map_err(|e| Error::write(path, e))?;
+        let lock_file = take_lock(path)?;
+        sweep_dead_temps(path, None);
+        let mpath = path.join(MANIFEST);
+        // Only a manifest that is not there, or not text, means no work to keep: one that
+        // cannot be read now (too many open files) must not discard the work.
+        let resume = match std::fs::read_to_string(&mpath) {
+            Ok(old) if old == manifest => Resume::Resumed,
+            Ok(_) => Resume::Discarded,
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Resume::Discarded,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Resume::Fresh,
+            Err(e) => return Err(Error::read_work(&mpath, e)),
+        };
+        if resume != Resume::Resumed {
+            clear_except_lock(path)?;
+            write_durably(&mpath, manifest.as_bytes())?;
+        }
+        Ok(WorkDir {
+            path: path.to_path_buf(),
+            resume,
+            locked: true,
+            _lock: Some(lock_file),
+        })
+    }
+
+    /// The scratch directory of a dry run beside the work directory `path`, opened and locked
+    /// as [`WorkDir::open`] does.
+    pub fn open_scratch(path: &Path, manifest: &str) -> Result<Self> {
+        WorkDir::open(&path.with_extension("dryrun"), manifest)
+    }
+
+    /// Attaches to the work directory a `plan` made at `path`, without its lock (tasks of one
+    /// stage run at the same time, on any node), and returns it with what its manifest says.
+    pub fn attach(path: &Path) -> Result<(Self, manifest::Planned, String)> {
+        let mpath = path.join(MANIFEST);
+        let text = std::fs::read_to_string(&mpath).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => Error::Usage(format!(
+                "{}: not a tilecurv work directory ({e}); run `tilecurv plan INPUTS... --work {}` first",
+                path.display(),
+                path.display()
+            )),
+            std::io::ErrorKind::InvalidData => manifest::damaged(&mpath, "it is not text"),
+            _ => Error::read_work(&mpath, e),
+        })?;
+        let planned = manifest::parse(&mpath, &text)?;
+        let work = WorkDir {
+            path: path.to_path_buf(),
+            resume: Resume::Resumed,
+            locked: false,
+            _lock: None,
+        };
+        Ok((work, planned, text))
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Records the task layout `text`; buckets made under another layout are discarded.
+    pub fn set_task_layout(&self, text: &str) -> Result<()> {
+        let tasks = self.path.join(TASKS);
+        if std::fs::read_to_string(&tasks).ok().as_deref() == Some(text) {
+            return Ok(());
+        }
+        let buckets = self.path.join(BUCKETS);
+        if buckets.exists() {
+            std::fs::remove_dir_all(&buckets).map_err(|e| Error::write(&buckets, e))?;
+        }
+        write_durably(&tasks, text.as_bytes())
+    }
+
+    /// The task layout's text as `plan` wrote it, parsed by `parse`; a missing layout asks for
+    /// a new plan, one that does not parse is damaged work (exit 4).
+    pub fn task_layout<T>(&self, parse: impl FnOnce(&str) -> Option<T>) -> Result<T> {
+        let tasks = self.path.join(TASKS);
+        let text = std::fs::read_to_string(&tasks).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => Error::Usage(format!(
+                "{}: no task layout; run `tilecurv plan` again",
+                tasks.display()
+            )),
+            _ => Error::read_work(&tasks, e),
+        })?;
+        parse(&text).ok_or_else(|| {
+            Error::damaged_work(&tasks, "a damaged task layout; run `tilecurv plan` again")
+        })
+    }
+
+    /// The directory of bucket task `task`.
+    pub fn bucket_task_dir(&self, task: usize) -> PathBuf {
+        names::bucket_task_dir(&self.path.join(BUCKETS), task)
+    }
+
+    /// The directories of bucket tasks `0..tasks`.
+    pub fn bucket_task_dirs(&self, tasks: usize) -> Vec<PathBuf> {
+        (0..tasks).map(|t| self.bucket_task_dir(t)).collect()
+    }
+
+    /// Makes the buckets directory ready for a scan: created, with the attempts of killed
+    /// scans of this host removed (their frames are never reused).
+    pub fn prepare_buckets(&self) -> Result<()> {
+        let buckets = self.path.join(BUCKETS);
+        std::fs::create_dir_all(&buckets).map_err(|e| Error::write(&buckets, e))?;
+        sweep_dead_temps(&buckets, None);
+        Ok(())
+    }
+
+    /// The result store, created if needed, with the half-written files of killed runs of this
+    /// host removed.
+    pub fn results(&self) -> Result<ResultStore> {
+        let dir = self.path.join(RESULTS);
+        std::fs::create_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
+        sweep_dead_temps(&dir, None);
+        Ok(ResultStore { dir })
+    }
+
+    /// Removes the whole directory (after a successful run).
+    pub fn remove(self) {
+        let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
+impl Drop for WorkDir {
+    /// Releases the lock; the work stays for a resumed run unless `remove` was called.
+    fn drop(&mut self) {
+        if self.locked {
+            let _ = std::fs::remove_file(self.path.join(LOCK));
+        }
+    }
+}
+
+/// The tile results of a work directory: which tiles are done, the journal that commits new
+/// ones, and the files assemble merges.
+pub struct ResultStore {
+    dir: PathBuf,
+}
+
+impl ResultStore {
+    /// Whether tile `t` is finished: its result file is complete (and, with `propagate`
+    /// (`--orient propagate`), its orientation sidecar is there: it is renamed first).
+    pub fn tile_done(&self, t: &TileSpec, cols: &ColumnSet, propagate: bool) -> bool {
+        (!propagate || names::tile_orientation(&self.dir, t.key).exists())
+            && results::is_complete(&names::tile_result(&self.dir, t.key), t.count, cols)
+    }
+
+    /// The journal that writes and commits finished tiles.
+    pub fn journal(&self) -> results::Journal {
+        results::Journal::new(&self.dir)
+    }
+
+    /// The result files of `tiles`, in order.
+    pub fn files(&self, tiles: &[TileSpec]) -> Vec<PathBuf> {
+        tiles
+            .iter()
+            .map(|t| names::tile_result(&self.dir, t.key))
+            .collect()
+    }
+
+    /// The directory, for the merge's run files and the orientation sidecars.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+}
+
+fn clear_except_lock(dir: &Path) -> Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::write(dir, e))?;
+    for e in entries.flatten() {
+        if e.file_name() == LOCK {
+            continue;
+        }
+        let p = e.path();
+        let r = if p.is_dir() {
+            std::fs::remove_dir_all(&p)
+        } else {
+            std::fs::remove_file(&p)
+        };
+        r.map_err(|e| Error::write(&p, e))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_work_is_discarded_and_matching_work_resumed() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let wd = dir.path().join("w");
+        let w = WorkDir::open(&wd, "fp 1\n").expect("open");
+        assert_eq!(w.resume, Resume::Fresh);
+        std::fs::write(wd.join("tile_0_0.res"), b"x").expect("write");
+        drop(w);
+        let w = WorkDir::open(&wd, "fp 1\n").expect("open");
+        assert_eq!(w.resume, Resume::Resumed);
+        assert!(wd.join("tile_0_0.res").exists());
+        drop(w);
+        let w = WorkDir::open(&wd, "fp 2\n").expect("open");
+        assert_eq!(w.resume, Resume::Discarded);
+        assert!(!wd.join("tile_0_0.res").exists());
+        drop(w);
+        // A lock file left by a run that died (here naming pid 1) holds no lock: taken over.
+        std::fs::write(wd.join(LOCK), "1\n").expect("write lock");
+        let w = WorkDir::open(&wd, "fp 2\n").expect("open");
+        w.remove();
+        assert!(!wd.exists());
+    }
+
+    #[test]
+    fn a_held_lock_is_never_taken_even_when_its_file_reads_empty() {
+        // A second run that reads the lock file between the first run's create and its write
+        // sees no pid: the flock, not the file's text, decides.
+        let dir = tempfile::tempdir().expect("temp dir");
+        let wd = dir.path().join("w");
+        let first = WorkDir::open(&wd, "fp 1\n").expect("open");
+        std::fs::write(wd.join(LOCK), "").expect("empty the lock file");
+        let second = WorkDir::open(&wd, "fp 1\n");
+        assert!(
+            matches!(&second, Err(Error::Usage(m)) if m.contains("another tilecurv run")),
+            "a second open of a held work directory must fail"
+        );
+        drop(first);
+        let again = WorkDir::open(&wd, "fp 1\n").expect("free once the first run is done");
+        drop(again);
+    }
+}
