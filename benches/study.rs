@@ -1,5 +1,6 @@
-//! The estimator study of issue 5: the protocol of the CNC paper's section 6 (algorithms.md 14.1)
-//! run on every estimator of this crate, accuracy and single-thread time per point.
+//! The estimator study (docs/study.md): the protocol of the CNC paper's section 6
+//! (algorithms.md 14.1) run on every estimator of this crate, accuracy and single-thread time
+//! per point.
 //!
 //! Protocol (full mode):
 //! * shapes: goursat and torus (R = 6, r = 2), sampled i.i.d. uniform in area by

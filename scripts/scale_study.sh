@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The scale study of issue 15 (docs/scale.md): fixed K, --radius and -k auto on six generated
+# The scale study (docs/scale.md): fixed K, --radius and -k auto on six generated
 # clouds with closed-form curvature (terrain clean, 2 cm noise, clean west half + 5 cm east half;
 # torus; goursat; torus with isotropic noise 0.02), scored against their TrueH/TrueK columns, and
 # H maps of two real surveys at K = 30 and -k auto. scripts/scale_study.py does the analysis.

@@ -432,8 +432,8 @@ mod tests {
 
     #[test]
     fn a_held_lock_is_never_taken_even_when_its_file_reads_empty() {
-        // Issue 12 item 14: a second run that read the lock file between the first run's
-        // create and its write saw pid 0 and took the lock too.
+        // A second run that reads the lock file between the first run's create and its write
+        // sees pid 0: it must not take the lock too.
         let dir = tempfile::tempdir().expect("temp dir");
         let wd = dir.path().join("w");
         let first = WorkDir::open(&wd, "fp 1\n").expect("open");

@@ -310,7 +310,7 @@ pub fn tiles(
 }
 
 fn report_plan(spec: &RunSpec, scan: &Bucketed, tplan: &TilePlan, resumed: usize, exec: &Exec<'_>) {
-    // The scan left out the points the class filter does not select (issue 13 item 5).
+    // The scan leaves out the points the class filter does not select.
     let skipped = spec.total_points.saturating_sub(scan.stats.count);
     if scan.stats.count == 0 {
         exec.reporter.warn(&format!(

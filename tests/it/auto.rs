@@ -1,4 +1,4 @@
-//! `-k auto` (issue 15): the scale chosen per point. On a generated terrain clean in its west
+//! `-k auto`: the scale chosen per point. On a generated terrain clean in its west
 //! half and with 5 cm of vertical noise in its east half (the hardest cloud of algorithms.md 9.5),
 //! the chosen scale reaches the accuracy of the best fixed K without being told it, beats the
 //! default K = 30 by a wide margin where the noise is, and writes the K it chose; the output is

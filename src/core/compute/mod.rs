@@ -128,7 +128,7 @@ impl PointResult {
 
 /// A pass stopped because its cancel flag was set (SIGINT/SIGTERM): its results are incomplete
 /// and dropped. Every step checks the flag per point, so a signal never waits for a whole pass
-/// over a large tile (issue 12 item 2).
+/// over a large tile.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Cancelled;
 

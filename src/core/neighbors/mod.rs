@@ -3,7 +3,7 @@
 //! coordinates (x, then y, then z: [`cmp_position`]), and by original id only between exact
 //! duplicates, which are geometrically interchangeable. So the neighbour set and its order
 //! depend on the point set alone: not on the index, the tile, the thread, nor the order of the
-//! records in the file (issue 12 item 15). Two interchangeable backends find the candidates:
+//! records in the file. Two interchangeable backends find the candidates:
 //!
 //! - a uniform 3D grid with cells of 1.25 times the k-NN radius. A query ranks the 27 cells
 //!   around its own (gathered once per cell in f32, see [`Block`]): an f32 pass finds a radius
