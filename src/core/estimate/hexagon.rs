@@ -21,7 +21,7 @@ pub(super) fn hexagon_frame(n: V3) -> (V3, V3) {
     let u = normalize(cross(n, e)).unwrap_or([1.0, 0.0, 0.0]);
     // n and u are unit and orthogonal (to rounding), so n x u is unit to a few ulps: its
     // length would only scale the sector tests, which compare signs (a normalisation here
-    // was a tenth of this estimator's latency).
+    // would lengthen this estimator's chain of dependent operations).
     let v = cross(n, u);
     (u, v)
 }
@@ -90,9 +90,9 @@ const NO_SECTOR: u8 = 6;
 /// Per hexagon sector: the sums of its neighbours' positions (lanes 0-2), their count (lane 3)
 /// and the sums of their normals (lanes 4-6); the query point (first) is left out, and so is
 /// a point in no sector (row 6 takes it). The sectors of a run of neighbours are found first,
-/// then the run is added in order: adding each neighbour as soon as its sector was known took
-/// this estimator 15% longer for 1% fewer instructions (its stores go to an address known
-/// late, which holds up the loads after them).
+/// then the run is added in order: adding each neighbour as soon as its sector is known is
+/// slower although it executes fewer instructions (its stores go to an address known late,
+/// which holds up the loads after them; docs/performance.md).
 pub(super) fn sector_sums(nb: &Neighbourhood<'_>, u: V3, v: V3) -> [[f64; 8]; 7] {
     const RUN: usize = 32;
     let mut sums = [[0.0f64; 8]; 7];
