@@ -3,8 +3,8 @@
 //! principal curvatures: k1 <= k2 are magnitudes |kappa| (so H = (|k1| + |k2|)/2 and
 //! K = |k1| |k2| >= 0, even on a saddle). The paper's own use of the VCM is for normals,
 //! principal directions and sharp features ([`sharp_feature_ratio`], algorithms.md 5.5); prefer the
-//! other estimators for signed curvature. Every result carries in [`Curvature::extra`] the
-//! VCM's own normal (the convolved VCM's leading eigenvector, signed by the input normal,
+//! other estimators for signed curvature. [`Estimator::estimate_extra`] also gives the VCM's own
+//! normal (the convolved VCM's leading eigenvector, signed by the input normal,
 //! algorithms.md 5.3) and the sharp-feature ratio, written by `--features`.
 //!
 //! Per point (algorithms.md 5.2, computed without a global Voronoi diagram):
@@ -21,10 +21,13 @@
 //! Curvature magnitudes (algorithms.md 5.4): V ~ c [n n^T + sum_a kappa_a^2 m_a P_a P_a^T] with m_a
 //! the second moment of the convolved points' tangential offsets along P_a (r^2/4 for a uniform
 //! disk). The tangential extent of each cell adds a sampling bias of about 3 A_cell / (4 pi R^2) to
-//! lambda_a / lambda_1 (algorithms.md 5.4), larger than the curvature term at K-NN scales; it is
-//! removed by subtracting the VCM of the same points projected onto the VCM tangent plane (a local
-//! version of "calibrate on a plane at the same density"). What remains is biased at second order
-//! in R kappa.
+//! lambda_a / lambda_1 (algorithms.md 5.4), larger than the curvature term at K-NN scales, so the
+//! magnitudes are not read from V's eigenvalues: each convolved cell contributes only its pencil
+//! axis v (its leading eigenvector, weighted by its eigenvalue w), and the curvature along a
+//! tangent direction is how much the axes turn across the ball there, kappa_a^2 = mu_a /
+//! (lambda_1 m_a), with mu_a the tangent eigenvalues of sum w v v^T, lambda_1 its leading one and
+//! m_a the w-weighted variance of the cell centres along that direction (`magnitudes`). What
+//! remains is biased at second order in R kappa.
 
 use super::{flags, local, Curvature, Estimator, ExtraColumn, Neighbourhood, Scratch};
 use crate::core::geometry::{add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, M3, V3};
