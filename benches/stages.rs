@@ -1,6 +1,7 @@
 //! Per-stage cost of the curvature phase on one tile of a real file, single thread: where the
 //! time of `tilecurv process` goes per point, and the engine's k-NN against kiddo's k-d tree
-//! (the crate the brief chose, and the baseline the issue quotes) on the same points.
+//! (the crate tilecurv's neighbours were first built on, and the usual baseline) on the same
+//! points.
 //!
 //! Usage: `cargo bench --bench stages -- [FILE] [--tile METRES] [-k K] [--repeat N]`
 //! (default FILE: data/Haystack_Rock.las, the sample that ships; tile 50, K 30, repeat 3).

@@ -1,5 +1,6 @@
-//! The estimator study of issue 5: the protocol of the CNC paper's section 6 (algorithms.md 1.10)
-//! run on every estimator of this crate, accuracy and single-thread time per point.
+//! The estimator study (docs/study.md): the protocol of the CNC paper's section 6
+//! (algorithms.md 14.1) run on every estimator of this crate, accuracy and single-thread time
+//! per point.
 //!
 //! Protocol (full mode):
 //! * shapes: goursat and torus (R = 6, r = 2), sampled i.i.d. uniform in area by
@@ -48,7 +49,7 @@ use tilecurv::core::estimate::{
 };
 use tilecurv::core::geometry::{sub, V3};
 
-/// Torus radii of the paper (section 1.10).
+/// Torus radii of the paper (algorithms.md 13.4).
 const TORUS_R: (f64, f64) = (6.0, 2.0);
 /// Seed of the samplers (the same for every N: the clouds are independent samples anyway).
 const SAMPLE_SEED: u64 = 2023;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Size of a LAZ output against its LAZ input (issue 13 item 6): runs `tilecurv process` on the
+# Size of a LAZ output against its LAZ input: runs `tilecurv process` on the
 # shipped sample (data/Haystack_Rock.las, converted to LAZ with laspy + lazrs first, since it
 # ships as LAS) and on the shared bcts_1.laz, bcts_2.laz and autzen_trim.laz, once per option
 # set, and prints a Markdown table: input bytes, output bytes, output / input.

@@ -132,7 +132,7 @@ def report(a):
     for c in clouds:
         fixed = [r for r in rows if r["cloud"] == c and r["mode"] == "fixed"]
         best[c] = min(fixed, key=lambda r: r["h_rms"])
-    # Summary, as algorithms.md section 9's table.
+    # Summary, as the table of algorithms.md 9.5.
     out.append("| cloud | best fixed K (H RMS) | K = 30 | best radius | -k auto | auto: median K | auto: saturated |")
     out.append("|---|---|---:|---:|---:|---:|---:|")
     for c in clouds:

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The scale study of issue 15 (docs/scale.md): fixed K, --radius and -k auto on six generated
+# The scale study (docs/scale.md): fixed K, --radius and -k auto on six generated
 # clouds with closed-form curvature (terrain clean, 2 cm noise, clean west half + 5 cm east half;
 # torus; goursat; torus with isotropic noise 0.02), scored against their TrueH/TrueK columns, and
 # H maps of two real surveys at K = 30 and -k auto. scripts/scale_study.py does the analysis.
@@ -69,9 +69,9 @@ if [ "$clouds" = 1 ]; then
     # name | generator arguments | --orient | what is scored | radii with the -k cap of each
     # (RADIUS:CAP).
     # Scoring: the terrain leaves out a border band of 11 m (one-sided neighbourhoods near the
-    # square's edges: -k auto at 4 pts/m^2 reaches r_320 + r_160 + r_64, about 11 m, algorithms.md
-    # section 9). The torus is processed with --orient outward, since -k auto refuses propagate
-    # (not yet supported on main): outward flips the normals where cos(theta) < -1/3, so H is
+    # square's edges: -k auto at 4 pts/m^2 reaches r_320 + r_160 + r_64, about 11 m,
+    # algorithms.md 11.3). The torus is processed with --orient outward, since -k auto refuses
+    # propagate (not yet supported on main): outward flips the normals where cos(theta) < -1/3, so H is
     # scored with that known sign restored and away from the two seam circles by 1.2 m along the
     # tube (r_320 = 0.78 m plus r_64 = 0.35 m at 80k points), about 2/3 of the points, outer
     # (K > 0) and inner (K < 0) parts alike. The goursat is star-shaped: outward is exact, all

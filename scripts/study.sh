@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The estimator study of issue 5 (docs/study.md): runs the single-threaded driver
+# The estimator study (docs/study.md): runs the single-threaded driver
 # benches/study.rs, which writes one CSV row per (cloud, K, estimator), then draws the SVG plots
 # and the Markdown tables with scripts/study_plots.py.
 #

@@ -61,9 +61,9 @@ struct Phase {
     last_line: Instant,
 }
 
-/// The share of a default run's wall time each phase takes, measured on 20M generated terrain
-/// points on 2 cores (issue 14: scan 8 s, curvature 33.8 s, write 5.9 s): the later phases'
-/// time is estimated from the current phase's rate with these weights, for one ETA for the run.
+/// The share of a default run's wall time each phase takes (the seconds of each phase of a run
+/// on 20M generated terrain points on 2 cores: docs/performance.md): the later phases' time is
+/// estimated from the current phase's rate with these weights, for one ETA for the run.
 const PHASE_WEIGHTS: [(&str, f64); 3] = [("scan", 8.0), ("curvature", 33.8), ("write", 5.9)];
 
 /// Seconds left in the whole run, from phase `p` with `done` of its points done: none until the

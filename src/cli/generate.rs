@@ -30,7 +30,7 @@ pub enum GenerateKind {
     /// with the upward normal: positive on hilltops, the sign of `process`'s H, K, k1, k2.
     #[command(after_help = EXIT_HELP)]
     Terrain(TerrainArgs),
-    /// The CNC paper's torus (algorithms.md 6.5): major radius R = 6 m around the z axis, tube
+    /// The CNC paper's torus (algorithms.md 13.4): major radius R = 6 m around the z axis, tube
     /// radius r = 2 m, points uniform in area, with the closed-form curvature of every point.
     ///
     /// Units: metres in a local frame centred on the torus (GeoTIFF keys: user-defined
@@ -41,7 +41,7 @@ pub enum GenerateKind {
     /// normals of the inner half point towards the axis, so `outward` gets them wrong.
     #[command(after_help = EXIT_HELP)]
     Torus(ShapeArgs),
-    /// The goursat surface of the CNC paper (algorithms.md 6.4): 0.03 (x^4 + y^4 + z^4) - 2
+    /// The goursat surface of the CNC paper (algorithms.md 13.5): 0.03 (x^4 + y^4 + z^4) - 2
     /// (x^2 + y^2 + z^2) - 8 = 0, a rounded cube within [-9.67, 9.67] m on each axis (a
     /// coordinate reaches 9.661 where the other two are +-5.77; 8.39 on the axes), points
     /// uniform in area, with the closed-form curvature of every point.

@@ -16,7 +16,7 @@ pub enum Orientation {
 
 /// The PCA normal at `xyz[nbrs[0]]` from the points `nbrs` (local indices): the eigenvector of
 /// the smallest eigenvalue of their covariance. Coordinates are centred on the query point
-/// before any product (algorithms.md 0.3). None when the neighbourhood is degenerate: fewer
+/// before any product (algorithms.md 1.3). None when the neighbourhood is degenerate: fewer
 /// than 3 points, or collinear/coincident points (second eigenvalue negligible).
 pub fn pca_normal(xyz: &[V3], nbrs: &[u32]) -> Option<V3> {
     if nbrs.len() < 3 {

@@ -150,7 +150,7 @@ impl Centroid {
         for (s, c) in self.sum.iter_mut().zip(p) {
             // `as` saturates: a coordinate beyond 2^95 cannot overflow the sum by itself.
             // Through i64 where the value fits (coordinates below 2^31 units): the same
-            // integer without the f64 -> i128 library call, 4% of the scan's time.
+            // integer without the f64 -> i128 library call, which is slow on every point.
             let v = (c * CENTROID_UNITS).round();
             let q = match v.abs() < TWO_POW_63 {
                 true => v as i64 as i128,
@@ -342,7 +342,7 @@ pub struct MemoryPlan {
     /// Decoded spilled buckets kept for neighbouring tiles' halos (1/5), once buckets are on disk.
     pub bucket_cache_bytes: usize,
     /// Tiles (or quadtree parts) in flight: one per tile driver. One driver per worker thread
-    /// (each then computes on a worker of its own: run/tiles.rs) as long as each keeps
+    /// (each then computes on a worker of its own: run/tiles/drive.rs) as long as each keeps
     /// [`MIN_TILE_SHARE`] of the budget, fewer otherwise (they then share the pool); at least 2,
     /// so that one tile's loading overlaps another's computation.
     pub tiles_in_flight: usize,

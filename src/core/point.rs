@@ -20,7 +20,8 @@ pub const BUCKET_POINT_BYTES: usize = 8 + 24 + 8;
 /// Points as columns (a bucket's): ids, positions, and the file's normals, kept only from the
 /// first point that has one. LIDAR files rarely carry normals: without them a point takes 32
 /// bytes, not the 64 of a [`SourcePoint`] (whose `Option` normal is 32 bytes even when None),
-/// which halved the buckets' share of the peak memory and the scan's system time (issue 14).
+/// which halves the buckets' share of the peak memory and the pages the scan faults in
+/// (docs/performance.md).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Points {
     ids: Vec<u64>,

@@ -1,6 +1,6 @@
-//! The scale of a curvature column stored as scaled integers, chosen from the data (issue 13
-//! item 6). A LAS extra-bytes column can hold `raw * scale` in an integer `raw`; float noise
-//! does not compress, integers on a step a little below the estimator's error do.
+//! The scale of a curvature column stored as scaled integers, chosen from the data
+//! (algorithms.md 12.4). A LAS extra-bytes column can hold `raw * scale` in an integer `raw`;
+//! float noise does not compress, integers on a step a little below the estimator's error do.
 //!
 //! The rule, for the values v of one quantity over every point of a run: the step is the power
 //! of two `q = 2^(e - 12)`, where `2^e <= P99 < 2^(e+1)` and P99 is the 99th percentile of |v|

@@ -1,9 +1,8 @@
 //! A least-significant-digit radix sort of (key, index) pairs, for the orders a tile is put in
 //! many thousand times a run: the grid's cells and the k-NN query order (core::neighbors),
 //! the k-NN position ranks, the points' Morton order (core::tile) and the results' id order
-//! (io::workdir::results). The comparison sorts it replaced were ~6% of a run's instructions
-//! (callgrind, 300k-point terrain, one thread: 4.94 G -> 4.68 G with it) and a third of the
-//! samples of the threads that load tiles and journal their results (issue 14).
+//! (io::workdir::results). Comparison sorts of these keys cost more (docs/performance.md, "Sorting"):
+//! their comparisons are data-dependent branches, and the radix passes have none.
 
 use std::cmp::Ordering;
 

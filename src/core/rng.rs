@@ -19,7 +19,7 @@ pub fn splitmix64(state: &mut u64) -> u64 {
 /// (each `+ 0.0` first, so that -0 and +0 are one value, as in
 /// [`crate::core::point::cmp_position`]). Points at the same position share it whatever their
 /// ids; exact duplicates, geometrically interchangeable, then get the same stream and the same
-/// result (issue 12 item 15).
+/// result, whatever the order of the records.
 pub fn position_key(p: &[f64; 3]) -> u64 {
     let mut h = 0x243f_6a88_85a3_08d3; // any fixed start (digits of pi)
     for c in p {

@@ -1,5 +1,5 @@
 //! Seeded samplers of the closed-form surfaces of [`crate::core::surface`]: points uniform in
-//! area with their exact unit normals (algorithms.md section 6.6), and Gaussian noise on them.
+//! area with their exact unit normals (algorithms.md 13.6), and Gaussian noise on them.
 //! Used by `generate torus` and `generate goursat` and by the test kit, so that a generated file
 //! and a test cloud of the same seed hold the same points. Random streams come from
 //! [`crate::core::rng::Rng`], so clouds are identical across releases for a given seed.
@@ -46,7 +46,8 @@ impl Cloud {
 
     /// Adds centred Gaussian noise of standard deviation `sigma_position` to every position
     /// coordinate and `sigma_normal` to every normal coordinate, then renormalises the normals
-    /// (section 6.6, as in the CNC paper). A normal that the noise cancels exactly is left unchanged.
+    /// (algorithms.md 13.6, as in the CNC paper). A normal that the noise cancels exactly is left
+    /// unchanged.
     pub fn add_noise(&mut self, sigma_position: f64, sigma_normal: f64, seed: u64) {
         let mut noise = Noise::new(sigma_position, sigma_normal, seed);
         for (p, n) in self.positions.iter_mut().zip(self.normals.iter_mut()) {
@@ -103,7 +104,7 @@ pub fn unit_vector(rng: &mut Rng) -> V3 {
 
 /// Points uniform in area on the torus (major radius `big_r`, tube radius `r`) with their
 /// outward unit normals, an endless seeded stream: uniform angles, theta accepted with
-/// probability (R + r cos theta)/(R + r), the area density (section 6.6).
+/// probability (R + r cos theta)/(R + r), the area density (algorithms.md 13.6).
 #[derive(Debug, Clone)]
 pub struct TorusSampler {
     rng: Rng,
@@ -165,9 +166,9 @@ pub fn goursat_radial(d: V3) -> V3 {
     scale(d, t2.sqrt())
 }
 
-/// Points uniform in area on the goursat surface (section 6.4) with their outward unit normals,
-/// an endless seeded stream: radial projection of uniform directions, accepted with probability
-/// proportional to the area per solid angle t^2 / <d | n> (section 6.6).
+/// Points uniform in area on the goursat surface (algorithms.md 13.5) with their outward unit
+/// normals, an endless seeded stream: radial projection of uniform directions, accepted with
+/// probability proportional to the area per solid angle t^2 / <d | n> (algorithms.md 13.6).
 #[derive(Debug, Clone)]
 pub struct GoursatSampler {
     rng: Rng,

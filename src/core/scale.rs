@@ -1,17 +1,17 @@
 //! `-k auto`: the scale chosen per point among a ladder of neighbourhood sizes, by the
-//! stability of H across scales (algorithms.md §9, after the ASO paper's Prop. 2 and Growing
+//! stability of H across scales (algorithms.md 9, after the ASO paper's Prop. 2 and Growing
 //! Least Squares). This file holds the ladder and the choice of a rung from the criterion;
 //! `core::compute::auto` runs the rungs over a tile.
 
 use std::fmt;
 
 /// How many nearest points (the point itself included) the criterion averages over: C_s(p) is
-/// the mean of (H_{s+1}(q) - H_s(q))^2 over the 64 nearest q of p (algorithms.md §9 step 3;
+/// the mean of (H_{s+1}(q) - H_s(q))^2 over the 64 nearest q of p (algorithms.md 9.3;
 /// without this smoothing the rule was 1.7x worse).
 pub const SMOOTH: usize = 64;
 
 /// The smallest first rung: rungs of K <= 10 have heavy tails that break the rule
-/// (algorithms.md §9), and the criterion's 64 neighbours must fit in the top rung's list.
+/// (algorithms.md 9.1), and the criterion's 64 neighbours must fit in the top rung's list.
 pub const MIN_FIRST_RUNG: usize = 16;
 
 /// The ladder of `-k auto`: rungs K_s = `min` * 2^s up to `max` (`--k-range min..max`).
@@ -24,7 +24,7 @@ pub struct Ladder {
 }
 
 impl Default for Ladder {
-    /// 20..320: the rungs 20, 40, 80, 160, 320 of algorithms.md §9.
+    /// 20..320: the rungs 20, 40, 80, 160, 320 of algorithms.md 9.1.
     fn default() -> Self {
         Ladder { min: 20, max: 320 }
     }
@@ -87,7 +87,7 @@ impl Ladder {
         self.min << s
     }
 
-    /// Neighbours of rung `s`'s PCA normals: half its K (algorithms.md §9 step 2).
+    /// Neighbours of rung `s`'s PCA normals: half its K (algorithms.md 9.2).
     pub fn normal_k(&self, s: usize) -> usize {
         self.k(s) / 2
     }
@@ -115,7 +115,7 @@ pub struct Choice {
     pub flags: u8,
 }
 
-/// The rule of algorithms.md §9 steps 3-5: `c[s]` is C_s (NaN when undefined) for the pairs
+/// The rule of algorithms.md 9.3, 9.4: `c[s]` is C_s (NaN when undefined) for the pairs
 /// (s, s + 1), `defined[s]` whether the point's H is defined at rung s. s* = argmin C (the
 /// smaller s on ties); take s* + 1, or s* when the pair above s* exists and C rises by a
 /// factor 1.5 or more to it (bias growing fast); then the next larger rung with H defined.
@@ -180,7 +180,7 @@ mod tests {
             .contains("times 4, 8"));
     }
 
-    /// The rule's cases, on the criterion values of algorithms.md §9.
+    /// The rule's cases, on the criterion values of algorithms.md 9.4.
     #[test]
     fn the_rung_follows_the_criterion() {
         let all = [true; 5];

@@ -1,4 +1,4 @@
-//! Which points the curvature is computed on (issue 13 item 5): `--classes` (only these),
+//! Which points the curvature is computed on: `--classes` (only these),
 //! `--skip-classes` (never these; by default the LAS noise classes 7 and 18) and
 //! `--skip-withheld`. Neighbourhoods are formed among the selected points only; the others stay
 //! in the output with NaN values and the "not computed" flag. Pure: the rule on a class number.

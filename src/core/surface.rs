@@ -1,8 +1,8 @@
-//! Closed-form curvature of smooth surfaces that the library itself needs (algorithms.md
-//! sections 6.2 and 6.3): the curvature of a height field z = h(x, y) from its derivatives, used
-//! by the jet estimator to read its fit and by `generate terrain` for its truth columns, and the
-//! torus and goursat of the CNC paper (sections 6.1, 6.4, 6.5), the truth of `generate torus`
-//! and `generate goursat` and of the test kit. Pure numbers. Convention (section 0.1):
+//! Closed-form curvature of smooth surfaces that the library itself needs (algorithms.md 13.2,
+//! 13.3): the curvature of a height field z = h(x, y) from its derivatives, used by the jet
+//! estimator to read its fit and by `generate terrain` for its truth columns, and the torus and
+//! goursat of the CNC paper (algorithms.md 13.4, 13.5), the truth of `generate torus` and
+//! `generate goursat` and of the test kit. Pure numbers. Convention (algorithms.md 1.1):
 //! k1 <= k2, H = (k1 + k2)/2, K = k1 k2.
 
 use crate::core::estimate::principal_from_tangent;
@@ -37,7 +37,7 @@ impl TrueCurvature {
     }
 
     /// From the 2x2 symmetric shape operator `s` in the tangent basis (e1, e2): its eigenvalues
-    /// are the principal curvatures (section 6.3).
+    /// are the principal curvatures (algorithms.md 13.3).
     pub fn from_tangent(s: [[f64; 2]; 2], e1: V3, e2: V3) -> Self {
         let (k1, k2, d1, d2, umbilic) = principal_from_tangent(s, e1, e2);
         let directions = (umbilic == 0).then_some((d1, d2));
@@ -56,8 +56,8 @@ pub fn plane_curvature() -> TrueCurvature {
     TrueCurvature::umbilic(0.0)
 }
 
-/// Curvature of the level set of F with gradient `g` and Hessian `hs` at a point, with normal
-/// g/|g| (section 6.3): the shape operator is the tangent block of Hess F / |g|. None when the
+/// Curvature of the level set of F with gradient `g` and Hessian `hs` at a point, with normal g/|g|
+/// (algorithms.md 13.3): the shape operator is the tangent block of Hess F / |g|. None when the
 /// gradient vanishes.
 pub fn implicit_curvature(g: V3, hs: &M3) -> Option<TrueCurvature> {
     let gn = norm(g);
@@ -80,8 +80,8 @@ pub fn implicit_curvature(g: V3, hs: &M3) -> Option<TrueCurvature> {
 }
 
 /// Curvature of the height field z = h(x, y) with upward normal (-h_x, -h_y, 1)/|.| from its
-/// first and second derivatives (section 6.2). Computed as the level set of F = z - h(x, y)
-/// (section 6.3), which expands to exactly the Monge formulas of 6.2.
+/// first and second derivatives (algorithms.md 13.2). Computed as the level set of
+/// F = z - h(x, y) (algorithms.md 13.3), which expands to exactly the Monge formulas.
 pub fn height_field_curvature(hx: f64, hy: f64, hxx: f64, hxy: f64, hyy: f64) -> TrueCurvature {
     let g = [-hx, -hy, 1.0];
     let hs = [[-hxx, -hxy, 0.0], [-hxy, -hyy, 0.0], [0.0; 3]];
@@ -115,7 +115,7 @@ impl HeightJet {
         )
     }
 
-    /// The exact curvature with the upward normal (section 6.2).
+    /// The exact curvature with the upward normal (algorithms.md 13.2).
     pub fn curvature(&self) -> TrueCurvature {
         height_field_curvature(self.hx, self.hy, self.hxx, self.hxy, self.hyy)
     }
@@ -127,11 +127,11 @@ pub trait HeightField {
     fn jet(&self, x: f64, y: f64) -> HeightJet;
 }
 
-/// Major and tube radius of the CNC paper's torus (sections 1.10 and 6.5): R = 6, r = 2.
+/// Major and tube radius of the CNC paper's torus (algorithms.md 13.4, 14.1): R = 6, r = 2.
 pub const PAPER_TORUS: (f64, f64) = (6.0, 2.0);
 
 /// The torus point and outward unit normal at angles (theta around the tube from the outer
-/// equator, phi around the z axis), major radius `big_r`, tube radius `r` (section 6.1).
+/// equator, phi around the z axis), major radius `big_r`, tube radius `r` (algorithms.md 13.4).
 pub fn torus_point(big_r: f64, r: f64, theta: f64, phi: f64) -> (V3, V3) {
     let (st, ct) = theta.sin_cos();
     let (sp, cp) = phi.sin_cos();
@@ -139,9 +139,9 @@ pub fn torus_point(big_r: f64, r: f64, theta: f64, phi: f64) -> (V3, V3) {
     ([rho * cp, rho * sp, r * st], [ct * cp, ct * sp, st])
 }
 
-/// Torus curvature from the parametrisation (section 6.1): k1 = cos(theta)/(R + r cos(theta))
-/// along the parallel (phi direction), k2 = 1/r along the meridian (theta direction). k1 <= k2
-/// holds for every theta because R > 0.
+/// Torus curvature from the parametrisation (algorithms.md 13.4): k1 = cos(theta)/(R + r
+/// cos(theta)) along the parallel (phi direction), k2 = 1/r along the meridian (theta direction).
+/// k1 <= k2 holds for every theta because R > 0.
 pub fn torus_curvature(big_r: f64, r: f64, theta: f64, phi: f64) -> TrueCurvature {
     let (st, ct) = theta.sin_cos();
     let (sp, cp) = phi.sin_cos();
@@ -166,7 +166,7 @@ pub fn torus_curvature_at(big_r: f64, r: f64, p: V3) -> TrueCurvature {
     torus_curvature(big_r, r, theta, phi)
 }
 
-/// Gradient and Hessian of the implicit torus of section 6.5,
+/// Gradient and Hessian of the implicit torus of algorithms.md 13.4,
 /// F = (|x|^2 + R^2 - r^2)^2 - 4 R^2 (x^2 + y^2), negative inside.
 pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> (V3, M3) {
     let s = dot(p, p) + big_r * big_r - r * r;
@@ -186,14 +186,14 @@ pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> (V3, M3) {
     (g, hs)
 }
 
-/// The goursat function of section 6.4, F = 0.03 (x^4 + y^4 + z^4) - 2 |x|^2 - 8 (negative
+/// The goursat function of algorithms.md 13.5, F = 0.03 (x^4 + y^4 + z^4) - 2 |x|^2 - 8 (negative
 /// inside).
 pub fn goursat_value(p: V3) -> f64 {
     let q: f64 = p.iter().map(|x| x.powi(4)).sum();
     0.03 * q - 2.0 * dot(p, p) - 8.0
 }
 
-/// Gradient and Hessian of the goursat function (section 6.4).
+/// Gradient and Hessian of the goursat function (algorithms.md 13.5).
 pub fn goursat_implicit(p: V3) -> (V3, M3) {
     let g = p.map(|x| 0.12 * x * x * x - 4.0 * x);
     let mut hs = [[0.0; 3]; 3];

@@ -43,7 +43,7 @@ impl TilePoints {
     /// never of the order the points were loaded in (the records' order in the file): the
     /// neighbour ranking does not depend on it, and what is ordered by local index (the
     /// propagation's components, seeds and spanning trees) then does not depend on the file
-    /// order either (issue 12 item 15).
+    /// order either.
     pub fn morton_order(&mut self) {
         let r = self.region;
         let (w, h) = (

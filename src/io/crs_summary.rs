@@ -79,7 +79,8 @@ pub enum VerticalUnit {
     Unreadable(String),
 }
 
-/// The vertical unit of a file whose VLRs and EVLRs are `records` (issue 13 item 3).
+/// The vertical unit of a file whose VLRs and EVLRs are `records`, so that heights in another
+/// unit than x and y are converted before any geometry.
 pub fn vertical_unit<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> VerticalUnit {
     let records: Vec<&Vlr> = records.into_iter().collect();
     let wkt = records

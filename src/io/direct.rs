@@ -1,7 +1,7 @@
 //! A sequential file writer that bypasses the page cache where it can (`O_DIRECT` on Linux):
-//! the outputs are written once and not read back by this process, and on the project's
-//! machine copying 1.4 GB of records into the page cache took the writing thread 1-2.6 s of
-//! system time against 0.1 s for the same bytes written direct (issue 14). Records are
+//! the outputs are written once and not read back by this process, and copying the records
+//! into the page cache costs the writing thread far more system time than writing them direct
+//! (docs/performance.md, "Writing"). Records are
 //! gathered in a block-aligned buffer and written in whole aligned blocks through a second,
 //! direct descriptor; the unaligned tail and later rewrites (a header patched at the end) go
 //! through the ordinary descriptor. A file system that refuses direct I/O (tmpfs, some network

@@ -132,8 +132,9 @@ thread_local! {
     /// One compression context per thread, reused frame after frame: creating one per frame
     /// allocates and initialises its tables every time.
     static COMPRESSOR: RefCell<Option<zstd::bulk::Compressor<'static>>> = const { RefCell::new(None) };
-    /// One decompression context per thread: creating one per frame was 6% of the assemble
-    /// stage on the 20M terrain (perf).
+    /// One decompression context per thread: creating one per frame allocates and initialises
+    /// its tables for every result block read (a visible share of the assemble stage:
+    /// docs/performance.md).
     static DECOMPRESSOR: RefCell<Option<zstd::bulk::Decompressor<'static>>> = const { RefCell::new(None) };
 }
 

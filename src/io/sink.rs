@@ -157,7 +157,7 @@ mod tests {
         std::fs::read(&path).expect("reads back")
     }
 
-    /// Issue 12 item 6: whichever way a writer ends short of a committed output (the final
+    /// Whichever way a writer ends short of a committed output (the final
     /// rename fails, it is abandoned, it is dropped unfinished), no temporary file is left
     /// beside the output, for every writer: LAS and LAZ (a LAS input's records carried, and a
     /// converted one), binary and ASCII PLY. Failed writes and flushes are the integration

@@ -74,7 +74,8 @@ pub struct Exec<'a> {
 
 /// Stack of each worker thread, which decodes LAZ chunks (the laz crate's decompressors keep
 /// their models on the stack) and runs the estimators: 8x rayon's 2 MiB default, so that a
-/// malformed chunk cannot overflow it. Address space only: pages are touched as used.
+/// malformed chunk cannot overflow it (an overflow aborts the process instead of failing the
+/// run with an error). Address space only: pages are touched as used.
 pub(crate) const WORKER_STACK: usize = 16 << 20;
 
 impl<'a> Exec<'a> {

@@ -116,8 +116,8 @@ fn common_unit(
 }
 
 /// The factor from the inputs' z unit to their horizontal unit, and its words for the
-/// provenance when it is not 1: heights in another unit than x and y would scale H and K
-/// (feet under metres: H 3.3x, K 10.8x). Without a horizontal unit there is nothing to
+/// provenance when it is not 1 (unconverted, heights in US survey feet under a compound CRS in
+/// metres make H 2.5x and K 5.1x too large). Without a horizontal unit there is nothing to
 /// convert to; a vertical CRS whose unit cannot be read is warned about; inputs whose factors
 /// differ are refused, as for the horizontal unit.
 fn vertical_scale(

@@ -1,4 +1,4 @@
-//! Re-running on an output (issue 13 item 7), part of `prepare`. A LAS/LAZ input with
+//! Re-running on an output, part of `prepare`. A LAS/LAZ input with
 //! tilecurv's provenance record is opened without the columns its newest `process` record says
 //! that run wrote (`LasSource::drop_extra`): every stage then sees the input as it was before
 //! that run, so the new columns replace the old ones, the old normals are not taken as the

@@ -1,5 +1,5 @@
-//! `-k auto` (issue 15): the scale chosen per point. On a generated terrain clean in its west
-//! half and with 5 cm of vertical noise in its east half (algorithms.md §9's hardest cloud),
+//! `-k auto`: the scale chosen per point. On a generated terrain clean in its west
+//! half and with 5 cm of vertical noise in its east half (the hardest cloud of algorithms.md 9.5),
 //! the chosen scale reaches the accuracy of the best fixed K without being told it, beats the
 //! default K = 30 by a wide margin where the noise is, and writes the K it chose; the output is
 //! bit-identical whatever the tiling and thread count; the options it cannot go with are
@@ -11,7 +11,7 @@ use crate::common::{
     column, column_bytes, generate_terrain_with, process, run_process, xs, COLUMNS,
 };
 
-/// Points per square metre, as algorithms.md §9's terrain (r_320 is about 5 m).
+/// Points per square metre, as the terrain of algorithms.md 9.5 (r_320 is about 5 m).
 const DENSITY: f64 = 4.0;
 
 /// Writes the half-noisy terrain of `points` points: clean west of the middle, 5 cm east.
@@ -46,7 +46,7 @@ fn overall(rms: [f64; 2]) -> f64 {
 }
 
 /// On 60k points: auto's H RMS is within 1.25x of the best of the fixed K in {20, 40, 80, 160,
-/// 320} (algorithms.md §9 measured 1.01), at least 5x better than K = 30 on the noisy half
+/// 320} (algorithms.md 9.5 measured 1.01), at least 5x better than K = 30 on the noisy half
 /// (21.6x there) and no worse on the clean half; every ScaleK is a rung, the noisy half's mean
 /// ScaleK is larger than the clean half's, and almost every point is defined.
 #[test]
@@ -122,7 +122,7 @@ fn auto_scale_matches_the_best_fixed_k_on_a_half_noisy_terrain() {
     );
     let flags = column(&auto, "ScaleFlags");
     assert!(flags.iter().all(|f| (0.0..8.0).contains(f)));
-    // algorithms.md §9, failure modes: at 2-5 cm noise 96-100% of points saturate at K = 320
+    // algorithms.md 9.5, known limits: at 2-5 cm noise 96-100% of points saturate at K = 320
     // (flag 1). The east half is at 5 cm; 80% leaves room for its border with the clean half.
     let east: Vec<(f64, f64)> = scale
         .iter()

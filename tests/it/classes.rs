@@ -1,4 +1,4 @@
-//! Class filters (issue 13 item 5): points outside `--classes`, inside `--skip-classes` (the
+//! Class filters: points outside `--classes`, inside `--skip-classes` (the
 //! noise classes 7 and 18 by default) or withheld with `--skip-withheld` are left out of every
 //! neighbourhood and written with NaN values and flag 128. The independent truth: the selected
 //! points' columns equal those of a run on a file holding only those points (written by laspy).

@@ -1,6 +1,6 @@
-//! Synthetic clouds with closed-form curvature (algorithms.md section 6), written as LAS, run
+//! Synthetic clouds with closed-form curvature (algorithms.md 13), written as LAS, run
 //! through the CLI, and compared point by point with the truth. Bounds are derived from the
-//! section 7 figures (CNC, torus N = 20000, K = 50, exact normals: RMS H ~ 0.0018-0.0020,
+//! algorithms.md 14.2 figures (CNC, torus N = 20000, K = 50, exact normals: RMS H ~ 0.0018-0.0020,
 //! K ~ 0.0014-0.0017, k1/k2 ~ 0.0018-0.0037) and stated next to each assertion.
 //!
 //! With PCA normals a second error adds to that. PCA over K points sampled at random on a patch
@@ -10,7 +10,7 @@
 //! var(u) = rho^2/4: a tilt of about 0.56 kappa rho / sqrt(K). Avg-Hexagram averages the normals
 //! of each of its six sectors (sqrt(K/6) fewer) and differentiates them over a triangle of size
 //! ~rho, so H picks up about 0.56 sqrt(6) kappa / K = 1.37 kappa / K, whatever rho. The principal
-//! curvatures come from one direction each and are about twice as noisy (as in section 7).
+//! curvatures come from one direction each and are about twice as noisy (as in algorithms.md 14.2).
 
 use std::path::Path;
 
@@ -77,9 +77,9 @@ fn sphere_with_file_normals() {
         );
         let e = rms_errors(&out, |_| Some(crate::kit::synthetic::sphere_curvature(r)));
         eprintln!("sphere r=2 N=20000 K=30 file normals, tile {tile}: RMS H {:.2e} K {:.2e} k1 {:.2e} k2 {:.2e}", e.h, e.k, e.k1, e.k2);
-        // Section 7: sphere r = 2, K = 30 gives H = 0.5000 and k in 0.4993..0.5005 on exact
-        // data, i.e. errors up to 7e-4 = 1.4e-3 relative. Our sampling is random (less regular
-        // than section 7's), so allow 2e-3 relative on H and K, 4e-3 on k1, k2.
+        // algorithms.md 14.2: sphere r = 2, K = 30 gives H = 0.5000 and k in 0.4993..0.5005 on
+        // exact data, i.e. errors up to 7e-4 = 1.4e-3 relative. Our sampling is random (less
+        // regular than the prototype's), so allow 2e-3 relative on H and K, 4e-3 on k1, k2.
         assert!(e.h < 2e-3 / r, "RMS H {}", e.h);
         assert!(e.k < 2e-3 / (r * r) * 2.0, "RMS K {}", e.k);
         assert!(
@@ -93,7 +93,7 @@ fn sphere_with_file_normals() {
 
 #[test]
 fn torus_with_pca_normals() {
-    // The paper torus R = 6, r = 2 (section 6.1), N = 20000, K = 50, no normals in the file:
+    // The paper torus R = 6, r = 2 (algorithms.md 13.4), N = 20000, K = 50, no normals in the file:
     // PCA normals oriented up. Up is the outward normal only on the upper half, so errors are
     // measured where the true normal has n_z > 0.35 (there, every neighbour's normal within the
     // K = 50 radius ~ 0.6 also has n_z > 0, so orientation is consistent).
@@ -109,13 +109,13 @@ fn torus_with_pca_normals() {
     });
     eprintln!("torus R=6 r=2 N=20000 K=50 PCA normals, {} points with n_z > 0.35: RMS H {:.2e} K {:.2e} k1 {:.2e} k2 {:.2e}", e.n, e.h, e.k, e.k1, e.k2);
     assert!(e.n > 5000);
-    // Section 7 with exact normals: RMS H 0.0020, K 0.0017, k 0.0037 (upper ends), plus the PCA
-    // term 1.37 kappa / K with the tube's kappa = 1/r = 0.5: 0.0137 (module doc); twice that
-    // for k1, k2. K = k1 k2 with |k| <= 0.5 moves by at most ~0.5x the k error.
+    // algorithms.md 14.2 with exact normals: RMS H 0.0020, K 0.0017, k 0.0037 (upper ends), plus
+    // the PCA term 1.37 kappa / K with the tube's kappa = 1/r = 0.5: 0.0137 (module doc); twice
+    // that for k1, k2. K = k1 k2 with |k| <= 0.5 moves by at most ~0.5x the k error.
     let pca = 1.37 * 0.5 / 50.0;
     assert!(e.h < 0.0020 + pca, "RMS H {}", e.h);
-    // The same cloud with its exact normals in the file must land on section 7 itself: RMS H
-    // 0.0018-0.0020, K 0.0014-0.0017, k 0.0018-0.0037 (the upper ends plus 25% for a different
+    // The same cloud with its exact normals in the file must land on algorithms.md 14.2 itself: RMS
+    // H 0.0018-0.0020, K 0.0014-0.0017, k 0.0018-0.0037 (the upper ends plus 25% for a different
     // random sample).
     let with_normals = dir.path().join("torus_n.las");
     write_las(&with_normals, &cloud.positions, Some(&cloud.normals), 1e-6);

@@ -1,4 +1,4 @@
-//! Compact columns (issue 13 item 6): a default LAS/LAZ output stores scaled integers through
+//! Compact columns: a default LAS/LAZ output stores scaled integers through
 //! the extra-bytes descriptors' scale, offset and no-data fields; read back with laspy, they
 //! equal the `--f64` run's values within the stated error; undefined values are the declared
 //! no-data value; `--columns` picks the columns, `--f32` keeps the float layout, and an unknown

@@ -1,4 +1,4 @@
-//! Faults of the machine, made real (issue 12): writes that fail (the file-size limit, a full
+//! Faults of the machine, made real: writes that fail (the file-size limit, a full
 //! file system), temporary files of killed runs, the summary after a resume. Each failing run
 //! must exit with its class, name the file, leave no temporary file beside the output and keep
 //! the work directory, so that the same command resumes to the bytes of a clean run.
@@ -119,7 +119,7 @@ fn failed_then_resumed(
     );
 }
 
-/// Issue 12 items 6 and 7: a write past the file-size limit (`ulimit -f`; SIGXFSZ is ignored, so
+/// A write past the file-size limit (`ulimit -f`; SIGXFSZ is ignored, so
 /// the write fails with EFBIG) is an output failure, exit 4, for every writer, both in the final
 /// flush (the sample's outputs fit the writers' 4 MiB buffer) and in the middle of the records
 /// (200k points); no temporary file is left, the work directory is kept, and the same command
@@ -224,11 +224,10 @@ impl Drop for Tmpfs {
     }
 }
 
-/// Issue 12 item 7: the disk fills while the LAZ output is written (a 256 KiB tmpfs; the
-/// output needs 600 KB). It exited 1 ("internal error ... a bug") and deleted the work
-/// directory; now it is exit 4 naming the output and saying the disk is full, nothing is left
-/// on the full disk, the work directory (elsewhere, `--work-dir`) is kept, and once the file
-/// system has room the same command resumes to the bytes of a clean run. Needs root to mount
+/// The disk fills while the LAZ output is written (a 256 KiB tmpfs; the output needs 600 KB): exit
+/// 4 naming the output and saying the disk is full (an output failure, not exit 1 "a bug"), nothing
+/// is left on the full disk, the work directory (elsewhere, `--work-dir`) is kept, and once the
+/// file system has room the same command resumes to the bytes of a clean run. Needs root to mount
 /// the tmpfs: a loud skip otherwise, a failure under CI=true (CI runs as root).
 #[test]
 fn a_full_disk_while_writing_laz_keeps_the_work_and_resumes() {
@@ -412,11 +411,10 @@ fn undefined_in(out: &Path) -> (usize, usize) {
     (nan, flagged)
 }
 
-/// Issue 12 item 11: after a resume the summary said "0 undefined" while the output held
-/// undefined points: it counted only the tiles computed by the last run. It now counts the
-/// points written, whichever run computed their tile. A 1 pt/m2 plane of 320 m x 320 m in
-/// 1024 tiles of 10 m, with a stack of 40 coincident points (no normal: undefined) in every
-/// 8th tile; the run is killed once the first batch of tiles is journalled, then resumed.
+/// After a resume the summary counts the undefined points of every point written, whichever run
+/// computed their tile, not only those of the tiles the last run computed. A 1 pt/m2 plane of 320 m
+/// x 320 m in 1024 tiles of 10 m, with a stack of 40 coincident points (no normal: undefined) in
+/// every 8th tile; the run is killed once the first batch of tiles is journalled, then resumed.
 #[test]
 fn the_summary_counts_undefined_points_of_resumed_tiles() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -489,11 +487,10 @@ fn open_files(extra: i32) -> String {
     format!("-n $(( $(ls /proc/self/fd | wc -l) - 1 + {extra} ))")
 }
 
-/// Issue 12 item 13 (too many open files): a limit on open files too low to merge the results
-/// gave exit 3, bad input, naming a result file of the work directory. Running out of
-/// descriptors is not bad input, and neither is a work-directory file that cannot be read: exit
-/// 4 naming the file and saying to raise `ulimit -n`, the work kept (a manifest that could not
-/// be read was taken for "no work" and the work discarded). The limit is raised one descriptor
+/// Too many open files: running out of descriptors is not bad input (exit 3), and neither is a
+/// work-directory file that cannot be read. A limit on open files too low to merge the results
+/// gives exit 4 naming the file and saying to raise `ulimit -n`, and the work is kept (a
+/// manifest that cannot be read is not taken for "no work"). The limit is raised one descriptor
 /// at a time from below what the tool starts with (the dynamic loader fails there, before
 /// tilecurv runs), then the lock, the manifest, the merge: every failure of tilecurv is that
 /// exit 4, naming the manifest, then a result file; at a few descriptors the merge fits itself to the
@@ -549,13 +546,13 @@ fn too_many_open_files_is_a_resource_error_not_bad_input() {
     );
 }
 
-/// Issue 12 item 9: under `ulimit -v` the process aborted whatever `--memory` said (a 1M-point
-/// terrain, the default 4 GiB budget: exit 134 in the write phase at 341 MiB, whose chunk
-/// buffer is sized from the budget; a panic starting the tile threads at 292 MiB; exit 134 in
-/// the scan below). The budget is now fitted to the limit, against which the mapped inputs
-/// and the threads' stacks count: a limit that cannot hold even the smallest budget is refused
-/// (exit 2, naming it and what to raise it to), and 100 MiB above that the run lowers its
-/// budget with a message and completes, with a clean run's bytes.
+/// Under `ulimit -v` the memory budget is fitted to the limit, against which the mapped inputs and
+/// the threads' stacks count (a budget that ignores it aborts: on a 1M-point terrain with the
+/// default 4 GiB budget, exit 134 in the write phase at 341 MiB, whose chunk buffer is sized from
+/// the budget, a panic starting the tile threads at 292 MiB, exit 134 in the scan below): a limit
+/// that cannot hold even the smallest budget is refused (exit 2, naming it and what to raise it
+/// to), and 100 MiB above that the run lowers its budget with a message and completes, with a clean
+/// run's bytes.
 #[test]
 fn an_address_space_limit_lowers_the_budget_or_refuses_cleanly() {
     let dir = tempfile::tempdir().expect("temp dir");

@@ -1,4 +1,4 @@
-//! `--features` (issue 5) and the fandisk region separation of issue 6: the VCM's SharpFeature
+//! `--features` and the separation of fandisk's regions: the VCM's SharpFeature
 //! score and the default estimator's |H| on fandisk.obj, judged against regions found
 //! independently from the mesh's own triangles (the point cloud is its vertices, in file order).
 

@@ -1,4 +1,4 @@
-//! Hostile and degenerate inputs (issue 12): axis-aligned and tiny geometry, counts and offsets
+//! Hostile and degenerate inputs: axis-aligned and tiny geometry, counts and offsets
 //! that would allocate or overflow, coordinates that are not finite or too far apart for the
 //! tile grid. Each run must end with a documented exit code, never a panic or an abort, and
 //! leave nothing beside the input but a complete output.

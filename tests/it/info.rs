@@ -1,4 +1,4 @@
-//! `tilecurv info` (issue 13 item 8) on a shared file and on a tilecurv output, text and JSON,
+//! `tilecurv info` on a shared file and on a tilecurv output, text and JSON,
 //! checked against laspy's view of the same files.
 
 use crate::common::laspy_available;

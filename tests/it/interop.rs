@@ -1,4 +1,4 @@
-//! Outputs that the tools LIDAR people use read as intended (issue 13), checked with laspy (an
+//! Outputs that the tools LIDAR people use read as intended, checked with laspy (an
 //! independent reader) and, where PDAL is concerned, against what the LAS 1.4 specification
 //! (R15) requires of the bytes, since PDAL is not installable in the test environment.
 
@@ -170,7 +170,7 @@ fn write_two_eb_vlr_las14(path: &Path, wkt: Option<&str>) -> usize {
     n
 }
 
-/// Issue 13 item 1: an input whose extra bytes are described by two extra-bytes VLRs gives an
+/// An input whose extra bytes are described by two extra-bytes VLRs gives an
 /// output with exactly one, holding every input dimension under its own name (then tilecurv's),
 /// so that PDAL (which refuses an extra-bytes specification longer than the records) and laspy
 /// (which reads only the first record) see every dimension.
@@ -238,7 +238,7 @@ fn one_extra_bytes_vlr_stays_one() {
     assert_eq!(out.extra[0].name, "treeID");
 }
 
-/// Issue 13 item 2: a LAS 1.0-1.3 input gives a LAS 1.4 output by default, since PDAL reads
+/// A LAS 1.0-1.3 input gives a LAS 1.4 output by default, since PDAL reads
 /// the extra-bytes VLR of LAS 1.4 files only. PDAL is not installable here, so this checks
 /// what it relies on: what laspy reads back and what LAS 1.4 R15 requires of the header (375
 /// bytes, the 64-bit point counts, the legacy counts kept for formats 0-5, the global encoding's
@@ -320,8 +320,8 @@ print("ok")
     }
 }
 
-/// Issue 13 item 4: the log names the unit of a geocentric WKT CRS (metres: a COPC or LAS 1.4
-/// file in EPSG:4978 was told it had no CRS), and a file without a CRS, or a geographic one,
+/// The log names the unit of a geocentric WKT CRS (metres: a COPC or LAS 1.4 file in
+/// EPSG:4978 has a CRS with a length unit), and a file without a CRS, or a geographic one,
 /// says why it has no length unit instead of "unit unit".
 #[test]
 fn crs_messages_name_the_unit_or_why_there_is_none() {
@@ -352,7 +352,7 @@ fn crs_messages_name_the_unit_or_why_there_is_none() {
     }
 }
 
-/// Issue 13 item 12: a PLY output names its new columns as CloudCompare loads them without a
+/// A PLY output names its new columns as CloudCompare loads them without a
 /// dialog (its PLY filter takes a vertex property as a scalar field only when its name contains
 /// "scal", strips a `scalar_` prefix, and reads `nx ny nz` as normals): `nx ny nz`, then
 /// `scalar_H` and so on; `--ply-las-names` keeps the LAS names. Values equal the LAS output's.
@@ -407,7 +407,7 @@ fn ply_columns_are_named_for_cloudcompare() {
     }
 }
 
-/// Issue 13 item 7 (the optional part): extra-bytes descriptors that do not fit a VLR (more
+/// Extra-bytes descriptors that do not fit a VLR (more
 /// than 65535 bytes: an input with 340 extra dimensions plus the 8 new columns) are written as
 /// one extra-bytes EVLR in a LAS 1.4 output, with a warning; laspy parses that EVLR's
 /// descriptors (it does not take a point format from an EVLR, so the test decodes H from the

@@ -1,4 +1,4 @@
-//! The test kit checked against its closed forms (algorithms.md section 6): the oracle of the
+//! The test kit checked against its closed forms (algorithms.md 13): the oracle of the
 //! estimator tests must itself be right.
 
 use crate::kit::synthetic::*;
@@ -11,7 +11,7 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol
 }
 
-/// Section 6.4 reference table (6 significant digits quoted there).
+/// The reference table of algorithms.md 13.5 (6 significant digits quoted there).
 #[test]
 fn goursat_reference_values() {
     let face = goursat_curvature([8.39355, 0.0, 0.0]).unwrap();
@@ -42,7 +42,8 @@ fn goursat_reference_values() {
     assert!(close(norm(goursat_radial([1.0, 0.0, 0.0])), 8.393555, 1e-5));
 }
 
-/// K from the adjugate formula of 6.3 equals the product of the shape-operator eigenvalues.
+/// K from the adjugate formula of algorithms.md 13.3 equals the product of the shape-operator
+/// eigenvalues.
 #[test]
 fn implicit_matches_adjugate_formula() {
     let mut rng = Rng::new(3);
@@ -64,7 +65,7 @@ fn implicit_matches_adjugate_formula() {
     }
 }
 
-/// Implicit (6.5) and parametric (6.1) torus agree, including directions, and match the
+/// Implicit and parametric torus (algorithms.md 13.4) agree, including directions, and match the
 /// quoted values at the equators.
 #[test]
 fn torus_implicit_equals_parametric() {
@@ -96,7 +97,8 @@ fn torus_implicit_equals_parametric() {
     );
 }
 
-/// Height-field curvature equals the explicit Monge formulas of 6.2 and the table of 6.1.
+/// Height-field curvature equals the explicit Monge formulas of algorithms.md 13.2 and the table
+/// of algorithms.md 13.1.
 #[test]
 fn height_field_matches_monge_formulas() {
     let mut rng = Rng::new(5);

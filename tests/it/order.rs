@@ -1,4 +1,4 @@
-//! Results depend on the point set alone, not on the order of the records (issue 12 item 15):
+//! Results depend on the point set alone, not on the order of the records:
 //! the same points written in another order give every point bit-identical columns. The cloud
 //! is made to hold ties: a lattice at a 1 cm scale with a height field rounded to the
 //! centimetre (many neighbours at exactly equal distances, at the K-th place too), a patch of

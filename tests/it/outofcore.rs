@@ -2,7 +2,7 @@
 //! adjacent bcts tiles: peak memory stays flat as the cloud grows past the budget, a run killed
 //! at any moment resumes to a byte-identical output, stale work is detected and discarded, two
 //! files processed as one scene equal their merge, and the curvature matches the terrain's
-//! closed form (algorithms.md section 6.2).
+//! closed form (algorithms.md 13.2, 13.7).
 //!
 //! Sizes are kept to a few million points so that each test takes seconds; `scripts/scale.sh`
 //! runs the same checks' measurements at 1M, 10M and 100M points.

@@ -1,4 +1,4 @@
-//! `--radius R` neighbourhoods (issue 15): the points within R, at most -k of them. The
+//! `--radius R` neighbourhoods: the points within R, at most -k of them. The
 //! curvature follows the generated terrain's closed form, the output is bit-identical whatever
 //! the tile size and thread count (the halo is verified against R), a radius that is not a
 //! positive length is a usage error, and a radius with a unit on a file without CRS is warned

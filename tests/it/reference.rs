@@ -1,10 +1,10 @@
-//! The CNC authors' reference clouds (algorithms.md section 8) through the CLI: the Lloyd-sampled
-//! `torus_025000.pts` and `goursat_025000.pts` (text `x y z nx ny nz`, outward normals, read as
-//! the file's normals) go through `tilecurv process ... -o out.ply --estimator NAME -k K`, the
-//! binary little-endian PLY output is read back with the tests' own parser, and the RMS error
-//! of H against the closed forms (`torus_curvature_at`, `goursat_curvature`) must be within 5%
-//! of the figure measured with the authors' code (CNC variants) or with Ponca (ASO, APSS), or
-//! better. The section 8 figures are single-threaded runs of those codes on the same files.
+//! The CNC authors' reference clouds (algorithms.md 14.3) through the CLI: the Lloyd-sampled
+//! `torus_025000.pts` and `goursat_025000.pts` (text `x y z nx ny nz`, outward normals, read as the
+//! file's normals) go through `tilecurv process ... -o out.ply --estimator NAME -k K`, the binary
+//! little-endian PLY output is read back with the tests' own parser, and the RMS error of H against
+//! the closed forms (`torus_curvature_at`, `goursat_curvature`) must be within 5% of the figure
+//! measured with the authors' code (CNC variants) or with Ponca (ASO, APSS), or better. The figures
+//! of algorithms.md 14.3 are single-threaded runs of those codes on the same files.
 //!
 //! The output columns are f32: rounding adds ~3e-8 relative, far below the 5% margin. The
 //! coordinates in the files have 5-6 significant digits; the truth is taken at the points as
@@ -17,8 +17,8 @@ use crate::kit::synthetic::{goursat_curvature, torus_curvature_at, TrueCurvature
 
 use crate::common::{process, read_ply, shared};
 
-/// One figure of the section 8 table: RMS error (units of 1e-3) of `what` for `estimator` with
-/// `k` neighbours (the query point included).
+/// One figure of the table of algorithms.md 14.3: RMS error (units of 1e-3) of `what` for
+/// `estimator` with `k` neighbours (the query point included).
 struct Figure {
     estimator: &'static str,
     k: usize,
@@ -35,8 +35,8 @@ const fn fig(estimator: &'static str, k: usize, what: &'static str, rms_1e3: f64
     }
 }
 
-/// Section 8, torus 25k: CNC-Uniform L = 100, Hexagram, Avg-Hexagram at K = 20 and 50 (authors'
-/// code), ASO and APSS at K = 50 (Ponca, ~50 points per ball), and the other columns of
+/// algorithms.md 14.3, torus 25k: CNC-Uniform L = 100, Hexagram, Avg-Hexagram at K = 20 and 50
+/// (authors' code), ASO and APSS at K = 50 (Ponca, ~50 points per ball), and the other columns of
 /// Avg-Hexagram at K = 50.
 const TORUS: &[Figure] = &[
     fig("cnc-uniform", 20, "H", 1.07),
@@ -52,7 +52,7 @@ const TORUS: &[Figure] = &[
     fig("apss", 50, "H", 8.70),
 ];
 
-/// Section 8, goursat 25k: as for the torus (no K, k1, k2 figures there).
+/// algorithms.md 14.3, goursat 25k: as for the torus (no K, k1, k2 figures there).
 const GOURSAT: &[Figure] = &[
     fig("cnc-uniform", 20, "H", 2.25),
     fig("cnc-hexagram", 20, "H", 2.13),

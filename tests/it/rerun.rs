@@ -1,4 +1,4 @@
-//! Re-running on an output (issue 13 item 7): tilecurv's own columns, known from the input's
+//! Re-running on an output: tilecurv's own columns, known from the input's
 //! provenance record, are replaced (the output is the one a run on the original file gives),
 //! with a warning; any other name clash is refused before any work, also by `--dry-run`; a
 //! tilecurv PLY output given back is refused for now. Layouts are read back with laspy.

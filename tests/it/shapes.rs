@@ -1,17 +1,17 @@
 //! `tilecurv generate torus` and `tilecurv generate goursat`: the files hold points on the closed
-//! form surfaces (algorithms.md 6.4, 6.5) with the right truth columns and noise, and `process`
-//! on a generated torus lands within a bound derived from the numbers of algorithms.md.
+//! form surfaces (algorithms.md 13.4, 13.5) with the right truth columns and noise, and `process`
+//! on a generated torus lands within a bound derived from the numbers of algorithms.md 14.2.
 //!
-//! The bound (torus R = 6, r = 2, 40k points, K = 50, PCA normals): section 7 gives RMS H
+//! The bound (torus R = 6, r = 2, 40k points, K = 50, PCA normals): algorithms.md 14.2 gives RMS H
 //! 0.0018-0.0020 with exact normals at K = 50 (torus, 20k points; more points shrink the
 //! neighbourhood and the bias with it), and PCA normals add about 1.37 kappa / K with the tube's
-//! kappa = 1/r = 0.5 (closed_form.rs's module doc), 0.0137: RMS H at most 0.0020 + 0.0137 =
-//! 0.0157. For roughly Gaussian errors the median of |error| is 0.674 RMS = 0.0106, and the
-//! area-weighted mean of the true H on this torus is exactly 1/(2r) = 0.25 (the cos(theta)
-//! terms integrate to zero against the area element), so the median relative error is about
-//! 0.0106 / 0.25 = 0.042; section 9's K = 30 figure for the same torus (3.96 x 3.51e-3 =
-//! 0.0139 RMS at 60-100k points) is of the same size. The test asserts RMS H < 0.0157 and the
-//! median relative error < 0.042.
+//! kappa = 1/r = 0.5 (closed_form.rs's module doc), 0.0137: RMS H at most 0.0020 + 0.0137 = 0.0157.
+//! For roughly Gaussian errors the median of |error| is 0.674 RMS = 0.0106, and the area-weighted
+//! mean of the true H on this torus is exactly 1/(2r) = 0.25 (the cos(theta) terms integrate to
+//! zero against the area element), so the median relative error is about 0.0106 / 0.25 = 0.042; the
+//! K = 30 figure of algorithms.md 9.5 for the same torus (3.96 x 3.51e-3 = 0.0139 RMS at 60-100k
+//! points) is of the same size. The test asserts RMS H < 0.0157 and the median relative error <
+//! 0.042.
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -52,7 +52,7 @@ fn positions(path: &Path) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// The torus's H and K from section 6.1's parametric formulas at the angle theta of `p`
+/// The torus's H and K from the parametric formulas of algorithms.md 13.4 at the angle theta of `p`
 /// (written out here, independently of the library's `core::surface`).
 fn torus_truth(p: [f64; 3]) -> (f64, f64) {
     let (big_r, r) = (6.0, 2.0);
@@ -129,10 +129,10 @@ fn a_generated_goursat_is_on_the_surface_within_section_6_4_ranges() {
             "point {i} is {} m off the goursat",
             f / g
         );
-        // Section 6.4's global ranges (from 2e5 surface points).
+        // The global ranges of algorithms.md 13.5 (from 2e5 surface points).
         assert!(
             (-0.10700..=0.34485).contains(&th[i]) && (-0.03368..=0.11893).contains(&tk[i]),
-            "point {i}: TrueH {} TrueK {} outside section 6.4's ranges",
+            "point {i}: TrueH {} TrueK {} outside the ranges of algorithms.md 13.5",
             th[i],
             tk[i]
         );

@@ -1,4 +1,4 @@
-//! Vertical units (issue 13 item 3): a terrain whose CRS is metres horizontally and US survey
+//! Vertical units: a terrain whose CRS is metres horizontally and US survey
 //! feet vertically gives the curvature of the metre terrain (its z is converted before any
 //! geometry), from a compound WKT and from GeoTIFF's VerticalUnitsGeoKey; a vertical CRS whose
 //! unit cannot be read is warned about. The terrain is generated with its closed-form curvature

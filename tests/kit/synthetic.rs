@@ -1,7 +1,7 @@
-//! Synthetic surfaces with closed-form curvature (algorithms.md section 6), seeded samplers that
+//! Synthetic surfaces with closed-form curvature (algorithms.md 13), seeded samplers that
 //! return positions with exact unit normals, an exact k-NN and an error summary: the oracle the
 //! estimators and the engine are tested against. Test kit only: never part of the shipped
-//! library. Everything uses the tool's convention (section 0.1): k1 <= k2, H = (k1 + k2)/2,
+//! library. Everything uses the tool's convention (algorithms.md 1.1): k1 <= k2, H = (k1 + k2)/2,
 //! K = k1 k2, a sphere with outward normals has H = +1/r. Random streams come from
 //! `tilecurv::core::rng::Rng`, so clouds are identical across releases for a given seed. The torus
 //! and goursat formulas and samplers are the library's (`core::surface`, `core::sampling`, which
@@ -20,13 +20,13 @@ pub use tilecurv::core::surface::{
     HeightJet, TrueCurvature,
 };
 
-/// Sphere of radius `r` with outward normals (section 6.1): k1 = k2 = 1/r, an umbilic.
+/// Sphere of radius `r` with outward normals (algorithms.md 13.1): k1 = k2 = 1/r, an umbilic.
 pub fn sphere_curvature(r: f64) -> TrueCurvature {
     TrueCurvature::umbilic(1.0 / r)
 }
 
 /// Cylinder of radius `r` around the z axis with outward normals, at the surface point `p`
-/// (section 6.1): k1 = 0 along the axis, k2 = 1/r around it.
+/// (algorithms.md 13.1): k1 = 0 along the axis, k2 = 1/r around it.
 pub fn cylinder_curvature(r: f64, p: V3) -> TrueCurvature {
     let around = normalize([-p[1], p[0], 0.0]).unwrap_or([0.0, 1.0, 0.0]);
     TrueCurvature {
@@ -38,7 +38,7 @@ pub fn cylinder_curvature(r: f64, p: V3) -> TrueCurvature {
     }
 }
 
-/// The saddle z = (x^2 - y^2)/2 (section 6.1: k = (-1, +1) at the origin, upward normal).
+/// The saddle z = (x^2 - y^2)/2 (algorithms.md 13.1: k = (-1, +1) at the origin, upward normal).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Saddle;
 
@@ -55,7 +55,8 @@ impl HeightField for Saddle {
     }
 }
 
-/// The paraboloid z = a (x^2 + y^2) (section 6.1: k1 = k2 = -2a at the origin, upward normal).
+/// The paraboloid z = a (x^2 + y^2) (algorithms.md 13.1: k1 = k2 = -2a at the origin, upward
+/// normal).
 #[derive(Debug, Clone, Copy)]
 pub struct Paraboloid {
     /// The coefficient a.
@@ -130,7 +131,7 @@ pub fn sample_height_field(
     cloud
 }
 
-/// Reads a text cloud of `x y z nx ny nz` lines (the reference `.pts` files of section 8),
+/// Reads a text cloud of `x y z nx ny nz` lines (the reference `.pts` files of algorithms.md 14.1),
 /// skipping empty lines and `#` comments (their header line is wrong anyway).
 pub fn read_pts(path: &std::path::Path) -> std::io::Result<Cloud> {
     let text = std::fs::read_to_string(path)?;

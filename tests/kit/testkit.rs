@@ -1,5 +1,5 @@
-//! Shared test scenarios for the estimators (algorithms.md 5.2, 6, 7, 8): cached clouds with
-//! neighbour lists and truth, the reference clouds of section 8, degenerate inputs, sign flips and
+//! Shared test scenarios for the estimators (algorithms.md 13, 14): cached clouds with neighbour
+//! lists and truth, the reference clouds of algorithms.md 14.3, degenerate inputs, sign flips and
 //! rigid motions. Test kit only.
 
 use super::synthetic::*;
@@ -10,8 +10,8 @@ use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood, Scratch};
 use tilecurv::core::geometry::{dot, norm, normalize, scale, sub, V3};
 use tilecurv::core::rng::Rng;
 
-/// The directory of the reference clouds of algorithms.md section 8 (env var
-/// `TILECURV_REFERENCE_DIR` overrides it).
+/// The directory of the reference clouds of algorithms.md 14.3 (env var `TILECURV_REFERENCE_DIR`
+/// overrides it).
 pub fn reference_dir() -> std::path::PathBuf {
     std::env::var_os("TILECURV_REFERENCE_DIR")
         .map(Into::into)
@@ -55,13 +55,13 @@ pub enum Shape {
     Saddle,
     /// Paraboloid a = 1/2, same grid and window as the saddle.
     Paraboloid,
-    /// Torus (6, 2), N = 20000 uniform in area (section 7).
+    /// Torus (6, 2), N = 20000 uniform in area (as in algorithms.md 14.2).
     Torus,
     /// Goursat, N = 20000 uniform in area.
     Goursat,
-    /// The reference torus_025000.pts (section 8).
+    /// The reference torus_025000.pts (algorithms.md 14.3).
     TorusRef,
-    /// The reference goursat_025000.pts (section 8).
+    /// The reference goursat_025000.pts (algorithms.md 14.3).
     GoursatRef,
 }
 
@@ -178,7 +178,7 @@ pub fn run(est: &dyn Estimator, pos: &[V3], nrm: &[V3]) -> Curvature {
     )
 }
 
-/// Degenerate inputs (algorithms.md 5.3) give flags, never a panic, never NaN without a flag.
+/// Degenerate inputs (algorithms.md 2.5, 12.2) give flags, never a panic, never NaN without a flag.
 /// Returns the results in order: empty, one point, two points, duplicates, collinear,
 /// plane, opposing normals, zero query normal, a NaN neighbour.
 /// `with_empty = false` leaves out the empty neighbourhood (which the engine never passes).
@@ -252,7 +252,7 @@ fn check_close(a: f64, b: f64, tol: f64, what: &str) {
     );
 }
 
-/// Flipping every normal negates H, k1 <-> -k2 and keeps K (section 0.1), to `tol`
+/// Flipping every normal negates H, k1 <-> -k2 and keeps K (algorithms.md 1.1), to `tol`
 /// (relative to 1 + |value|), on the first `n` points of the sampled torus (K = 50).
 pub fn flip_symmetry(est: &dyn Estimator, n: usize, tol: f64) {
     let c = case(Shape::Torus, 50).expect("synthetic case");
@@ -298,8 +298,8 @@ pub fn motion_invariance(est: &dyn Estimator, n: usize, rotate: bool, tol: f64) 
     }
 }
 
-/// A spherical cap: the query at `c + r q` first, then `k - 1` points uniform on the sphere
-/// within 0.15 r of it, with exact outward normals (for the exact identities of 5.2).
+/// A spherical cap: the query at `c + r q` first, then `k - 1` points uniform on the sphere within
+/// 0.15 r of it, with exact outward normals (for the exact identities of algorithms.md 13.8).
 pub fn sphere_cap(r: f64, k: usize) -> (Vec<V3>, Vec<V3>) {
     let q = normalize([0.3, -0.5, 0.8]).unwrap_or([0.0, 0.0, 1.0]);
     let mut rng = Rng::new(seed());

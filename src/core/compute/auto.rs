@@ -1,4 +1,4 @@
-//! `-k auto` over one loaded tile (algorithms.md §9): one k-NN list per point at the top
+//! `-k auto` over one loaded tile (algorithms.md 9, 11.3): one k-NN list per point at the top
 //! rung's K, each rung a prefix of it (the lists are sorted by the tie rule, so a prefix is the
 //! k-NN of its size); per rung, PCA normals from the first K_s / 2 and the estimator from the
 //! first K_s; then per core point the criterion from the rungs' H at its 64 nearest, and every

@@ -128,7 +128,7 @@ impl PointResult {
 
 /// A pass stopped because its cancel flag was set (SIGINT/SIGTERM): its results are incomplete
 /// and dropped. Every step checks the flag per point, so a signal never waits for a whole pass
-/// over a large tile (issue 12 item 2).
+/// over a large tile.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Cancelled;
 
@@ -169,8 +169,8 @@ struct ListInfo {
 }
 
 /// `compute_tile`'s flat neighbour lists and their [`ListInfo`], owned by the caller and reused
-/// from tile to tile: fresh buffers cost a zeroed page per 4 KiB every tile (page faults were a
-/// tenth of the run's CPU time).
+/// from tile to tile: fresh buffers cost a zeroed page per 4 KiB every tile, and faulting those
+/// pages in is a large share of a run's system time (docs/performance.md).
 #[derive(Default)]
 pub struct TileBuffers {
     lists: Vec<u32>,
@@ -337,7 +337,7 @@ fn neighbour_lists(
 ) {
     let n = t.xyz.len();
     // Grown, never cleared: a list is read only as far as its info's length, which this tile's
-    // query wrote (zeroing the whole buffer each tile was 1% of the instructions).
+    // query wrote, so zeroing the whole buffer each tile would be work for nothing.
     if bufs.lists.len() < n * reach.k {
         bufs.lists.resize(n * reach.k, 0);
     }
@@ -440,7 +440,8 @@ fn estimate_one(
 }
 
 /// Step 4: the estimator at the core points `todo` (verified), written in place (an indexed
-/// collect: partition_map's intermediate lists and appends were half of all page faults).
+/// collect: partition_map's intermediate lists and appends fault in pages that the results are
+/// then copied out of).
 fn estimate_points(
     t: &TilePoints,
     p: &ComputeParams<'_>,

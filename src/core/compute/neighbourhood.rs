@@ -39,8 +39,8 @@ impl NeighbourhoodBuf {
         list: &[u32],
         extra: &mut [f64],
     ) -> Curvature {
-        // Grown to the list's length and written by index: pushing (a capacity check and a
-        // length update each) was a third of this gather's instructions.
+        // Grown to the list's length and written by index: pushing adds a capacity check and a
+        // length update to every copy, which this short loop would mostly spend its time on.
         if self.pos.len() < list.len() {
             self.pos.resize(list.len(), [0.0; 3]);
             self.nrm.resize(list.len(), [0.0; 3]);

@@ -96,7 +96,7 @@ fn sharper_than_the_neighbourhood_is_the_sphere_bound() {
 
 /// A set cancel flag stops the pass with `Cancelled` (no partial results); a clear one
 /// computes every point, H near -1 at the apex (normals up point into the bowl, like inward
-/// normals on a sphere, so H = -1/r by the convention of algorithms.md §5.2).
+/// normals on a sphere, so H = -1/r by the convention of algorithms.md 1.1, 13.1).
 #[test]
 fn a_set_cancel_flag_stops_the_pass() {
     let (t, scene) = paraboloid();
@@ -164,8 +164,8 @@ fn radius_lists_are_verified_against_the_loaded_region() {
     }
 }
 
-/// H at the paraboloid's apex (grid point 20, 20 of [`paraboloid`]): -1 by algorithms.md's
-/// sign convention, normals up pointing into the bowl.
+/// H at the paraboloid's apex (grid point 20, 20 of [`paraboloid`]): -1 by the sign convention
+/// of algorithms.md 1.1, normals up pointing into the bowl.
 fn apex_h(out: &TileOutcome) -> f64 {
     out.done
         .iter()

@@ -1,15 +1,15 @@
-//! APSS: algebraic sphere fitted to positions and normals (algorithms.md 3.1, 3.2). This file
+//! APSS: algebraic sphere fitted to positions and normals (algorithms.md 6.2, 6.3). This file
 //! holds the fit of eqs. 2-4, generic over the scalar type so that ASO (`aso.rs`) runs the very
 //! same formulas on second-order jets, and the APSS estimator H = 2 u^_q.
 //!
-//! Radius: the kernel's support r is derived per point from the K-NN (algorithms.md 3.6: a
-//! per-point radius for LIDAR densities): r = the distance of the farthest neighbour, exactly.
-//! The K-NN list is then the complete content of the ball, so F and its derivatives are those
-//! of a true range query, and the farthest neighbour gets weight 0 (K - 1 points count). A
-//! slightly larger r (e.g. 1.0001 x) is worse: the farthest point then sits at the edge of the
+//! Radius: the kernel's support r is derived per point from the K-NN, so that it follows the
+//! density of LIDAR scans (algorithms.md 2.5, 6.1): r = the distance of the farthest neighbour,
+//! exactly. The K-NN list is then the complete content of the ball, so F and its derivatives are
+//! those of a true range query, and the farthest neighbour gets weight 0 (K - 1 points count).
+//! A slightly larger r (e.g. 1.0001 x) is worse: the farthest point then sits at the edge of the
 //! support, where the Hessian of the kernel jumps (8 q q^T / r^4 just inside, 0 outside), and
-//! adds a spurious term to ASO's Hessian (measured on torus_025000 at K = 50: RMS H 3.16e-3
-//! instead of 3.02e-3). With this rule APSS/ASO reproduce Ponca's section 8 figures.
+//! adds a spurious term to ASO's Hessian (algorithms.md 6.1 gives its size). With this rule
+//! APSS/ASO reproduce Ponca's figures of algorithms.md 14.3.
 
 use super::{flags, local, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{dot, V3};
@@ -103,8 +103,8 @@ pub(crate) fn fit_sphere<T: FitScalar>(nb: &Neighbourhood<'_>, r: f64) -> Result
         return Err(flags::FEW_NEIGHBOURS);
     }
     let inv_sw = sw.recip();
-    // deno is the weighted positional variance: zero only if all points coincide (Ponca's check
-    // of section 3.6, made relative).
+    // deno is the weighted positional variance: zero only if all points coincide (Ponca's check,
+    // made relative to Spp: algorithms.md 6.5).
     let deno = spp - dot3(&sp, &sp) * inv_sw;
     if deno.value().is_nan() || deno.value() <= 1e-12 * spp.value() {
         return Err(flags::DEGENERATE);
@@ -125,9 +125,9 @@ pub(crate) fn prepare(nb: &Neighbourhood<'_>) -> Result<f64, u8> {
     Ok(local::knn_radius(nb.positions))
 }
 
-/// APSS (section 3.2): the mean curvature H = 2 u^_q of the Pratt-normalised sphere. A sphere
+/// APSS (algorithms.md 6.3): the mean curvature H = 2 u^_q of the Pratt-normalised sphere. A sphere
 /// has no anisotropy, so the result is reported as an umbilic: k1 = k2 = H, K = H^2, no
-/// directions (UMBILIC flag). Positive for outward normals on a sphere (section 0.2).
+/// directions (UMBILIC flag). Positive for outward normals on a sphere (algorithms.md 1.5).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Apss;
 
@@ -142,7 +142,7 @@ impl Estimator for Apss {
             Ok(f) => f,
             Err(flag) => return Curvature::undefined(flag),
         };
-        // Pratt norm (eq. 6); a non-positive radicand is an "imaginary sphere" (section 3.6).
+        // Pratt norm (eq. 6); a non-positive radicand is an "imaginary sphere" (algorithms.md 6.3).
         let pratt2 = dot(fit.ul, fit.ul) - 4.0 * fit.uc * fit.uq;
         if pratt2.is_nan() || pratt2 <= 0.0 {
             return Curvature::undefined(flags::DEGENERATE);
@@ -165,7 +165,8 @@ mod tests {
     use super::*;
     use crate::kit::testkit::{self, below, errors, Shape};
 
-    /// 5.2: H~ = 1/r exactly on a sphere with exact normals (1e-9 relative), for any weights.
+    /// algorithms.md 13.8: H~ = 1/r exactly on a sphere with exact normals (1e-9 relative), for any
+    /// weights.
     #[test]
     fn sphere_identity() {
         let r = 2.5;
@@ -175,8 +176,8 @@ mod tests {
         assert!(c.flags == flags::UMBILIC && c.k1 == c.h && c.k2 == c.h);
     }
 
-    /// Section 8 (Ponca's APSS at ~50 points per ball): RMS H goursat 25k 3.88e-3, torus 25k
-    /// 8.70e-3 (APSS cannot represent k1 != k2, so its torus error stays high). Bounds 1.25x.
+    /// algorithms.md 14.3 (Ponca's APSS at ~50 points per ball): RMS H goursat 25k 3.88e-3, torus
+    /// 25k 8.70e-3 (APSS cannot represent k1 != k2, so its torus error stays high). Bounds 1.25x.
     /// Measured here at K = 50: 3.88e-3 and 8.69e-3.
     #[test]
     fn reference_clouds() {
@@ -189,10 +190,10 @@ mod tests {
         }
     }
 
-    /// Sampled shapes. Section 7 gives APSS H RMS 0.011 on the torus at N = 60000, r = 1, and
-    /// H~ = -0.992 for the paraboloid a = 1/2 (true -1); our N = 20000, K = 50 torus measures
-    /// 31.8e-3 (smaller, random balls): bound 2x measured. Sphere exact; paraboloid measured
-    /// 8.5e-3 (bound 2x).
+    /// Sampled shapes. algorithms.md 14.2 gives APSS H RMS 0.011 on the torus at N = 60000, r = 1,
+    /// and H~ = -0.992 for the paraboloid a = 1/2 (true -1); our N = 20000, K = 50 torus measures
+    /// 31.8e-3 (smaller, random balls): bound 2x measured. Sphere exact; paraboloid measured 8.5e-3
+    /// (bound 2x).
     #[test]
     fn sampled_shapes() {
         let e = errors(&Apss, Shape::Sphere, 30, 1).expect("synthetic");

@@ -1,4 +1,4 @@
-//! ASO: the algebraic shape operator (algorithms.md 3.3), computed as in 3.4 with second-order
+//! ASO: the algebraic shape operator (algorithms.md 6.4), computed with second-order
 //! forward jets: the APSS fit of `apss.rs` runs on jets whose derivatives are with respect to
 //! the evaluation point x (through the kernel weights only), which yields the gradient and
 //! Hessian of F(x) = f(x; x) at the query point in one pass.
@@ -8,7 +8,7 @@ use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood, 
 use crate::core::geometry::{dot, norm, normalize, tangent_basis, M3, V3};
 use std::ops::{Add, Mul, Sub};
 
-/// A second-order jet: value, gradient and Hessian with respect to x (section 3.4).
+/// A second-order jet: value, gradient and Hessian with respect to x (algorithms.md 6.4).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Jet {
     v: f64,
@@ -96,7 +96,7 @@ impl FitScalar for Jet {
         }
     }
     /// w = (s - 1)^2, grad_x w = -4 (s - 1) q / r^2, Hess_x w = 8 q q^T / r^4 + 4 (s - 1) I / r^2
-    /// with q = p - x (section 3.4); no division by |q|, so the query point itself is fine.
+    /// with q = p - x (algorithms.md 6.4); no division by |q|, so the query point itself is fine.
     fn weight(q: V3, r: f64) -> Self {
         let r2 = r * r;
         let s = dot(q, q) / r2;
@@ -131,10 +131,10 @@ fn field_derivatives(fit: &SphereFit<Jet>) -> (V3, M3) {
     (g, hs)
 }
 
-/// ASO (section 3.3): principal curvatures and directions from the shape operator
+/// ASO (algorithms.md 6.4): principal curvatures and directions from the shape operator
 /// W = P^T (Hess F / |grad F|) P at the query point, P an orthonormal basis of the plane
 /// orthogonal to grad F (the fitted normal); H = (k1 + k2)/2, K = k1 k2. Same radius rule as
-/// APSS (`apss.rs`). Positive for outward normals on a sphere (section 0.2).
+/// APSS (`apss.rs`). Positive for outward normals on a sphere (algorithms.md 1.5).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Aso;
 
@@ -150,7 +150,7 @@ impl Estimator for Aso {
         };
         let (g, hs) = field_derivatives(&fit);
         let gn = norm(g);
-        // Opposing normals in the ball (thin structures) cancel the gradient (section 3.6).
+        // Opposing normals in the ball (thin structures) cancel the gradient (algorithms.md 6.4).
         let Some(n) = normalize(g).filter(|_| gn > 1e-9) else {
             return Curvature::undefined(flags::DEGENERATE);
         };
@@ -170,7 +170,7 @@ mod tests {
     use super::*;
     use crate::kit::testkit::{self, below, errors, Shape};
 
-    /// The jets give the derivatives of F(x) = f(x; x) (section 3.4, verified there to 7e-10):
+    /// The jets give the derivatives of F(x) = f(x; x) (algorithms.md 6.4):
     /// F(x) is u_c of the fit centred at x (the fit is translation-equivariant), so central
     /// differences of plain f64 fits must match. Step 1e-5 in a ball of radius ~0.6: truncation
     /// ~1e-10 relative, rounding ~1e-16/1e-10 for the Hessian, so 1e-6 is a safe bound.
@@ -240,7 +240,7 @@ mod tests {
         }
     }
 
-    /// 5.2: k1 = k2 = 1/r exactly on a sphere with exact normals (1e-9 relative).
+    /// algorithms.md 13.8: k1 = k2 = 1/r exactly on a sphere with exact normals (1e-9 relative).
     #[test]
     fn sphere_identity() {
         let r = 2.5;
@@ -256,7 +256,7 @@ mod tests {
         );
     }
 
-    /// Section 8 (Ponca's ASO, ~50 points per ball): RMS H goursat 25k 2.62e-3, torus 25k
+    /// algorithms.md 14.3 (Ponca's ASO, ~50 points per ball): RMS H goursat 25k 2.62e-3, torus 25k
     /// 3.02e-3. Bounds 1.25x; measured 2.61e-3 and 2.98e-3 (K = 50, r = K-NN radius).
     #[test]
     fn reference_clouds() {
@@ -269,13 +269,13 @@ mod tests {
         }
     }
 
-    /// Sampled shapes. ASO's Hessian comes from derivatives of the kernel weights, which are
-    /// noisy on random (non-Lloyd) samples with few points per ball: on the N = 20000 random
-    /// torus, RMS H falls from 32e-3 (K=30) to 15e-3 (K=60) and 7.4e-3 (K=120). Section 7's
-    /// 3.1-3.4e-3 (k) used N = 60000 with r = 1 (~400 points per ball); at K = 120 we measure
-    /// k1 9.7e-3, k2 9.4e-3: bounds 2x measured. Saddle (K = 30, measured H 22e-3) and
-    /// paraboloid (4.1e-3): bounds 2x measured; section 7 quotes k = (-0.998, 1.002) on the
-    /// saddle and (-1.000, -0.999) on the paraboloid with larger balls.
+    /// Sampled shapes. ASO's Hessian comes from derivatives of the kernel weights, which are noisy
+    /// on random (non-Lloyd) samples with few points per ball: on the N = 20000 random torus, RMS H
+    /// falls from 32e-3 (K=30) to 15e-3 (K=60) and 7.4e-3 (K=120). algorithms.md 14.2's 3.1-3.4e-3
+    /// (k) used N = 60000 with r = 1 (~400 points per ball); at K = 120 we measure k1 9.7e-3, k2
+    /// 9.4e-3: bounds 2x measured. Saddle (K = 30, measured H 22e-3) and paraboloid (4.1e-3):
+    /// bounds 2x measured; algorithms.md 14.2 quotes k = (-0.998, 1.002) on the saddle and (-1.000,
+    /// -0.999) on the paraboloid with larger balls.
     #[test]
     fn sampled_shapes() {
         let e = errors(&Aso, Shape::Sphere, 30, 1).expect("synthetic");

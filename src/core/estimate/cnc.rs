@@ -1,4 +1,4 @@
-//! CNC: randomized corrected curvature measures (algorithms.md section 1). This file holds the
+//! CNC: randomized corrected curvature measures (algorithms.md 4). This file holds the
 //! per-triangle measures and their accumulation (shared by every CNC variant) and the default
 //! variant, CNC-Avg-Hexagram.
 
@@ -6,12 +6,12 @@ use super::hexagon::{hexagon_frame, hexagon_normal, sector_sums, HEX};
 use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{add, cross, dot, normalize, scale, sub, tangent_basis, M3, V3};
 
-/// Sums of the corrected curvature measures over a set of triangles (section 1.5).
+/// Sums of the corrected curvature measures over a set of triangles (algorithms.md 4.3).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CncMeasures {
     /// Corrected area A0.
     pub a0: f64,
-    /// Corrected mean-curvature measure A1 (factor 1/4, section 1.3).
+    /// Corrected mean-curvature measure A1 (factor 1/4, algorithms.md 4.1).
     pub a1: f64,
     /// Corrected Gaussian-curvature measure A2.
     pub a2: f64,
@@ -23,8 +23,8 @@ pub struct CncMeasures {
 
 impl CncMeasures {
     /// Adds one triangle with vertices `x` (relative to the query point) and unit normals `u`,
-    /// after the orientation fix of section 1.4 (all measures times sign(mu0)). Triangles whose
-    /// |mu0| is negligible relative to their size are skipped (section 1.4: relative epsilon).
+    /// after the orientation fix of algorithms.md 4.2 (all measures times sign(mu0)). Triangles
+    /// whose |mu0| is negligible relative to their size are skipped (a relative epsilon).
     pub fn add_triangle(&mut self, x: [V3; 3], u: [V3; 3]) {
         let [xi, xj, xk] = x;
         let [ui, uj, uk] = u;
@@ -38,14 +38,14 @@ impl CncMeasures {
             return;
         }
         let s = mu0.signum();
-        // mu1 with c1 = 1/4 (section 1.3: the paper's 1/2 gives k1 + k2).
+        // mu1 with c1 = 1/4 (algorithms.md 4.1: the paper's 1/2 gives k1 + k2).
         let m1 = add(
             add(cross(sub(uk, uj), xi), cross(sub(ui, uk), xj)),
             cross(sub(uj, ui), xk),
         );
         let mu1 = 0.25 * dot(ubar, m1);
         let mu2 = 0.5 * dot(ui, cross(uj, uk));
-        // M = 1/2 [ (eij x ubar) (x) (uk - ui) - (eik x ubar) (x) (uj - ui) ]   (section 1.3)
+        // M = 1/2 [ (eij x ubar) (x) (uk - ui) - (eik x ubar) (x) (uj - ui) ]   (algorithms.md 4.1)
         let p = cross(eij, ubar);
         let q = cross(eik, ubar);
         let a = sub(uk, ui);
@@ -61,9 +61,9 @@ impl CncMeasures {
         self.triangles += 1;
     }
 
-    /// H = A1/A0, K = A2/A0 and the principal curvatures from the 2x2 compression of
-    /// sym(AM)/A0 onto the tangent plane of the query normal `n` (section 1.6: the C -> infinity
-    /// limit of the paper's rule; k = -eigenvalue). `extra_flags` are or-ed into the result.
+    /// H = A1/A0, K = A2/A0 and the principal curvatures from the 2x2 compression of sym(AM)/A0
+    /// onto the tangent plane of the query normal `n` (algorithms.md 4.4: the C -> infinity limit
+    /// of the paper's rule; k = -eigenvalue). `extra_flags` are or-ed into the result.
     pub fn finish(&self, n: V3, extra_flags: u8) -> Curvature {
         if self.triangles == 0 || self.a0.is_nan() || self.a0 <= 0.0 {
             return Curvature::undefined(flags::DEGENERATE | extra_flags);
@@ -90,11 +90,11 @@ impl CncMeasures {
     }
 }
 
-/// CNC-Avg-Hexagram (section 1.7): the K neighbours are split into the six Voronoi sectors of a
-/// hexagon around the query point; each sector's mean position and renormalised mean normal is
-/// a virtual sample; triangles (0, 2, 4) and (1, 3, 5). The query point itself is left out of the
-/// sectors (it is equidistant from all six vertices: section 8, point 3). An empty sector falls
-/// back to the query point and flags the result BOUNDARY.
+/// CNC-Avg-Hexagram (algorithms.md 4.6): the K neighbours are split into the six Voronoi sectors of
+/// a hexagon around the query point; each sector's mean position and renormalised mean normal is a
+/// virtual sample; triangles (0, 2, 4) and (1, 3, 5). The query point itself is left out of the
+/// sectors (it is equidistant from all six vertices, so rounding alone would pick its sector). An
+/// empty sector falls back to the query point and flags the result BOUNDARY.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CncAvgHexagram;
 
@@ -128,19 +128,19 @@ impl Estimator for CncAvgHexagram {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Other CNC variants (section 1.7). They differ only in how triangles are chosen; every measure
-// goes through CncMeasures.
+// Other CNC variants (algorithms.md 4.7-4.9). They differ only in how triangles are chosen; every
+// measure goes through CncMeasures.
 
 use super::local;
 use crate::core::rng::Rng;
 
-/// CNC-Hexagram (section 1.7, L = 2): six hexagon vertices at distance rho/2 from the query
-/// point in the plane of [`hexagon_normal`], each replaced by its closest neighbour; triangles
-/// (0, 2, 4) and (1, 3, 5). rho is the per-point K-NN radius ([`local::knn_radius`]) rather
-/// than the paper's cloud-wide average (section 1.11; rho/2 rather than the reference code's
-/// mean neighbour distance, section 8 point 4). A neighbour replaces the query point at a vertex
-/// only if strictly closer (section 8 point 5); a vertex left on the query point means an empty
-/// side and flags the result BOUNDARY.
+/// CNC-Hexagram (algorithms.md 4.7, L = 2): six hexagon vertices at distance rho/2 from the query
+/// point in the plane of [`hexagon_normal`], each replaced by its closest neighbour; triangles (0,
+/// 2, 4) and (1, 3, 5). rho is the per-point K-NN radius ([`local::knn_radius`]) rather than the
+/// paper's cloud-wide average, so that it follows the density (algorithms.md 2.5); rho/2 rather
+/// than the reference code's mean neighbour distance, which is no more accurate. A neighbour
+/// replaces the query point at a vertex only if strictly closer, as in the reference code; a vertex
+/// left on the query point means an empty side and flags the result BOUNDARY.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CncHexagram;
 
@@ -182,7 +182,7 @@ impl Estimator for CncHexagram {
     }
 }
 
-/// CNC-Uniform (section 1.7): L triangles drawn uniformly among the C(K, 3) triangles of the
+/// CNC-Uniform (algorithms.md 4.8): L triangles drawn uniformly among the C(K, 3) triangles of the
 /// neighbourhood (query point included), as the reference code does: index triples drawn with
 /// replacement, triples with a repeated index dropped, so at most L triangles are used. The
 /// random stream of a point depends only on (seed, [`Neighbourhood::key`]), which the engine
@@ -222,7 +222,7 @@ impl Estimator for CncUniform {
 mod tests {
     use super::*;
 
-    /// Exact identity of algorithms.md 5.2: on a sphere with exact outward normals, A1/A0 = 1/r
+    /// Exact identity of algorithms.md 13.8: on a sphere with exact outward normals, A1/A0 = 1/r
     /// and A2/A0 = 1/r^2 for any triangles (c1 = 1/4).
     #[test]
     fn sphere_identity_any_triangles() {
@@ -253,7 +253,7 @@ mod tests {
         );
     }
 
-    /// Flipping every normal negates H and keeps K (section 0.1).
+    /// Flipping every normal negates H and keeps K (algorithms.md 1.1).
     #[test]
     fn flipped_normals_negate_h() {
         let r = 1.5;
@@ -280,7 +280,7 @@ mod tests {
         assert!(out.h.is_nan() && out.flags & flags::DEGENERATE != 0);
     }
 
-    // ---- Tests of all CNC variants against closed forms (algorithms.md 5.2, 7, 8). ----
+    // ---- Tests of all CNC variants against closed forms (algorithms.md 13.8, 14.2, 14.3). ----
 
     use crate::kit::testkit::{self, below, errors, Shape};
 
@@ -295,9 +295,9 @@ mod tests {
         ]
     }
 
-    /// 5.2: H = 1/r and K = 1/r^2 exactly (1e-9 relative) on a sphere with exact normals, for
-    /// any triangles with vertices on it: Hexagram and Uniform on a spherical cap. (Not
-    /// Avg-Hexagram: its averaged vertices lie inside the sphere.)
+    /// algorithms.md 13.8: H = 1/r and K = 1/r^2 exactly (1e-9 relative) on a sphere with exact
+    /// normals, for any triangles with vertices on it: Hexagram and Uniform on a spherical cap.
+    /// (Not Avg-Hexagram: its averaged vertices lie inside the sphere.)
     #[test]
     fn sphere_identity_all_variants() {
         let r = 2.5;
@@ -310,7 +310,7 @@ mod tests {
                 est.name()
             );
             // Principal curvatures are not exact (M is only asymptotically the shape operator),
-            // but close: section 7 quotes 0.4993-0.5005 for r = 2, i.e. 0.15%; bound 1%.
+            // but close: algorithms.md 14.2 quotes 0.4993-0.5005 for r = 2, i.e. 0.15%; bound 1%.
             assert!(
                 (c.k1 * r - 1.0).abs() < 1e-2 && (c.k2 * r - 1.0).abs() < 1e-2,
                 "{}: {c:?}",
@@ -319,9 +319,9 @@ mod tests {
         }
     }
 
-    /// Section 8 table (RMS of H, 1e-3) on the paper's reference clouds, reproduced here to
-    /// within 25%: bounds are 1.25 x the authors' figures. Avg-Hexagram torus 25k K=50 also has
-    /// G 0.73, k1 1.46, k2 1.02.
+    /// The table of algorithms.md 14.3 (RMS of H, 1e-3) on the paper's reference clouds, reproduced
+    /// here to within 25%: bounds are 1.25 x the authors' figures. Avg-Hexagram torus 25k K=50 also
+    /// has G 0.73, k1 1.46, k2 1.02.
     #[test]
     fn reference_clouds_match_section_8() {
         let uniform = CncUniform {
@@ -360,7 +360,7 @@ mod tests {
         }
     }
 
-    /// Sampled shapes. Torus (6, 2), N = 20000, K = 50: section 7 quotes RMS H 1.8-2.0e-3,
+    /// Sampled shapes. Torus (6, 2), N = 20000, K = 50: algorithms.md 14.2 quotes RMS H 1.8-2.0e-3,
     /// G 1.4-1.7e-3, k 1.8-3.7e-3 for the three variants; bounds are 2x the top of each range.
     /// The other shapes have no published figure: bounds are 2x the value measured with seed 1
     /// (given in the comments), max errors 2x the measured maximum, to guard regressions.
@@ -379,8 +379,8 @@ mod tests {
             // Measured max |H| error 0.011-0.014; directions 0.15-0.27 degrees RMS.
             below(e.h.max, 0.03, &format!("{name} torus max H"));
             below(e.d1_deg.rms, 0.6, &format!("{name} torus direction (deg)"));
-            // Sphere r = 1, K = 30: H and K are exact identities (5.2) except for Avg-Hexagram
-            // (measured H 0.9e-3, K 1.8e-3 RMS); k measured <= 1.5e-3.
+            // Sphere r = 1, K = 30: H and K are exact identities (algorithms.md 13.8) except for
+            // Avg-Hexagram (measured H 0.9e-3, K 1.8e-3 RMS); k measured <= 1.5e-3.
             let e = errors(&*est, Shape::Sphere, 30, 1).expect("synthetic");
             let exact = if name == "cnc-avg-hexagram" {
                 1e-2

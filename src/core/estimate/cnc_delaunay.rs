@@ -1,8 +1,8 @@
-//! CNC-Delaunay (algorithms.md 1.7): corrected curvature measures summed over local Delaunay
+//! CNC-Delaunay (algorithms.md 4.9): corrected curvature measures summed over local Delaunay
 //! umbrellas (Sharp and Crane 2020). For each point of the neighbourhood, its neighbours are projected onto its
 //! tangent plane (its own normal) and the triangles of the 2D Delaunay triangulation incident to
 //! it (its umbrella, the 1-ring fan) are kept; all umbrella triangles, deduplicated, enter the
-//! CNC sums of section 1.5.
+//! CNC sums of algorithms.md 4.3.
 //!
 //! Deviation from the paper: the estimator sees only the query's K-NN, so each umbrella is built
 //! from the other points of that same neighbourhood, not from the point's own k = 30 neighbours.
@@ -146,7 +146,7 @@ impl Estimator for CncDelaunay {
         for c in 0..nb.positions.len() {
             umbrella(nb, c, s);
         }
-        // A triangle appears in up to three umbrellas: count it once (section 1.7, step 5).
+        // A triangle appears in up to three umbrellas: count it once (algorithms.md 4.9).
         s.triangles.sort_unstable();
         s.triangles.dedup();
         let mut m = CncMeasures::default();
@@ -216,7 +216,8 @@ mod tests {
     use crate::core::estimate::flags;
     use crate::kit::testkit::{self, below, errors, Shape};
 
-    /// 5.2: exact H = 1/r, K = 1/r^2 on a spherical cap with exact normals (1e-9 relative).
+    /// algorithms.md 13.8: exact H = 1/r, K = 1/r^2 on a spherical cap with exact normals (1e-9
+    /// relative).
     #[test]
     fn sphere_identity() {
         let r = 2.5;
@@ -228,12 +229,12 @@ mod tests {
         );
     }
 
-    /// No published figure for CNC-Delaunay in section 8 (the paper's plots put it with the
-    /// other variants): H bounds are 1.25 x the CNC-Uniform figures (torus K=50 1.38e-3, K=20
-    /// 1.07e-3; goursat K=50 3.62e-3, K=20 2.25e-3), on every 5th point to keep the test short
-    /// (the umbrellas cost ~60 us per point). Measured k2 errors are larger than the other
-    /// variants' (torus K=50 8.1e-3): the umbrella triangles cover the whole K-ball, so the
-    /// anisotropic measure sees the normals tilt over a larger area; bound 1.5x measured.
+    /// No published figure for CNC-Delaunay in algorithms.md 14.3 (the paper's plots put it with
+    /// the other variants): H bounds are 1.25 x the CNC-Uniform figures (torus K=50 1.38e-3, K=20
+    /// 1.07e-3; goursat K=50 3.62e-3, K=20 2.25e-3), on every 5th point to keep the test short (the
+    /// umbrellas cost ~60 us per point). Measured k2 errors are larger than the other variants'
+    /// (torus K=50 8.1e-3): the umbrella triangles cover the whole K-ball, so the anisotropic
+    /// measure sees the normals tilt over a larger area; bound 1.5x measured.
     #[test]
     fn reference_clouds() {
         for (shape, k, uniform) in [
@@ -253,8 +254,8 @@ mod tests {
         }
     }
 
-    /// Sampled torus (section 7: CNC RMS H 1.8-2.0e-3, G 1.4-1.7e-3; bounds 2x the top) and
-    /// saddle (measured H 0.8e-3, k 2.0e-3 with seed 1; bounds 2x), every 5th point.
+    /// Sampled torus (algorithms.md 14.2: CNC RMS H 1.8-2.0e-3, G 1.4-1.7e-3; bounds 2x the top)
+    /// and saddle (measured H 0.8e-3, k 2.0e-3 with seed 1; bounds 2x), every 5th point.
     #[test]
     fn sampled_shapes() {
         let e = errors(&CncDelaunay, Shape::Torus, 50, 5).expect("synthetic");

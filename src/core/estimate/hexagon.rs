@@ -1,4 +1,4 @@
-//! The hexagon of the CNC Hexagram variants (algorithms.md section 1.7): its plane normal, its
+//! The hexagon of the CNC Hexagram variants (algorithms.md 4.5): its plane normal, its
 //! in-plane frame, the sector of a neighbour, and per sector the sums of the neighbours'
 //! positions and normals that CNC-Avg-Hexagram averages. The sectors of four neighbours at a
 //! time are found with AVX2 where the build has it (x86-64-v3), with the same bits as the
@@ -7,8 +7,8 @@
 use super::Neighbourhood;
 use crate::core::geometry::{add, cross, dot, normalize, scale, V3};
 
-/// The in-plane frame of the reference code's hexagon (section 1.7): `e` is the axis after the
-/// normal's largest component, `u = n x e`, `v = n x u`.
+/// The in-plane frame of the reference code's hexagon (algorithms.md 4.5): `e` is the axis after
+/// the normal's largest component, `u = n x e`, `v = n x u`.
 pub(super) fn hexagon_frame(n: V3) -> (V3, V3) {
     let a = n.map(f64::abs);
     let e = if a[0] >= a[1] && a[0] >= a[2] {
@@ -21,7 +21,7 @@ pub(super) fn hexagon_frame(n: V3) -> (V3, V3) {
     let u = normalize(cross(n, e)).unwrap_or([1.0, 0.0, 0.0]);
     // n and u are unit and orthogonal (to rounding), so n x u is unit to a few ulps: its
     // length would only scale the sector tests, which compare signs (a normalisation here
-    // was a tenth of this estimator's latency).
+    // would lengthen this estimator's chain of dependent operations).
     let v = cross(n, u);
     (u, v)
 }
@@ -46,7 +46,7 @@ const WEDGE: [u8; 8] = [0, 5, 3, 4, 1, 0, 2, 3];
 
 /// The hexagon sector (0..6) of a neighbour at relative position `d`: the Voronoi region of the
 /// nearest hexagon vertex. The vertices are equidistant from the centre, so the nearest one
-/// maximises <d | w_k> and the radius drops out (section 1.7 note): the sectors are the 60
+/// maximises <d | w_k> and the radius drops out (algorithms.md 4.5): the sectors are the 60
 /// degree wedges centred on the vertex directions, bounded by the three lines at 30, 90 and
 /// 150 degrees. The side of each line (a sign test, no branch) names the wedge; a point on a
 /// line goes to one of its two wedges. Returns None for a point whose tangential projection is
@@ -65,7 +65,7 @@ pub fn hexagon_sector(d: V3, u: V3, v: V3) -> Option<usize> {
 }
 
 /// The hexagon plane normal of the reference code: the query normal blended half and half with
-/// the normalised mean neighbour normal (section 1.7, W = 0.5).
+/// the normalised mean neighbour normal (algorithms.md 4.5, W = 0.5).
 pub fn hexagon_normal(nb: &Neighbourhood<'_>) -> V3 {
     let n0 = nb.normals[0];
     // Four partial sums: one running sum was a chain of K dependent additions.
@@ -90,9 +90,9 @@ const NO_SECTOR: u8 = 6;
 /// Per hexagon sector: the sums of its neighbours' positions (lanes 0-2), their count (lane 3)
 /// and the sums of their normals (lanes 4-6); the query point (first) is left out, and so is
 /// a point in no sector (row 6 takes it). The sectors of a run of neighbours are found first,
-/// then the run is added in order: adding each neighbour as soon as its sector was known took
-/// this estimator 15% longer for 1% fewer instructions (its stores go to an address known
-/// late, which holds up the loads after them).
+/// then the run is added in order: adding each neighbour as soon as its sector is known is
+/// slower although it executes fewer instructions (its stores go to an address known late,
+/// which holds up the loads after them; docs/performance.md).
 pub(super) fn sector_sums(nb: &Neighbourhood<'_>, u: V3, v: V3) -> [[f64; 8]; 7] {
     const RUN: usize = 32;
     let mut sums = [[0.0f64; 8]; 7];

@@ -1,10 +1,10 @@
-//! Osculating jet fitting (Cazals and Pouget 2005, the JetFitting baseline of algorithms.md 1.10 and
-//! 3.5): a bivariate polynomial height z = J(x, y) of degree 2 to 4 is fitted by least squares
-//! to the neighbourhood in the frame (e1, e2, n) of the query normal, and the curvature is that
-//! of the height field at (0, 0) with the upward normal (the query normal's side), by the Monge
-//! formulas of section 6.2 (so the sign convention is that of section 0.1, unlike CGAL's
-//! jets). Coordinates are divided by the K-NN radius before the fit, as Cazals and Pouget recommend, to
-//! keep the normal equations well conditioned.
+//! Osculating jet fitting (Cazals and Pouget 2005, the JetFitting baseline of the CNC paper,
+//! algorithms.md 8 and 14.1): a bivariate polynomial height z = J(x, y) of degree 2 to 4 is
+//! fitted by least squares to the neighbourhood in the frame (e1, e2, n) of the query normal, and
+//! the curvature is that of the height field at (0, 0) with the upward normal (the query
+//! normal's side), by the Monge formulas of algorithms.md 13.2 (so the sign convention is that of
+//! algorithms.md 1.1, unlike CGAL's jets). Coordinates are divided by the K-NN radius before the
+//! fit, as Cazals and Pouget recommend, to keep the normal equations well conditioned.
 
 use super::{flags, local, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{add, dot, scale, tangent_basis, V3};
@@ -138,7 +138,7 @@ mod tests {
     use crate::kit::testkit::{self, below, errors, Shape};
 
     /// A quadric height field over the query's tangent plane is fitted exactly by every degree:
-    /// saddle k = (-1, 1) and paraboloid (a = 1/2) k = (-1, -1) at the origin (section 6.1).
+    /// saddle k = (-1, 1) and paraboloid (a = 1/2) k = (-1, -1) at the origin (algorithms.md 13.1).
     #[test]
     fn exact_on_quadrics() {
         for degree in 2..=4 {
@@ -172,7 +172,7 @@ mod tests {
         }
     }
 
-    /// No section 8 figure for jets (the CNC paper plots degree-4 JetFitting only, without
+    /// No algorithms.md 14.3 figure for jets (the CNC paper plots degree-4 JetFitting only, without
     /// numbers), so the bounds are 1.5x the values measured with this code. Degree 2 measures
     /// torus K=50 H 3.8e-3, K=20 2.2e-3, goursat K=50 2.8e-3: on the torus it has an O(r^2)
     /// bias from the terms of order 3 and 4 of the tube, which degree 4 removes.

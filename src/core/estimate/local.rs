@@ -7,15 +7,15 @@ use crate::core::geometry::{dot, norm, V3};
 
 /// The radius of the K-NN ball: the largest distance from the query point to a neighbour
 /// (positions are relative to the query). This is the per-point stand-in for the paper's
-/// neighbourhood radius (rho for CNC, r for APSS/ASO): algorithms.md 1.11 and 3.6 recommend a
-/// per-point radius from the K-NN distances for LIDAR densities.
+/// neighbourhood radius (rho for CNC, r for APSS/ASO), chosen per point so that it follows the
+/// density of LIDAR scans (algorithms.md 2.5).
 pub fn knn_radius(positions: &[V3]) -> f64 {
     positions.iter().map(|&p| norm(p)).fold(0.0, f64::max)
 }
 
 /// Second moments of the neighbours' projections on the tangent plane (e1, e2), about the query
 /// point: [[sum a^2, sum a b], [sum a b, sum b^2]] with a = <p | e1>, b = <p | e2>. This is
-/// A^T A of WME (algorithms.md 4.1).
+/// A^T A of WME (algorithms.md 7.1).
 pub fn tangent_moments(positions: &[V3], e1: V3, e2: V3) -> [[f64; 2]; 2] {
     let mut m = [[0.0; 2]; 2];
     for &p in positions {
@@ -31,7 +31,7 @@ pub fn tangent_moments(positions: &[V3], e1: V3, e2: V3) -> [[f64; 2]; 2] {
 /// Whether tangent moments `m` (from [`tangent_moments`]) describe a collinear or coincident
 /// neighbourhood (a LIDAR scan line, duplicates): smaller eigenvalue at most 1e-8 of the larger,
 /// i.e. a transverse spread below 1e-4 of the length. No surface curvature can be estimated
-/// across such a set (algorithms.md 4.5, 5.3).
+/// across such a set (algorithms.md 2.5).
 pub fn is_collinear(m: [[f64; 2]; 2]) -> bool {
     let tr = m[0][0] + m[1][1];
     let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];

@@ -1,9 +1,9 @@
 //! Curvature estimators: one trait, one file per family. Every estimator is a pure function of a
 //! [`Neighbourhood`] (positions relative to the query point, oriented unit normals, a key of
 //! the query's position for random streams): no I/O, no globals, no dependence on the tile,
-//! the thread or the order of the records. Sign convention and units as in algorithms.md
-//! section 0.1: k1 <= k2, positive where the surface bends away from its normal (a sphere with
-//! outward normals has H = 1/r), in 1/(coordinate unit).
+//! the thread or the order of the records. Sign convention and units as in
+//! algorithms.md 1.1, 1.2: k1 <= k2, positive where the surface bends away from its normal (a
+//! sphere with outward normals has H = 1/r), in 1/(coordinate unit).
 
 pub mod apss;
 pub mod aso;
@@ -106,7 +106,7 @@ pub fn neg(x: f64) -> f64 {
 
 impl Curvature {
     /// A result from its principal curvatures and directions, with H = (k1 + k2)/2 and
-    /// K = k1 k2 (section 0.1), for estimators that produce no separate H and K.
+    /// K = k1 k2 (algorithms.md 1.4), for estimators that produce no separate H and K.
     pub fn from_principal(k1: f64, k2: f64, d1: V3, d2: V3, flags: u8) -> Self {
         Curvature {
             h: 0.5 * (k1 + k2),
@@ -228,23 +228,23 @@ impl Default for EstimatorParams {
 /// The estimators, by their command-line names (`--estimator`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EstimatorKind {
-    /// CNC-Avg-Hexagram (default): L = 2 averaged hexagram triangles (algorithms.md 1.5).
+    /// CNC-Avg-Hexagram (default): L = 2 averaged hexagram triangles (algorithms.md 4.6).
     CncAvgHexagram,
-    /// CNC-Hexagram: the hexagram's two triangles (algorithms.md 1.4).
+    /// CNC-Hexagram: the hexagram's two triangles (algorithms.md 4.7).
     CncHexagram,
-    /// CNC-Uniform: L random triangles per point, seeded per point (algorithms.md 1.6).
+    /// CNC-Uniform: L random triangles per point, seeded per point (algorithms.md 4.8).
     CncUniform,
-    /// CNC-Delaunay: local Delaunay umbrellas (algorithms.md 1.7).
+    /// CNC-Delaunay: local Delaunay umbrellas (algorithms.md 4.9).
     CncDelaunay,
-    /// APSS: algebraic sphere fit (algorithms.md 3).
+    /// APSS: algebraic sphere fit (algorithms.md 6.3).
     Apss,
-    /// ASO: the algebraic shape operator (algorithms.md 4).
+    /// ASO: the algebraic shape operator (algorithms.md 6.4).
     Aso,
-    /// WME: least-squares Weingarten map (algorithms.md 5).
+    /// WME: least-squares Weingarten map (algorithms.md 7).
     Wme,
-    /// Osculating jet fit, degree 2 (algorithms.md 5.3).
+    /// Osculating jet fit, degree 2 (algorithms.md 8).
     Jet,
-    /// VCM: Voronoi covariance measure, unsigned (algorithms.md 2).
+    /// VCM: Voronoi covariance measure, unsigned (algorithms.md 5).
     Vcm,
 }
 

@@ -1,13 +1,13 @@
-//! VCM: Voronoi covariance measure (algorithms.md section 2), a per-point version computed from
+//! VCM: Voronoi covariance measure (algorithms.md 5), a per-point version computed from
 //! the K-neighbourhood alone. It ignores the normals' orientation and gives **unsigned**
 //! principal curvatures: k1 <= k2 are magnitudes |kappa| (so H = (|k1| + |k2|)/2 and
 //! K = |k1| |k2| >= 0, even on a saddle). The paper's own use of the VCM is for normals,
-//! principal directions and sharp features ([`sharp_feature_ratio`], section 2.5); prefer the
-//! other estimators for signed curvature. Every result carries in [`Curvature::extra`] the
-//! VCM's own normal (the convolved VCM's leading eigenvector, signed by the input normal,
-//! section 2.4) and the sharp-feature ratio, written by `--features`.
+//! principal directions and sharp features ([`sharp_feature_ratio`], algorithms.md 5.5); prefer the
+//! other estimators for signed curvature. [`Estimator::estimate_extra`] also gives the VCM's own
+//! normal (the convolved VCM's leading eigenvector, signed by the input normal,
+//! algorithms.md 5.3) and the sharp-feature ratio, written by `--features`.
 //!
-//! Per point (section 2.3, computed without a global Voronoi diagram):
+//! Per point (algorithms.md 5.2, computed without a global Voronoi diagram):
 //! * radii from the K-NN radius d_K: offset R = d_K and convolution radius r = d_K / 2, so that
 //!   every cell in the convolution ball sees all points within d_K / 2 of its centre (its
 //!   tangential neighbours); R stays below the reach when d_K does;
@@ -18,12 +18,15 @@
 //!   query normal only places the quadrature nodes;
 //! * V = sum of the cell covariances over the points within r (indicator kernel, eq. 1.2).
 //!
-//! Curvature magnitudes (section 2.4): V ~ c [n n^T + sum_a kappa_a^2 m_a P_a P_a^T] with m_a
+//! Curvature magnitudes (algorithms.md 5.4): V ~ c [n n^T + sum_a kappa_a^2 m_a P_a P_a^T] with m_a
 //! the second moment of the convolved points' tangential offsets along P_a (r^2/4 for a uniform
-//! disk). The tangential extent of each cell adds a sampling bias of about
-//! 3 A_cell / (4 pi R^2) to lambda_a / lambda_1 (section 2.4), larger than the curvature term at
-//! K-NN scales; it is removed by subtracting the VCM of the same points projected onto the
-//! VCM tangent plane (a local version of "calibrate on a plane at the same density"). What
+//! disk). The tangential extent of each cell adds a sampling bias of about 3 A_cell / (4 pi R^2) to
+//! lambda_a / lambda_1 (algorithms.md 5.4), larger than the curvature term at K-NN scales, so the
+//! magnitudes are not read from V's eigenvalues: each convolved cell contributes only its pencil
+//! axis v (its leading eigenvector, weighted by its eigenvalue w), and the curvature along a
+//! tangent direction is how much the axes turn across the ball there, kappa_a^2 = mu_a /
+//! (lambda_1 m_a), with mu_a the tangent eigenvalues of sum w v v^T, lambda_1 its leading one and
+//! m_a the w-weighted variance of the cell centres along that direction (`magnitudes`). What
 //! remains is biased at second order in R kappa.
 
 use super::{flags, local, Curvature, Estimator, ExtraColumn, Neighbourhood, Scratch};
@@ -81,7 +84,7 @@ fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<(V3, f6
     for (j, &q) in points.iter().enumerate() {
         let w = sub(q, p);
         let w2 = dot(w, w);
-        // Points beyond 2R cannot clip the ball B(p, R) (section 2.3, locality).
+        // Points beyond 2R cannot clip the ball B(p, R) (algorithms.md 5.2).
         if j != c && w2 > tiny && w2 < 4.0 * big_r * big_r {
             planes.push((w, 0.5 * w2));
         }
@@ -150,7 +153,7 @@ struct AxisSums {
     moments: M3,
 }
 
-/// The sharp-feature ratio of section 2.5, lambda_2 / (lambda_1 + lambda_2 + lambda_3) with
+/// The sharp-feature ratio of algorithms.md 5.5, lambda_2 / (lambda_1 + lambda_2 + lambda_3) with
 /// the eigenvalues of the convolved VCM `v` in decreasing order: about 0 on smooth parts,
 /// (alpha - sin alpha) / (2 alpha) ~ alpha^2 / 12 on an edge of external angle alpha, at most
 /// 1/2. NaN for a zero matrix.
@@ -164,7 +167,7 @@ fn ratio_of(l: [f64; 3]) -> f64 {
     l[1] / (l[0] + l[1] + l[2])
 }
 
-/// The VCM's values besides the curvature (`--features`, algorithms.md 2.4 and 2.5).
+/// The VCM's values besides the curvature (`--features`, algorithms.md 5.3, 5.5).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Features {
     /// Sharp-feature score lambda2 / (lambda1 + lambda2 + lambda3) of the convolved VCM
@@ -204,7 +207,7 @@ const EXTRA_COLUMNS: [ExtraColumn; 4] = [
     },
 ];
 
-/// The VCM's own normal and sharp-feature score (sections 2.4 and 2.5) from the convolved VCM
+/// The VCM's own normal and sharp-feature score (algorithms.md 5.3, 5.5) from the convolved VCM
 /// `v` given in the query frame `frame` (whose third axis is the query's input normal): the
 /// leading eigenvector, signed to agree with the input normal and mapped to world axes, and
 /// [`sharp_feature_ratio`]. NaN components for a zero or non-finite matrix.

@@ -1,4 +1,4 @@
-//! Tests of the VCM estimator (algorithms.md section 2).
+//! Tests of the VCM estimator (algorithms.md 5).
 
 use super::*;
 use crate::core::rng::Rng;
@@ -37,8 +37,8 @@ fn unsigned_errors(shape: Shape, k: usize, stride: usize) -> Option<(f64, f64, f
     Some((rms1, rms2, mean_angle))
 }
 
-/// No published per-point VCM figures (section 2.7 gives only plots; section 2.4 warns that
-/// magnitudes are biased). On the Lloyd-sampled torus_025000 (K = 50, every 100th point) we
+/// No published per-point VCM figures (the VCM paper gives only plots; algorithms.md 5.4 says
+/// that magnitudes are biased). On the Lloyd-sampled torus_025000 (K = 50, every 100th point) we
 /// measure RMS 0.024 (|k1|) and 0.020 (|k2| = 0.5), mean direction error 1.8 degrees:
 /// bounds 2x. On random samples the cells are irregular and the magnitudes much worse
 /// (sampled torus 0.11-0.12, i.e. ~25% of k2): bounds 2x measured, directions 5.6 degrees.
@@ -114,8 +114,9 @@ fn normal_errors(cloud: &Cloud, knn: &[Vec<usize>], which: &[usize], what: &str)
     (worst, mean)
 }
 
-/// Section 2.4: the convolved VCM's leading eigenvector is the normal ("exact" in the
-/// prototype, |<e1|n>| = 0.9999, with r = 0.25 on the unit sphere). K = 30; input normals
+/// algorithms.md 5.3: the convolved VCM's leading eigenvector is the normal (exact in the
+/// Monte-Carlo prototype of algorithms.md 14.2, |<e1|n>| = 0.9999, with r = 0.25 on the unit
+/// sphere). K = 30; input normals
 /// tilted by 20 degrees and flipped (see `normal_errors`).
 /// * Plane: 3000 random points on a tilted square of side 2, the 50 points nearest its
 ///   centre. Measured worst 0.999999 (quadrature error; 1 - 1e-15 without the tilt).
@@ -172,7 +173,7 @@ fn vcm_normal_is_exact_on_plane_and_sphere() {
     below(mean, 1.5, "random sphere mean normal angle (deg)");
 }
 
-/// Section 2.5: the feature ratio is small on a flat face and large on sharp edges and
+/// algorithms.md 5.5: the feature ratio is small on a flat face and large on sharp edges and
 /// corners, and lambda2/lambda3 (decreasing order) tells edges (large) from corners (~1).
 /// Prototype (R = 0.5, r = 0.2): face 0.0072, edge 0.302, corner 0.217 (predicted
 /// alpha^2/12 ~ 0.18 on the right-angled edge before the O(r/R) terms). Cube [-1, 1]^3,
@@ -242,7 +243,7 @@ fn sharp_feature_ratio_separates_face_edge_and_corner() {
         "corner ratio {corner} (seed {})",
         testkit::seed()
     );
-    // Section 2.5: edges, not corners, have lambda2 >> lambda3; a corner is isotropic.
+    // algorithms.md 5.5: edges, not corners, have lambda2 >> lambda3; a corner is isotropic.
     assert!(edge_23 > 3.0, "edge lambda2/lambda3 {edge_23}");
     assert!(corner_23 < 1.5, "corner lambda2/lambda3 {corner_23}");
 }

@@ -1,12 +1,13 @@
-//! WME: least-squares Weingarten map estimation (algorithms.md 4.1). The tangent differences of
+//! WME: least-squares Weingarten map estimation (algorithms.md 7.1). The tangent differences of
 //! the neighbours' normals are regressed on the tangent differences of their positions,
-//! B = A G, with neighbour normals first reoriented towards the query normal (4.1, 4.5).
+//! B = A G, with neighbour normals first reoriented towards the query normal (one flipped normal
+//! would be a huge outlier).
 
 use super::{flags, local, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
 use crate::core::geometry::{dot, tangent_basis};
 
 /// Solves the 2x2 system (m + eps I) x = b for symmetric positive semi-definite `m`, with
-/// eps = 1e-12 trace(m) (algorithms.md 5, WME row). None if the regularised matrix is still
+/// eps = 1e-12 trace(m) (algorithms.md 7.1). None if the regularised matrix is still
 /// singular (m = 0). A small helper local to this file.
 fn solve_sym2_regularised(m: [[f64; 2]; 2], b: [f64; 2]) -> Option<[f64; 2]> {
     let eps = 1e-12 * (m[0][0] + m[1][1]);
@@ -15,10 +16,11 @@ fn solve_sym2_regularised(m: [[f64; 2]; 2], b: [f64; 2]) -> Option<[f64; 2]> {
     (det > 0.0).then(|| [(d * b[0] - c * b[1]) / det, (a * b[1] - c * b[0]) / det])
 }
 
-/// WME (section 4.1), unweighted as in the paper. G = (A^T A + eps I)^{-1} A^T B in the
-/// tangent basis of the query normal; with the conversion of section 0.2: k = eig((G + G^T)/2)
-/// ascending, H = tr(G)/2, K = det(G) (so K is not forced to equal k1 k2). A collinear
-/// neighbourhood (scan line) is flagged DEGENERATE rather than regularised into noise.
+/// WME (algorithms.md 7.1), unweighted as in the paper. G = (A^T A + eps I)^{-1} A^T B in the
+/// tangent basis of the query normal; with the conversion of algorithms.md 7.2:
+/// k = eig((G + G^T)/2) ascending, H = tr(G)/2, K = det(G) (so K is not forced to equal k1 k2).
+/// A collinear neighbourhood (scan line) is flagged DEGENERATE rather than regularised into
+/// noise.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Wme;
 
@@ -77,7 +79,7 @@ mod tests {
     use super::*;
     use crate::kit::testkit::{self, below, errors, Shape};
 
-    /// 5.2: G = I/r exactly on a sphere with exact normals (Delta N = Delta P / r).
+    /// algorithms.md 13.8: G = I/r exactly on a sphere with exact normals (Delta N = Delta P / r).
     #[test]
     fn sphere_identity() {
         let r = 2.5;
@@ -88,10 +90,11 @@ mod tests {
         }
     }
 
-    /// No section 8 figure for WME. Section 7 (torus N = 20000, k = 100): RMS kmin 4.0e-3,
-    /// kmax 1.8e-3, H 2.4e-3, K 2.0e-3; at K = 50 on the denser Lloyd cloud we measure H 1.15e-3,
-    /// and on goursat 3.7e-3 (the CNC-Uniform figure there is 3.62e-3). Bounds: 2x the
-    /// section 7 torus values, and 1.25x CNC-Uniform's 3.62e-3 x 1.25 on goursat.
+    /// No algorithms.md 14.3 figure for WME. algorithms.md 14.2 (torus N = 20000, k = 100): RMS
+    /// kmin 4.0e-3, kmax 1.8e-3, H 2.4e-3, K 2.0e-3; at K = 50 on the denser Lloyd cloud we
+    /// measure H 1.15e-3, and on goursat 3.7e-3 (the CNC-Uniform figure there is 3.62e-3).
+    /// Bounds: 2x the algorithms.md 14.2 torus values, and 1.25x CNC-Uniform's 3.62e-3 x 1.25
+    /// on goursat.
     #[test]
     fn reference_clouds() {
         if let Some(e) = errors(&Wme, Shape::TorusRef, 50, 1) {
@@ -104,10 +107,10 @@ mod tests {
         }
     }
 
-    /// Sampled shapes. Torus N = 20000, K = 50 against section 7's k = 100 figures x2 (H 4.8e-3,
-    /// K 4.0e-3, kmin 8.0e-3, kmax 3.6e-3); measured 2.2, 1.5, 3.1, 1.6 (1e-3). Sphere and
-    /// cylinder are exact (Delta N is linear in Delta P on both). Saddle/paraboloid: 2x measured
-    /// (H 1.6e-3 / 1.9e-3, k 2.5e-3 / 3.1e-3).
+    /// Sampled shapes. Torus N = 20000, K = 50 against algorithms.md 14.2's k = 100 figures x2 (H
+    /// 4.8e-3, K 4.0e-3, kmin 8.0e-3, kmax 3.6e-3); measured 2.2, 1.5, 3.1, 1.6 (1e-3). Sphere and
+    /// cylinder are exact (Delta N is linear in Delta P on both). Saddle/paraboloid: 2x measured (H
+    /// 1.6e-3 / 1.9e-3, k 2.5e-3 / 3.1e-3).
     #[test]
     fn sampled_shapes() {
         let e = errors(&Wme, Shape::Torus, 50, 1).expect("synthetic");

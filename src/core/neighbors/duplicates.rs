@@ -1,5 +1,6 @@
-//! Large groups of exact duplicates (issue 12 item 13: 20,000 copies of one point took 12 s,
-//! every query ranking all of them, each at distance 0). A point with at least k - 1 others at
+//! Large groups of exact duplicates (without a shortcut every query of a group ranks all of its
+//! points, each at distance 0, so the cost grows with the square of the group's size:
+//! docs/performance.md). A point with at least k - 1 others at
 //! its exact position has as neighbours itself and the first k - 1 of them in position-rank
 //! order, which is what the full search returns, provided no other point is at squared
 //! distance 0 from them (an underflowing difference); [`Duplicates::find`] checks that, and

@@ -3,15 +3,15 @@
 //! coordinates (x, then y, then z: [`cmp_position`]), and by original id only between exact
 //! duplicates, which are geometrically interchangeable. So the neighbour set and its order
 //! depend on the point set alone: not on the index, the tile, the thread, nor the order of the
-//! records in the file (issue 12 item 15). Two interchangeable backends find the candidates:
+//! records in the file. Two interchangeable backends find the candidates:
 //!
 //! - a uniform 3D grid with cells of 1.25 times the k-NN radius. A query ranks the 27 cells
 //!   around its own (gathered once per cell in f32, see [`Block`]): an f32 pass finds a radius
 //!   holding a few more than k points, and only those are ranked exactly. When the k-th
 //!   distance is not provably inside those cells, a shell search grows rings of cells until it
-//!   is. On one 25k-point tile of the 2M terrain at k = 30: 0.84-0.97 us per query against
-//!   2.35-2.9 us for kiddo's `nearest_n` (benches/stages.rs, one thread). Used whenever the
-//!   density is even enough for one cell size, which is most LIDAR tiles;
+//!   is. Faster than kiddo's `nearest_n` on LIDAR tiles (docs/performance.md, measured by
+//!   benches/stages.rs). Used whenever the density is even enough for one cell
+//!   size, which is most LIDAR tiles;
 //! - kiddo's k-d tree on tile-local f32 coordinates, with exact re-ranking, for tiles whose
 //!   density is too uneven for one cell size (a terrestrial scan near its scanner).
 //!

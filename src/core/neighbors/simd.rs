@@ -2,12 +2,13 @@
 //!
 //! - [`sort32`], a branch-free sorting network for 32 keys in registers: the exact ranking of
 //!   a query sorts its 30-33 candidates at k = 30 (`sort_ranked`), where the standard
-//!   library's sort spent about 250 ns a query, much of it on mispredicted branches. Bitonic:
+//!   library's sort spends much of its time on mispredicted branches (docs/performance.md,
+//!   "Neighbours"). Bitonic:
 //!   15 stages of compare-exchanges, each a vector min and max; pairs 4 or more apart are whole
 //!   registers, closer pairs lanes of one register (a permute and a blend more);
 //! - [`select_within`], the indices of the block's points within a squared radius, eight at a
-//!   time (a compare, a mask and a permute from a table), where the scalar loop spent about
-//!   650 instructions a query.
+//!   time (a compare, a mask and a permute from a table), in far fewer instructions than the
+//!   scalar loop.
 //!
 //! Pure: no files, no channels.
 

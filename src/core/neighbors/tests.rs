@@ -90,7 +90,7 @@ fn matches_brute_force_with_duplicates_and_utm_offsets() {
     check_both_backends(&xyz, &ids, &[1, 5, 8, 9, 13, 30, 70, 130]);
 }
 
-/// Issue 12 item 13: large groups of exact duplicates are answered without a search, with
+/// Large groups of exact duplicates are answered without a search, with
 /// the same neighbours as brute force (the group's first members in position-rank order),
 /// beside groups too small for the shortcut and a lattice around them.
 #[test]
@@ -133,7 +133,7 @@ fn position_ranks_follow_cmp_point() {
 
 #[test]
 fn ties_are_broken_by_position_whatever_the_order_and_ids() {
-    // Issue 12 item 15: a 1 cm lattice on a plane (every ring of neighbours at exactly
+    // A 1 cm lattice on a plane (every ring of neighbours at exactly
     // equal distances, so ties at the k-th place are the rule) with exact duplicates, once
     // in lattice order with ids in that order, once shuffled with other ids. Every point's
     // neighbours must be the same positions in the same order: ties go by position, and by
@@ -284,8 +284,8 @@ fn uneven_density_uses_the_tree_and_stays_exact() {
 
 #[test]
 fn degenerate_extents_stay_exact() {
-    // Issue 12 item 1: a zero x/y area (a facade, a vertical line, one spot) and extents
-    // far below any cell size used to give a grid of 0 columns and a panic.
+    // A zero x/y area (a facade, a vertical line, one spot) and extents far below any cell
+    // size still give a grid of at least one column, and exact answers.
     let mut rng = crate::core::rng::Rng::new(7);
     let mut unit = || rng.uniform();
     let facade: Vec<V3> = (0..900)

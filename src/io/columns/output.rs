@@ -1,6 +1,7 @@
-//! How the new columns are stored in an output (issue 13 item 6: float noise does not
-//! compress). By default a LAS/LAZ output stores scaled integers through the scale and offset
-//! fields of the extra-bytes descriptors, which laspy and PDAL apply when reading:
+//! How the new columns are stored in an output (float noise does not compress; scaled integers on a
+//! step a little below the estimator's error do). By default a LAS/LAZ output stores scaled
+//! integers through the scale and offset fields of the extra-bytes descriptors, which laspy and
+//! PDAL apply when reading:
 //!
 //! - unit vectors (normals, principal directions, the VCM normal) as i16 at 1/32767, and
 //!   other bounded values (the VCM's sharp-feature score, at most 1/2) as i16 at

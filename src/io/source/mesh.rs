@@ -100,7 +100,7 @@ fn off_header(path: &Path, map: &[u8]) -> Result<OffHeader> {
         ));
     }
     // The face and edge counts, when given, are whole numbers too: a negative or garbled one
-    // means the header is not what it claims (issue 12 item 13).
+    // means the header is not what it claims.
     for (i, what) in [(1, "face"), (2, "edge")] {
         if let Some(c) = counts.get(i).filter(|c| c.parse::<u64>().is_err()) {
             return Err(Error::bad_input(

@@ -67,7 +67,7 @@ pub struct TerrainOptions {
 
 /// The standard deviation of the noise added to z, in metres: one value, or one for the west
 /// half of the square and one for the east half (`--noise 0:0.05`: a survey clean on one side
-/// and noisy on the other, which no single K suits; issue 15).
+/// and noisy on the other, which no single K suits: the case `-k auto` is for).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Noise {
     /// Sigma west of the square's middle (x < side / 2), metres.

@@ -1,5 +1,5 @@
 //! `tilecurv generate torus` and `tilecurv generate goursat`: the CNC paper's two test shapes
-//! (algorithms.md sections 1.10, 6.4 and 6.5: the torus R = 6, r = 2 and the goursat surface
+//! (algorithms.md 13.4, 13.5 and 14.1: the torus R = 6, r = 2 and the goursat surface
 //! 0.03 (x^4 + y^4 + z^4) - 2 (x^2 + y^2 + z^2) - 8 = 0), sampled uniformly in area by the
 //! library's samplers ([`crate::core::sampling`], the test kit's too) and written in the layout of
 //! `generate terrain`: LAS 1.4 point format 1 with the closed-form `TrueH`, `TrueK`, `Truek1`,
@@ -35,9 +35,9 @@ const LOCAL_CRS: u16 = 32767;
 /// Which closed-form shape to sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Shape {
-    /// The paper torus, R = 6 m around the z axis, tube r = 2 m (section 6.5).
+    /// The paper torus, R = 6 m around the z axis, tube r = 2 m (algorithms.md 13.4).
     Torus,
-    /// The goursat surface of section 6.4 (within [-9.67, 9.67] m on each axis).
+    /// The goursat surface of algorithms.md 13.5 (within [-9.67, 9.67] m on each axis).
     Goursat,
 }
 

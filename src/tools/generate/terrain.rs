@@ -1,6 +1,6 @@
 //! The surface of `generate terrain`: a height field z = h(x, y) in metres (a gentle regional
 //! slope plus a sum of smooth compactly supported bumps, [`Terrain`]); its curvature comes from
-//! the Monge formulas of algorithms.md section 6.2 through
+//! the Monge formulas of algorithms.md 13.2 through
 //! [`crate::core::surface::height_field_curvature`], in the tool's convention (upward normal, a
 //! hilltop has H > 0), in 1/m (K in 1/m^2). Pure: no sampling, no I/O.
 
@@ -207,7 +207,8 @@ mod tests {
         };
         b.add_to(0.0, 0.0, &mut j);
         let c = j.curvature();
-        // h_xx = h_yy = -8 a / R^2 at the centre: k1 = k2 = 8 * 10 / 2500 (section 6.2 sign).
+        // h_xx = h_yy = -8 a / R^2 at the centre: k1 = k2 = 8 * 10 / 2500 (the sign of
+        // algorithms.md 13.2).
         assert!((c.k1 - 0.032).abs() < 1e-12 && (c.k2 - 0.032).abs() < 1e-12);
         assert!(c.h > 0.0);
     }

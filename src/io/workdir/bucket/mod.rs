@@ -217,7 +217,7 @@ pub fn load_tile(
         ..Default::default()
     };
     // Room for the core and a halo of a few tenths of it: growing the arrays by doubling
-    // copied them (reallocations were 0.7% of the instructions). The file normals' column is
+    // would copy them again and again. The file normals' column is
     // filled only when a point has one (`push_normal`), so it is not reserved.
     let room = core.len() + core.len() / 4;
     t.xyz.reserve(room);

@@ -100,8 +100,8 @@ fn write_tile_tmp(
     results: &[PointResult],
     cols: &ColumnSet,
 ) -> Result<PathBuf> {
-    // Sorted as (id, place) pairs rather than moving the ~160-byte results themselves (their
-    // moves were 5% of a run's CPU time); ids are unique, so the order is the ids'.
+    // Sorted as (id, place) pairs rather than moving the ~160-byte results themselves (ten
+    // times the bytes to move: docs/performance.md); ids are unique, so the order is the ids'.
     let mut order: Vec<(u64, u32)> = (results.iter().enumerate())
         .map(|(i, r)| (r.id, i as u32))
         .collect();
