@@ -16,14 +16,33 @@ fi
 "$venv/bin/python3" -m pip install --quiet --disable-pip-version-check \
   'laspy[lazrs]==2.7.0' 'numpy<3' 'copclib==2.6.3'
 export PATH="$PWD/$venv/bin:$PATH"
-cargo fmt --all -- --check
-cargo clippy --release --all-targets --locked -- -D warnings
-cargo test --release --locked
+# Each step says its name when it fails, so that a red run says which step broke.
+step() {
+  local name=$1
+  shift
+  "$@" || {
+    echo "scripts/test.sh: step '$name' failed (exit $?): $*" >&2
+    exit 1
+  }
+}
+step fmt cargo fmt --all -- --check
+step clippy cargo clippy --release --all-targets --locked -- -D warnings
+# The API docs build without a warning (broken links, missing docs of public items).
+step docs env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --locked --quiet
+step tests cargo test --release --locked
+# The binary the tests built, wherever cargo puts it (CARGO_TARGET_DIR, a workspace's target).
+target_dir=$(cargo metadata --format-version 1 --no-deps --locked |
+  python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+bin=$target_dir/release/tilecurv
+[ -x "$bin" ] || {
+  echo "scripts/test.sh: no binary at $bin after the tests built it" >&2
+  exit 1
+}
 # The cluster test: a throwaway single-node Slurm (slurmctld, slurmd and munge from Debian's
 # packages, installed when missing; needs root), a two-file job through scripts/slurm/submit.sh,
 # byte-identical to `process`, then a lost task resubmitted. Never skipped under CI=true.
 if [ "$(id -u)" = 0 ] || [ "${CI:-}" = true ]; then
-  bash scripts/slurm/slurm-ci.sh bash scripts/slurm/cluster_test.sh target/release/tilecurv
+  step cluster bash scripts/slurm/slurm-ci.sh bash scripts/slurm/cluster_test.sh "$bin"
 else
   echo "SKIPPED: the Slurm cluster test needs root (it starts slurmctld, slurmd and munged)" >&2
 fi
