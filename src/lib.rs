@@ -8,6 +8,8 @@
 //! `core` is the pure computation, `io` the formats and files, `run` the stages over the work
 //! directory (`process` runs them in one process), `cli` the command line, `tools` generators.
 
+#![warn(missing_docs)]
+
 pub mod cli;
 pub mod config;
 pub mod core;

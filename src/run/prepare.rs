@@ -224,7 +224,7 @@ fn use_file_normals(cfg: &RunParams, sources: &[Box<dyn PointSource>]) -> Result
 
 /// The checks of the new columns against each output (among `outputs`, one per source), before
 /// any work: PLY names an input property already has ([`check_ply_names`]), extra-bytes
-/// descriptors that need an EVLR ([`check_extra_bytes`]); returns the warnings to give.
+/// descriptors that need an EVLR (`check_extra_bytes`); returns the warnings to give.
 ///
 /// [`check_ply_names`]: crate::run::rerun::check_ply_names
 pub fn check_output_columns(

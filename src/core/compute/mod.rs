@@ -41,7 +41,7 @@ pub struct ComputeParams<'e> {
     /// `--orient propagate`: the cloud's centroid, from which each tile's propagation is seeded
     /// (orient.rs); None for the per-point rules.
     pub propagate: Option<V3>,
-    /// `-k auto`: the ladder of scales chosen from per point ([`auto`]); `k` is then its top
+    /// `-k auto`: the ladder of scales chosen from per point (`auto`); `k` is then its top
     /// rung. None for one fixed `k`.
     pub ladder: Option<Ladder>,
 }
@@ -168,7 +168,7 @@ struct ListInfo {
     prefix: bool,
 }
 
-/// `compute_tile`'s flat neighbour lists and their [`ListInfo`], owned by the caller and reused
+/// `compute_tile`'s flat neighbour lists and their `ListInfo`, owned by the caller and reused
 /// from tile to tile: fresh buffers cost a zeroed page per 4 KiB every tile, and faulting those
 /// pages in is a large share of a run's system time (docs/performance.md).
 #[derive(Default)]
@@ -184,7 +184,7 @@ struct Reach {
     k: usize,
     /// `--radius`, if any.
     radius: Option<f64>,
-    /// The prefix whose completeness is recorded besides the whole list's ([`ListInfo`]): the
+    /// The prefix whose completeness is recorded besides the whole list's (`ListInfo`): the
     /// neighbourhood of the normals under `-k auto`; `k` otherwise.
     prefix: usize,
 }

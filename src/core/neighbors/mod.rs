@@ -6,7 +6,7 @@
 //! records in the file. Two interchangeable backends find the candidates:
 //!
 //! - a uniform 3D grid with cells of 1.25 times the k-NN radius. A query ranks the 27 cells
-//!   around its own (gathered once per cell in f32, see [`Block`]): an f32 pass finds a radius
+//!   around its own (gathered once per cell in f32, see `Block`): an f32 pass finds a radius
 //!   holding a few more than k points, and only those are ranked exactly. When the k-th
 //!   distance is not provably inside those cells, a shell search grows rings of cells until it
 //!   is. Faster than kiddo's `nearest_n` on LIDAR tiles (docs/performance.md, measured by

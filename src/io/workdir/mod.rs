@@ -1,5 +1,5 @@
 //! The work directory of a run and its format: where buckets and per-tile results live between
-//! the stages, and the unit of resumption. [`names`] spells every file in it and describes the
+//! the stages, and the unit of resumption. `names` spells every file in it and describes the
 //! layout. A run that owns the directory (`process`, `plan`) holds its lock, an exclusive
 //! `flock` on `lock` (one run per work directory); the cluster stages attach without it. The
 //! manifest ([`manifest`]) fingerprints the inputs and every option that changes the output,

@@ -5,8 +5,8 @@
 //! goursat` ([`shape`]) write the CNC paper's two test shapes in the same layout.
 //!
 //! The surface is [`terrain`]'s, the sampling plan (flight strips, scan rows, batches)
-//! `flight`'s; this module is the command: options, the file's header and VLRs ([`FileLayout`],
-//! shared with [`shape`]), the record layout ([`Record`]), and the loop that generates batches
+//! `flight`'s; this module is the command: options, the file's header and VLRs (`FileLayout`,
+//! shared with [`shape`]), the record layout (`Record`), and the loop that generates batches
 //! of rows in parallel and writes them in order.
 //!
 //! This module must not hold the cloud: it writes as it generates. It produces the records and

@@ -7,7 +7,7 @@
 //! columns take their steps from, core::quantize, so that assemble learns them without reading
 //! every record twice), then zstd blocks of ids (varint gaps) and records (the global patch
 //! only with `--orient propagate`, the column values of [`ColumnSet::encode_result`]) as byte
-//! planes. The orientation sidecars are in [`sidecar`].
+//! planes. The orientation sidecars are in `sidecar`.
 
 mod file;
 mod sidecar;

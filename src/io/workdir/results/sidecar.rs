@@ -67,7 +67,7 @@ pub(super) fn write_sidecar(path: &Path, s: &TileSidecar) -> Result<PathBuf> {
     Ok(tmp)
 }
 
-/// Reads a tile's orientation sidecar ([`write_sidecar`]); a damaged one is an error naming
+/// Reads a tile's orientation sidecar (`write_sidecar`); a damaged one is an error naming
 /// it.
 pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
     let bad = || Error::damaged_work(path, "orientation sidecar is damaged");
