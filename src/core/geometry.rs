@@ -86,6 +86,40 @@ pub fn sym2_eigen(a: f64, b: f64, c: f64) -> ([f64; 2], [[f64; 2]; 2]) {
     ([l1, l2], [v1, v2])
 }
 
+/// The principal curvatures and directions of a tangent-plane shape operator
+/// ([`principal_from_tangent`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Principal {
+    /// The smaller principal curvature (the operator's smaller eigenvalue).
+    pub k1: f64,
+    /// The larger principal curvature.
+    pub k2: f64,
+    /// Unit 3D direction of k1.
+    pub d1: V3,
+    /// Unit 3D direction of k2.
+    pub d2: V3,
+    /// Whether k1 and k2 are indistinguishable (|k2 - k1| at most 1e-6 of the larger |k|, or
+    /// both zero): the directions are then arbitrary.
+    pub umbilic: bool,
+}
+
+/// The principal curvatures and directions of a 2x2 symmetric tangent-plane operator `s` in the
+/// basis (e1, e2): eigenvalues ascending with their 3D directions, and whether they are
+/// indistinguishable (umbilic).
+pub fn principal_from_tangent(s: [[f64; 2]; 2], e1: V3, e2: V3) -> Principal {
+    let (l, w) = sym2_eigen(s[0][0], 0.5 * (s[0][1] + s[1][0]), s[1][1]);
+    let dir = |w: [f64; 2]| add(scale(e1, w[0]), scale(e2, w[1]));
+    let spread = (l[1] - l[0]).abs();
+    let level = l[0].abs().max(l[1].abs());
+    Principal {
+        k1: l[0],
+        k2: l[1],
+        d1: dir(w[0]),
+        d2: dir(w[1]),
+        umbilic: spread <= 1e-6 * level || level == 0.0,
+    }
+}
+
 /// The unit eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix, in closed form:
 /// the trigonometric smallest eigenvalue l0, and the eigenvector as the longest cross product of
 /// two rows of M - l0 I (orthogonal to both). About ten times cheaper than the iterative

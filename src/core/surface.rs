@@ -5,8 +5,9 @@
 //! and `generate goursat` and of the test kit. Pure numbers. Convention (section 0.1):
 //! k1 <= k2, H = (k1 + k2)/2, K = k1 k2.
 
-use crate::core::estimate::principal_from_tangent;
-use crate::core::geometry::{dot, norm, normalize, scale, tangent_basis, M3, V3};
+use crate::core::geometry::{
+    dot, norm, normalize, principal_from_tangent, scale, tangent_basis, M3, V3,
+};
 
 /// The exact curvature of a smooth surface at one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,14 +40,13 @@ impl TrueCurvature {
     /// From the 2x2 symmetric shape operator `s` in the tangent basis (e1, e2): its eigenvalues
     /// are the principal curvatures (section 6.3).
     pub fn from_tangent(s: [[f64; 2]; 2], e1: V3, e2: V3) -> Self {
-        let (k1, k2, d1, d2, umbilic) = principal_from_tangent(s, e1, e2);
-        let directions = (umbilic == 0).then_some((d1, d2));
+        let p = principal_from_tangent(s, e1, e2);
         TrueCurvature {
-            k1,
-            k2,
-            h: 0.5 * (k1 + k2),
-            k: k1 * k2,
-            directions,
+            k1: p.k1,
+            k2: p.k2,
+            h: 0.5 * (p.k1 + p.k2),
+            k: p.k1 * p.k2,
+            directions: (!p.umbilic).then_some((p.d1, p.d2)),
         }
     }
 }

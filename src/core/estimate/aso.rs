@@ -4,8 +4,8 @@
 //! Hessian of F(x) = f(x; x) at the query point in one pass.
 
 use super::apss::{fit_sphere, prepare, FitScalar, SphereFit, SUPPORT_EDGE};
-use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{dot, norm, normalize, tangent_basis, M3, V3};
+use super::{flags, Curvature, Estimator, Neighbourhood, Scratch};
+use crate::core::geometry::{dot, norm, normalize, principal_from_tangent, tangent_basis, M3, V3};
 use std::ops::{Add, Mul, Sub};
 
 /// A second-order jet: value, gradient and Hessian with respect to x (section 3.4).
@@ -160,8 +160,7 @@ impl Estimator for Aso {
             dot(a, hb) / gn
         };
         let s = [[w(e1, e1), w(e1, e2)], [w(e2, e1), w(e2, e2)]];
-        let (k1, k2, d1, d2, umbilic) = principal_from_tangent(s, e1, e2);
-        Curvature::from_principal(k1, k2, d1, d2, umbilic)
+        Curvature::from_principal(principal_from_tangent(s, e1, e2))
     }
 }
 

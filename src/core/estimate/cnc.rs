@@ -3,8 +3,10 @@
 //! variant, CNC-Avg-Hexagram.
 
 use super::hexagon::{hexagon_frame, hexagon_normal, sector_sums, HEX};
-use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{add, cross, dot, normalize, scale, sub, tangent_basis, M3, V3};
+use super::{flags, Curvature, Estimator, Neighbourhood, Scratch};
+use crate::core::geometry::{
+    add, cross, dot, normalize, principal_from_tangent, scale, sub, tangent_basis, M3, V3,
+};
 
 /// Sums of the corrected curvature measures over a set of triangles (section 1.5).
 #[derive(Debug, Clone, Copy, Default)]
@@ -77,16 +79,10 @@ impl CncMeasures {
         };
         // Minus the tangent block, so that its eigenvalues are the curvatures k1 <= k2.
         let s = [[-sym(e1, e1), -sym(e1, e2)], [-sym(e2, e1), -sym(e2, e2)]];
-        let (k1, k2, d1, d2, umb) = principal_from_tangent(s, e1, e2);
-        Curvature {
-            h: self.a1 / self.a0,
-            k: self.a2 / self.a0,
-            k1,
-            k2,
-            d1,
-            d2,
-            flags: umb | extra_flags,
-        }
+        let p = principal_from_tangent(s, e1, e2);
+        let mut c = Curvature::with_principal(self.a1 / self.a0, self.a2 / self.a0, p);
+        c.flags |= extra_flags;
+        c
     }
 }
 

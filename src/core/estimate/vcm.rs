@@ -27,7 +27,9 @@
 //! remains is biased at second order in R kappa.
 
 use super::{flags, local, Curvature, Estimator, ExtraColumn, Neighbourhood, Scratch};
-use crate::core::geometry::{add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, M3, V3};
+use crate::core::geometry::{
+    add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, Principal, M3, V3,
+};
 use std::sync::OnceLock;
 
 /// Quadrature nodes on the unit sphere around the z axis: (direction, weight), weights summing
@@ -358,12 +360,13 @@ fn magnitudes(frame: &M3, ax: &AxisSums) -> Curvature {
     }
     out.sort_by(|a, b| a.0.total_cmp(&b.0));
     let [(k1, d1), (k2, d2)] = out;
-    let umbilic = if k2 - k1 <= 1e-6 * k2 || k2 == 0.0 {
-        flags::UMBILIC
-    } else {
-        0
-    };
-    Curvature::from_principal(k1, k2, d1, d2, umbilic)
+    Curvature::from_principal(Principal {
+        k1,
+        k2,
+        d1,
+        d2,
+        umbilic: k2 - k1 <= 1e-6 * k2 || k2 == 0.0,
+    })
 }
 
 #[cfg(test)]

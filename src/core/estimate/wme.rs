@@ -2,8 +2,8 @@
 //! the neighbours' normals are regressed on the tangent differences of their positions,
 //! B = A G, with neighbour normals first reoriented towards the query normal (4.1, 4.5).
 
-use super::{flags, local, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{dot, tangent_basis};
+use super::{flags, local, Curvature, Estimator, Neighbourhood, Scratch};
+use crate::core::geometry::{dot, principal_from_tangent, tangent_basis};
 
 /// Solves the 2x2 system (m + eps I) x = b for symmetric positive semi-definite `m`, with
 /// eps = 1e-12 trace(m) (algorithms.md 5, WME row). None if the regularised matrix is still
@@ -57,18 +57,9 @@ impl Estimator for Wme {
             return Curvature::undefined(flags::DEGENERATE);
         };
         let g = [[c0[0], c1[0]], [c0[1], c1[1]]];
-        let (k1, k2, d1, d2, umbilic) = principal_from_tangent(g, e1, e2);
         let h = 0.5 * (g[0][0] + g[1][1]);
         let k = g[0][0] * g[1][1] - g[0][1] * g[1][0];
-        Curvature {
-            h,
-            k,
-            k1,
-            k2,
-            d1,
-            d2,
-            flags: umbilic,
-        }
+        Curvature::with_principal(h, k, principal_from_tangent(g, e1, e2))
     }
 }
 
