@@ -8,6 +8,7 @@ pub mod crs_summary;
 pub mod direct;
 pub mod info;
 pub mod las;
+pub mod las_output;
 pub mod limits;
 pub mod output;
 pub mod pack;

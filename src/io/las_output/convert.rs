@@ -9,12 +9,12 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
-use crate::io::las::carry;
 use crate::io::las::extra_bytes::{self, encode, parse, NewColumn};
 use crate::io::las::header::{LasHeader, NewHeader};
 use crate::io::las::parts::LasParts;
 use crate::io::las::vlr::Vlr;
 use crate::io::las::writer::LasFileWriter;
+use crate::io::las_output::carry;
 use crate::io::output::PointSink;
 use crate::io::source::{xyz_and_normals, PointSource, Property};
 
