@@ -6,7 +6,7 @@
 //! k1 <= k2, H = (k1 + k2)/2, K = k1 k2.
 
 use crate::core::geometry::{
-    dot, norm, normalize, principal_from_tangent, scale, tangent_basis, M3, V3,
+    norm, normalize, principal_from_tangent, scale, tangent_basis, M3, V3,
 };
 
 /// The exact curvature of a smooth surface at one point.
@@ -164,33 +164,6 @@ pub fn torus_curvature_at(big_r: f64, r: f64, p: V3) -> TrueCurvature {
     let phi = p[1].atan2(p[0]);
     let theta = p[2].atan2(p[0].hypot(p[1]) - big_r);
     torus_curvature(big_r, r, theta, phi)
-}
-
-/// Gradient and Hessian of the implicit torus of section 6.5,
-/// F = (|x|^2 + R^2 - r^2)^2 - 4 R^2 (x^2 + y^2), negative inside.
-pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> (V3, M3) {
-    let s = dot(p, p) + big_r * big_r - r * r;
-    let c = 8.0 * big_r * big_r;
-    let g = [
-        4.0 * s * p[0] - c * p[0],
-        4.0 * s * p[1] - c * p[1],
-        4.0 * s * p[2],
-    ];
-    let mut hs = [[0.0; 3]; 3];
-    for a in 0..3 {
-        for b in 0..3 {
-            hs[a][b] = 8.0 * p[a] * p[b];
-        }
-        hs[a][a] += 4.0 * s - if a < 2 { c } else { 0.0 };
-    }
-    (g, hs)
-}
-
-/// The goursat function of section 6.4, F = 0.03 (x^4 + y^4 + z^4) - 2 |x|^2 - 8 (negative
-/// inside).
-pub fn goursat_value(p: V3) -> f64 {
-    let q: f64 = p.iter().map(|x| x.powi(4)).sum();
-    0.03 * q - 2.0 * dot(p, p) - 8.0
 }
 
 /// Gradient and Hessian of the goursat function (section 6.4).

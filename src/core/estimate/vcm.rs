@@ -2,7 +2,7 @@
 //! the K-neighbourhood alone. It ignores the normals' orientation and gives **unsigned**
 //! principal curvatures: k1 <= k2 are magnitudes |kappa| (so H = (|k1| + |k2|)/2 and
 //! K = |k1| |k2| >= 0, even on a saddle). The paper's own use of the VCM is for normals,
-//! principal directions and sharp features ([`sharp_feature_ratio`], section 2.5); prefer the
+//! principal directions and sharp features (the ratio of section 2.5); prefer the
 //! other estimators for signed curvature. Every result carries in [`Curvature::extra`] the
 //! VCM's own normal (the convolved VCM's leading eigenvector, signed by the input normal,
 //! section 2.4) and the sharp-feature ratio, written by `--features`.
@@ -153,15 +153,10 @@ struct AxisSums {
 }
 
 /// The sharp-feature ratio of section 2.5, lambda_2 / (lambda_1 + lambda_2 + lambda_3) with
-/// the eigenvalues of the convolved VCM `v` in decreasing order: about 0 on smooth parts,
-/// (alpha - sin alpha) / (2 alpha) ~ alpha^2 / 12 on an edge of external angle alpha, at most
-/// 1/2. NaN for a zero matrix.
-pub fn sharp_feature_ratio(v: &M3) -> f64 {
-    ratio_of(sym3_eigen(v).0)
-}
-
-/// [`sharp_feature_ratio`] from the eigenvalues in ascending order (as `sym3_eigen` sorts
-/// them): lambda_2 of the decreasing order is the middle one.
+/// the eigenvalues `l` of the convolved VCM in decreasing order, from them in ascending order
+/// (as `sym3_eigen` sorts them): lambda_2 of the decreasing order is the middle one. About 0
+/// on smooth parts, (alpha - sin alpha) / (2 alpha) ~ alpha^2 / 12 on an edge of external
+/// angle alpha, at most 1/2. NaN for a zero matrix.
 fn ratio_of(l: [f64; 3]) -> f64 {
     l[1] / (l[0] + l[1] + l[2])
 }
@@ -209,7 +204,7 @@ const EXTRA_COLUMNS: [ExtraColumn; 4] = [
 /// The VCM's own normal and sharp-feature score (sections 2.4 and 2.5) from the convolved VCM
 /// `v` given in the query frame `frame` (whose third axis is the query's input normal): the
 /// leading eigenvector, signed to agree with the input normal and mapped to world axes, and
-/// [`sharp_feature_ratio`]. NaN components for a zero or non-finite matrix.
+/// [`ratio_of`] its eigenvalues. NaN components for a zero or non-finite matrix.
 fn extra_of(frame: &M3, v: &M3) -> Features {
     let (l, vecs) = sym3_eigen(v);
     let e = vecs[2];
@@ -237,19 +232,6 @@ fn convolved_in_frame(nb: &Neighbourhood<'_>, d_k: f64, s: &mut Buffers) -> (M3,
     (frame, v, ax)
 }
 
-/// The convolved VCM of the neighbourhood at the query point with the radii of the module
-/// documentation (R = d_K, r = d_K / 2), in world axes (for feature detection with
-/// [`sharp_feature_ratio`]). None for fewer than 3 points or a zero radius.
-pub fn neighbourhood_vcm(nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Option<M3> {
-    local::check(nb, 3).ok()?;
-    let d_k = local::knn_radius(nb.positions);
-    if d_k.is_nan() || d_k <= 0.0 {
-        return None;
-    }
-    let (frame, v, _) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
-    Some(from_frame_matrix(&frame, &v))
-}
-
 /// The quadrature frame (e1, e2, n): its rows map world vectors to frame coordinates.
 fn frame_of(n: V3) -> M3 {
     let (e1, e2) = tangent_basis(n);
@@ -262,21 +244,6 @@ fn to_frame(f: &M3, p: V3) -> V3 {
 
 fn from_frame(f: &M3, p: V3) -> V3 {
     add(add(scale(f[0], p[0]), scale(f[1], p[1])), scale(f[2], p[2]))
-}
-
-/// F^T v F: a frame matrix back to world axes.
-fn from_frame_matrix(f: &M3, v: &M3) -> M3 {
-    let mut out = [[0.0; 3]; 3];
-    for (a, row) in out.iter_mut().enumerate() {
-        for (b, x) in row.iter_mut().enumerate() {
-            for i in 0..3 {
-                for j in 0..3 {
-                    *x += f[i][a] * v[i][j] * f[j][b];
-                }
-            }
-        }
-    }
-    out
 }
 
 /// The VCM estimator: unsigned principal curvature magnitudes and principal directions (see

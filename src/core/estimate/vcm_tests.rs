@@ -5,6 +5,39 @@ use crate::core::rng::Rng;
 use crate::kit::synthetic::{estimate_point, knn_brute, Cloud};
 use crate::kit::testkit::{self, below, Shape};
 
+/// The sharp-feature ratio ([`ratio_of`]) of the convolved VCM `v`, from its eigenvalues.
+fn sharp_feature_ratio(v: &M3) -> f64 {
+    ratio_of(sym3_eigen(v).0)
+}
+
+/// The convolved VCM of the neighbourhood at the query point with the radii of the module
+/// documentation (R = d_K, r = d_K / 2), in world axes (for feature detection with
+/// [`sharp_feature_ratio`]). None for fewer than 3 points or a zero radius.
+fn neighbourhood_vcm(nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Option<M3> {
+    local::check(nb, 3).ok()?;
+    let d_k = local::knn_radius(nb.positions);
+    if d_k.is_nan() || d_k <= 0.0 {
+        return None;
+    }
+    let (frame, v, _) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
+    Some(from_frame_matrix(&frame, &v))
+}
+
+/// F^T v F: a frame matrix back to world axes.
+fn from_frame_matrix(f: &M3, v: &M3) -> M3 {
+    let mut out = [[0.0; 3]; 3];
+    for (a, row) in out.iter_mut().enumerate() {
+        for (b, x) in row.iter_mut().enumerate() {
+            for i in 0..3 {
+                for j in 0..3 {
+                    *x += f[i][a] * v[i][j] * f[j][b];
+                }
+            }
+        }
+    }
+    out
+}
+
 /// RMS errors of the unsigned magnitudes (sorted |k| against sorted |true k|) and the mean
 /// angle (degrees) of the smaller-magnitude direction, over every `stride`-th point.
 fn unsigned_errors(shape: Shape, k: usize, stride: usize) -> Option<(f64, f64, f64)> {
