@@ -130,7 +130,7 @@ impl Iterator for GoursatSampler {
         loop {
             let d = unit_vector(&mut self.rng);
             let p = goursat_radial(d);
-            let Some(nrm) = normalize(goursat_implicit(p).0) else {
+            let Some(nrm) = normalize(goursat_implicit(p).gradient) else {
                 continue;
             };
             let density = dot(p, p) / dot(d, nrm);

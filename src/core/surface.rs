@@ -6,7 +6,8 @@
 //! k1 <= k2, H = (k1 + k2)/2, K = k1 k2.
 
 use crate::core::geometry::{
-    norm, normalize, principal_from_tangent, scale, tangent_basis, M3, V3,
+    norm, normalize, principal_from_tangent, scale, tangent_basis, FieldDerivatives, TangentBasis,
+    M3, V3,
 };
 
 /// The exact curvature of a smooth surface at one point.
@@ -37,10 +38,10 @@ impl TrueCurvature {
         }
     }
 
-    /// From the 2x2 symmetric shape operator `s` in the tangent basis (e1, e2): its eigenvalues
+    /// From the 2x2 symmetric shape operator `s` in the tangent basis `b`: its eigenvalues
     /// are the principal curvatures (section 6.3).
-    pub fn from_tangent(s: [[f64; 2]; 2], e1: V3, e2: V3) -> Self {
-        let p = principal_from_tangent(s, e1, e2);
+    pub fn from_tangent(s: [[f64; 2]; 2], b: TangentBasis) -> Self {
+        let p = principal_from_tangent(s, b);
         TrueCurvature {
             k1: p.k1,
             k2: p.k2,
@@ -62,7 +63,8 @@ pub fn plane_curvature() -> TrueCurvature {
 pub fn implicit_curvature(g: V3, hs: &M3) -> Option<TrueCurvature> {
     let gn = norm(g);
     let n = normalize(g)?;
-    let (e1, e2) = tangent_basis(n);
+    let basis = tangent_basis(n);
+    let TangentBasis { e1, e2 } = basis;
     let q = |a: V3, b: V3| {
         let mut acc = 0.0;
         for r in 0..3 {
@@ -74,8 +76,7 @@ pub fn implicit_curvature(g: V3, hs: &M3) -> Option<TrueCurvature> {
     };
     Some(TrueCurvature::from_tangent(
         [[q(e1, e1), q(e1, e2)], [q(e2, e1), q(e2, e2)]],
-        e1,
-        e2,
+        basis,
     ))
 }
 
@@ -167,17 +168,20 @@ pub fn torus_curvature_at(big_r: f64, r: f64, p: V3) -> TrueCurvature {
 }
 
 /// Gradient and Hessian of the goursat function (section 6.4).
-pub fn goursat_implicit(p: V3) -> (V3, M3) {
+pub fn goursat_implicit(p: V3) -> FieldDerivatives {
     let g = p.map(|x| 0.12 * x * x * x - 4.0 * x);
     let mut hs = [[0.0; 3]; 3];
     for a in 0..3 {
         hs[a][a] = 0.36 * p[a] * p[a] - 4.0;
     }
-    (g, hs)
+    FieldDerivatives {
+        gradient: g,
+        hessian: hs,
+    }
 }
 
 /// Goursat curvature at a surface point (outward normal = gradient direction).
 pub fn goursat_curvature(p: V3) -> Option<TrueCurvature> {
-    let (g, hs) = goursat_implicit(p);
-    implicit_curvature(g, &hs)
+    let d = goursat_implicit(p);
+    implicit_curvature(d.gradient, &d.hessian)
 }

@@ -10,7 +10,7 @@
 
 use std::f64::consts::{PI, TAU};
 use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood, Scratch};
-use tilecurv::core::geometry::{dot, normalize, scale, sub, M3, V3};
+use tilecurv::core::geometry::{dot, normalize, scale, sub, FieldDerivatives, M3, V3};
 use tilecurv::core::rng::Rng;
 pub use tilecurv::core::sampling::{
     goursat_radial, unit_vector, GoursatSampler, Noise, TorusSampler, GOURSAT_DENSITY_BOUND,
@@ -87,7 +87,7 @@ pub fn sample_goursat(n: usize, seed: u64) -> Cloud {
 
 /// Gradient and Hessian of the implicit torus of section 6.5,
 /// F = (|x|^2 + R^2 - r^2)^2 - 4 R^2 (x^2 + y^2), negative inside.
-pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> (V3, M3) {
+pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> FieldDerivatives {
     let s = dot(p, p) + big_r * big_r - r * r;
     let c = 8.0 * big_r * big_r;
     let g = [
@@ -102,7 +102,10 @@ pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> (V3, M3) {
         }
         hs[a][a] += 4.0 * s - if a < 2 { c } else { 0.0 };
     }
-    (g, hs)
+    FieldDerivatives {
+        gradient: g,
+        hessian: hs,
+    }
 }
 
 /// The goursat function of section 6.4, F = 0.03 (x^4 + y^4 + z^4) - 2 |x|^2 - 8 (negative

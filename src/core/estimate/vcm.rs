@@ -28,7 +28,8 @@
 
 use super::{flags, local, Curvature, Estimator, ExtraColumn, Neighbourhood, Scratch};
 use crate::core::geometry::{
-    add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, Principal, M3, V3,
+    add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, Eigen2, Principal, TangentBasis,
+    M3, V3,
 };
 use std::sync::OnceLock;
 
@@ -123,8 +124,8 @@ fn convolved_vcm(
     for (c, &p) in points.iter().enumerate() {
         if dot(p, p) <= small_r * small_r {
             let cell = cell_covariance(points, c, big_r, planes);
-            let (l, vecs) = sym3_eigen(&cell);
-            let (w, axis) = (l[2], vecs[2]);
+            let e = sym3_eigen(&cell);
+            let (w, axis) = (e.values[2], e.vectors[2]);
             axes.weight += w;
             for a in 0..3 {
                 axes.centre[a] += w * p[a];
@@ -206,8 +207,8 @@ const EXTRA_COLUMNS: [ExtraColumn; 4] = [
 /// leading eigenvector, signed to agree with the input normal and mapped to world axes, and
 /// [`ratio_of`] its eigenvalues. NaN components for a zero or non-finite matrix.
 fn extra_of(frame: &M3, v: &M3) -> Features {
-    let (l, vecs) = sym3_eigen(v);
-    let e = vecs[2];
+    let eig = sym3_eigen(v);
+    let (l, e) = (eig.values, eig.vectors[2]);
     let normal = if l[2].is_finite() && l[2] > 0.0 {
         // In the frame the input normal is the z axis: agreeing means a non-negative z.
         from_frame(frame, if e[2] < 0.0 { scale(e, -1.0) } else { e })
@@ -234,7 +235,7 @@ fn convolved_in_frame(nb: &Neighbourhood<'_>, d_k: f64, s: &mut Buffers) -> (M3,
 
 /// The quadrature frame (e1, e2, n): its rows map world vectors to frame coordinates.
 fn frame_of(n: V3) -> M3 {
-    let (e1, e2) = tangent_basis(n);
+    let TangentBasis { e1, e2 } = tangent_basis(n);
     [e1, e2, n]
 }
 
@@ -276,7 +277,7 @@ impl Estimator for Vcm {
             return Curvature::undefined(f);
         }
         let d_k = local::knn_radius(nb.positions);
-        let (e1, e2) = tangent_basis(nb.normals[0]);
+        let TangentBasis { e1, e2 } = tangent_basis(nb.normals[0]);
         if d_k.is_nan()
             || d_k <= 0.0
             || local::is_collinear(local::tangent_moments(nb.positions, e1, e2))
@@ -301,14 +302,17 @@ fn magnitudes(frame: &M3, ax: &AxisSums) -> Curvature {
         return Curvature::undefined(flags::DEGENERATE);
     }
     // The normal: the axis VCM's leading eigenvector (unoriented); lambda_1 its value.
-    let (l, vecs) = sym3_eigen(&ax.vcm);
-    let (lambda1, n) = (l[2], vecs[2]);
-    let (t1, t2) = tangent_basis(n);
+    let eig = sym3_eigen(&ax.vcm);
+    let (lambda1, n) = (eig.values[2], eig.vectors[2]);
+    let TangentBasis { e1: t1, e2: t2 } = tangent_basis(n);
     let quad = |m: &M3, a: V3, b: V3| {
         let mb = [dot(m[0], b), dot(m[1], b), dot(m[2], b)];
         dot(a, mb)
     };
-    let (mu, w) = sym2_eigen(
+    let Eigen2 {
+        values: mu,
+        vectors: w,
+    } = sym2_eigen(
         quad(&ax.vcm, t1, t1),
         quad(&ax.vcm, t1, t2),
         quad(&ax.vcm, t2, t2),

@@ -7,7 +7,7 @@ use crate::kit::testkit::{self, below, Shape};
 
 /// The sharp-feature ratio ([`ratio_of`]) of the convolved VCM `v`, from its eigenvalues.
 fn sharp_feature_ratio(v: &M3) -> f64 {
-    ratio_of(sym3_eigen(v).0)
+    ratio_of(sym3_eigen(v).values)
 }
 
 /// The convolved VCM of the neighbourhood at the query point with the radii of the module
@@ -115,7 +115,7 @@ fn vcm_extra(cloud: &Cloud, nbrs: &[usize]) -> Features {
 fn normal_errors(cloud: &Cloud, knn: &[Vec<usize>], which: &[usize], what: &str) -> (f64, f64) {
     let tilt = |n: V3, j: usize| {
         // A 20-degree rotation about a tangent axis that varies from point to point.
-        let (t1, t2) = tangent_basis(n);
+        let TangentBasis { e1: t1, e2: t2 } = tangent_basis(n);
         let phi = j as f64 * 2.399;
         let axis = add(scale(t1, phi.cos()), scale(t2, phi.sin()));
         let r = crate::kit::synthetic::rotation(axis, 20f64.to_radians());
@@ -263,7 +263,7 @@ fn sharp_feature_ratio_separates_face_edge_and_corner() {
             "estimator {written} vs sharp_feature_ratio {direct}"
         );
         // lambda2 / lambda3 of the decreasing order: the middle over the smallest.
-        let (l, _) = sym3_eigen(&v);
+        let l = sym3_eigen(&v).values;
         (written, l[1] / l[0])
     };
     let ((face, _), (edge, edge_23), (corner, corner_23)) = (ratio(6000), ratio(6001), ratio(6002));
