@@ -33,11 +33,19 @@ use crate::core::geometry::{
 };
 use std::sync::OnceLock;
 
-/// Quadrature nodes on the unit sphere around the z axis: (direction, weight), weights summing
-/// to 4 pi. Polar caps of half-angle 0.6 rad get 32 midpoint rings each (the pencil-shaped
-/// cells need resolution there), the band between them 24, and every ring 48 azimuths.
-fn quadrature() -> &'static [(V3, f64)] {
-    static NODES: OnceLock<Vec<(V3, f64)>> = OnceLock::new();
+/// A quadrature node on the unit sphere.
+struct Node {
+    /// Its unit direction.
+    direction: V3,
+    /// The solid angle it stands for.
+    weight: f64,
+}
+
+/// Quadrature nodes on the unit sphere around the z axis, weights summing to 4 pi. Polar caps
+/// of half-angle 0.6 rad get 32 midpoint rings each (the pencil-shaped cells need resolution
+/// there), the band between them 24, and every ring 48 azimuths.
+fn quadrature() -> &'static [Node] {
+    static NODES: OnceLock<Vec<Node>> = OnceLock::new();
     NODES.get_or_init(|| {
         const CAP: f64 = 0.6;
         const AZIMUTHS: usize = 48;
@@ -59,25 +67,38 @@ fn quadrature() -> &'static [(V3, f64)] {
             let (st, ct) = theta.sin_cos();
             for k in 0..AZIMUTHS {
                 let phi = std::f64::consts::TAU * (k as f64 + 0.5) / AZIMUTHS as f64;
-                nodes.push(([st * phi.cos(), st * phi.sin(), ct], area / AZIMUTHS as f64));
+                nodes.push(Node {
+                    direction: [st * phi.cos(), st * phi.sin(), ct],
+                    weight: area / AZIMUTHS as f64,
+                });
             }
         }
         nodes
     })
 }
 
-/// The estimator's buffers in [`super::Scratch`]: bisector planes of one cell as (w, |w|^2/2),
-/// w = q - p in the quadrature frame.
+/// The bisector plane of a cell's centre p and a neighbour q: the points x with
+/// <x - p, w> = |w|^2 / 2.
+#[derive(Clone, Copy)]
+struct Plane {
+    /// w = q - p, in the quadrature frame.
+    w: V3,
+    /// |w|^2 / 2.
+    half: f64,
+}
+
+/// The estimator's buffers in [`super::Scratch`].
 #[derive(Default)]
 pub struct Buffers {
-    planes: Vec<(V3, f64)>,
+    /// The bisector planes of one cell.
+    planes: Vec<Plane>,
     /// The neighbourhood in the quadrature frame.
     points: Vec<V3>,
 }
 
 /// Covariance of Vor(points[c]) ∩ B(points[c], big_r) about points[c], with `points` already
 /// in the quadrature frame. Points coinciding with the centre (duplicates) do not clip.
-fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<(V3, f64)>) -> M3 {
+fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<Plane>) -> M3 {
     let p = points[c];
     planes.clear();
     let tiny = 1e-24 * big_r * big_r;
@@ -86,13 +107,14 @@ fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<(V3, f6
         let w2 = dot(w, w);
         // Points beyond 2R cannot clip the ball B(p, R) (section 2.3, locality).
         if j != c && w2 > tiny && w2 < 4.0 * big_r * big_r {
-            planes.push((w, 0.5 * w2));
+            planes.push(Plane { w, half: 0.5 * w2 });
         }
     }
     let mut cov = [[0.0; 3]; 3];
-    for &(u, weight) in quadrature() {
+    for node in quadrature() {
+        let (u, weight) = (node.direction, node.weight);
         let mut rho = big_r;
-        for &(w, half) in planes.iter() {
+        for &Plane { w, half } in planes.iter() {
             let s = dot(u, w);
             if s * rho > half {
                 rho = half / s;
@@ -108,17 +130,22 @@ fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<(V3, f6
     cov
 }
 
+/// The convolved VCM at the query point and the axis sums of the same cells ([`convolved_vcm`]),
+/// in the quadrature frame.
+struct Convolved {
+    /// The convolved VCM: the sum of the covariances of the cells of the points within the
+    /// convolution radius.
+    vcm: M3,
+    /// Its rank-one part and the cell centres' moments.
+    axes: AxisSums,
+}
+
 /// The convolved VCM at the query point (indicator kernel of radius `small_r`, offset
 /// `big_r`: the sum of the cells of the points within `small_r`), from points given in the
 /// quadrature frame; and its rank-one part, the sum over the same cells of lambda_max v v^T
 /// (each cell's pencil axis weighted by its pencil size), returned with the weighted second
 /// moments of the cell centres needed by the curvature formula.
-fn convolved_vcm(
-    points: &[V3],
-    big_r: f64,
-    small_r: f64,
-    planes: &mut Vec<(V3, f64)>,
-) -> (M3, AxisSums) {
+fn convolved_vcm(points: &[V3], big_r: f64, small_r: f64, planes: &mut Vec<Plane>) -> Convolved {
     let mut v = [[0.0; 3]; 3];
     let mut axes = AxisSums::default();
     for (c, &p) in points.iter().enumerate() {
@@ -137,7 +164,7 @@ fn convolved_vcm(
             }
         }
     }
-    (v, axes)
+    Convolved { vcm: v, axes }
 }
 
 /// Weighted sums over the convolved cells (weights = the cells' largest eigenvalues).
@@ -221,16 +248,14 @@ fn extra_of(frame: &M3, v: &M3) -> Features {
     }
 }
 
-/// The query frame ([`frame_of`] the query's input normal) and, in it, the convolved VCM and
+/// In the query frame `frame` ([`frame_of`] the query's input normal), the convolved VCM and
 /// the axis sums of the neighbourhood with the radii of the module documentation: offset
 /// R = `d_k`, convolution radius r = `d_k` / 2.
-fn convolved_in_frame(nb: &Neighbourhood<'_>, d_k: f64, s: &mut Buffers) -> (M3, M3, AxisSums) {
-    let frame = frame_of(nb.normals[0]);
+fn convolved_in_frame(nb: &Neighbourhood<'_>, frame: &M3, d_k: f64, s: &mut Buffers) -> Convolved {
     let Buffers { planes, points } = s;
     points.clear();
-    points.extend(nb.positions.iter().map(|&p| to_frame(&frame, p)));
-    let (v, ax) = convolved_vcm(points, d_k, 0.5 * d_k, planes);
-    (frame, v, ax)
+    points.extend(nb.positions.iter().map(|&p| to_frame(frame, p)));
+    convolved_vcm(points, d_k, 0.5 * d_k, planes)
 }
 
 /// The quadrature frame (e1, e2, n): its rows map world vectors to frame coordinates.
@@ -284,13 +309,14 @@ impl Estimator for Vcm {
         {
             return Curvature::undefined(flags::DEGENERATE);
         }
-        let (frame, v, ax) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
-        let f = extra_of(&frame, &v);
+        let frame = frame_of(nb.normals[0]);
+        let c = convolved_in_frame(nb, &frame, d_k, &mut scratch.vcm);
+        let f = extra_of(&frame, &c.vcm);
         let values = [f.feature, f.normal[0], f.normal[1], f.normal[2]];
         for (slot, v) in extra.iter_mut().zip(values) {
             *slot = v;
         }
-        magnitudes(&frame, &ax)
+        magnitudes(&frame, &c.axes)
     }
 }
 

@@ -19,8 +19,9 @@ fn neighbourhood_vcm(nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Option<M3
     if d_k.is_nan() || d_k <= 0.0 {
         return None;
     }
-    let (frame, v, _) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
-    Some(from_frame_matrix(&frame, &v))
+    let frame = frame_of(nb.normals[0]);
+    let c = convolved_in_frame(nb, &frame, d_k, &mut scratch.vcm);
+    Some(from_frame_matrix(&frame, &c.vcm))
 }
 
 /// F^T v F: a frame matrix back to world axes.
