@@ -6,6 +6,15 @@ pub type V3 = [f64; 3];
 /// A 3x3 matrix, row-major.
 pub type M3 = [[f64; 3]; 3];
 
+/// A point of a surface and its unit normal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePoint {
+    /// Where it is.
+    pub position: V3,
+    /// The unit normal there.
+    pub normal: V3,
+}
+
 /// The first and second derivatives of a scalar field F at a point (F = 0 an implicit surface).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FieldDerivatives {

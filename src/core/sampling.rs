@@ -6,7 +6,7 @@
 
 use std::f64::consts::TAU;
 
-use crate::core::geometry::{dot, normalize, scale, V3};
+use crate::core::geometry::{dot, normalize, scale, SurfacePoint, V3};
 use crate::core::rng::Rng;
 use crate::core::surface::{goursat_implicit, torus_point};
 
@@ -34,7 +34,11 @@ impl Noise {
     /// The next point with its noise: three normal deviates for the position, three for the
     /// normal (drawn even when a sigma is 0, so the stream does not depend on the sigmas), the
     /// normal renormalised, or left unchanged if the noise cancels it exactly.
-    pub fn apply(&mut self, p: V3, n: V3) -> (V3, V3) {
+    pub fn apply(&mut self, point: SurfacePoint) -> SurfacePoint {
+        let SurfacePoint {
+            position: p,
+            normal: n,
+        } = point;
         let mut q = p;
         for c in q.iter_mut() {
             *c += self.sigma_position * self.rng.normal();
@@ -44,7 +48,10 @@ impl Noise {
             n[1] + self.sigma_normal * self.rng.normal(),
             n[2] + self.sigma_normal * self.rng.normal(),
         ];
-        (q, normalize(noisy).unwrap_or(n))
+        SurfacePoint {
+            position: q,
+            normal: normalize(noisy).unwrap_or(n),
+        }
     }
 }
 
@@ -78,9 +85,9 @@ impl TorusSampler {
 }
 
 impl Iterator for TorusSampler {
-    type Item = (V3, V3);
+    type Item = SurfacePoint;
 
-    fn next(&mut self) -> Option<(V3, V3)> {
+    fn next(&mut self) -> Option<SurfacePoint> {
         let (big_r, r) = (self.big_r, self.r);
         loop {
             let theta = TAU * self.rng.uniform();
@@ -124,9 +131,9 @@ impl GoursatSampler {
 }
 
 impl Iterator for GoursatSampler {
-    type Item = (V3, V3);
+    type Item = SurfacePoint;
 
-    fn next(&mut self) -> Option<(V3, V3)> {
+    fn next(&mut self) -> Option<SurfacePoint> {
         loop {
             let d = unit_vector(&mut self.rng);
             let p = goursat_radial(d);
@@ -135,7 +142,10 @@ impl Iterator for GoursatSampler {
             };
             let density = dot(p, p) / dot(d, nrm);
             if self.rng.uniform() * GOURSAT_DENSITY_BOUND <= density {
-                return Some((p, nrm));
+                return Some(SurfacePoint {
+                    position: p,
+                    normal: nrm,
+                });
             }
         }
     }

@@ -6,8 +6,8 @@
 //! k1 <= k2, H = (k1 + k2)/2, K = k1 k2.
 
 use crate::core::geometry::{
-    norm, normalize, principal_from_tangent, scale, tangent_basis, FieldDerivatives, TangentBasis,
-    M3, V3,
+    norm, normalize, principal_from_tangent, scale, tangent_basis, FieldDerivatives, SurfacePoint,
+    TangentBasis, M3, V3,
 };
 
 /// The exact curvature of a smooth surface at one point.
@@ -133,11 +133,14 @@ pub const PAPER_TORUS: (f64, f64) = (6.0, 2.0);
 
 /// The torus point and outward unit normal at angles (theta around the tube from the outer
 /// equator, phi around the z axis), major radius `big_r`, tube radius `r` (section 6.1).
-pub fn torus_point(big_r: f64, r: f64, theta: f64, phi: f64) -> (V3, V3) {
+pub fn torus_point(big_r: f64, r: f64, theta: f64, phi: f64) -> SurfacePoint {
     let (st, ct) = theta.sin_cos();
     let (sp, cp) = phi.sin_cos();
     let rho = big_r + r * ct;
-    ([rho * cp, rho * sp, r * st], [ct * cp, ct * sp, st])
+    SurfacePoint {
+        position: [rho * cp, rho * sp, r * st],
+        normal: [ct * cp, ct * sp, st],
+    }
 }
 
 /// Torus curvature from the parametrisation (section 6.1): k1 = cos(theta)/(R + r cos(theta))

@@ -4,7 +4,7 @@
 use crate::kit::synthetic::*;
 use crate::kit::testkit;
 use std::f64::consts::{PI, TAU};
-use tilecurv::core::geometry::{cross, dot, norm, normalize, sub, FieldDerivatives};
+use tilecurv::core::geometry::{cross, dot, norm, normalize, sub, FieldDerivatives, SurfacePoint};
 use tilecurv::core::rng::Rng;
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -75,7 +75,10 @@ fn torus_implicit_equals_parametric() {
     for i in 0..37 {
         for j in 0..5 {
             let (theta, phi) = (i as f64 * 0.17 - 3.1, j as f64 * 1.3);
-            let (p, n) = torus_point(big_r, r, theta, phi);
+            let SurfacePoint {
+                position: p,
+                normal: n,
+            } = torus_point(big_r, r, theta, phi);
             let FieldDerivatives {
                 gradient: g,
                 hessian: h,

@@ -10,7 +10,9 @@
 
 use std::f64::consts::{PI, TAU};
 use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood, Scratch};
-use tilecurv::core::geometry::{dot, normalize, scale, sub, FieldDerivatives, M3, V3};
+use tilecurv::core::geometry::{
+    dot, normalize, scale, sub, FieldDerivatives, SurfacePoint, M3, V3,
+};
 use tilecurv::core::rng::Rng;
 pub use tilecurv::core::sampling::{
     goursat_radial, unit_vector, GoursatSampler, Noise, TorusSampler, GOURSAT_DENSITY_BOUND,
@@ -61,7 +63,11 @@ impl Cloud {
     pub fn add_noise(&mut self, sigma_position: f64, sigma_normal: f64, seed: u64) {
         let mut noise = Noise::new(sigma_position, sigma_normal, seed);
         for (p, n) in self.positions.iter_mut().zip(self.normals.iter_mut()) {
-            (*p, *n) = noise.apply(*p, *n);
+            let s = noise.apply(SurfacePoint {
+                position: *p,
+                normal: *n,
+            });
+            (*p, *n) = (s.position, s.normal);
         }
     }
 }
@@ -72,10 +78,10 @@ pub fn sample_torus(n: usize, big_r: f64, r: f64, seed: u64) -> Cloud {
 }
 
 /// The first `n` points of a sampler as a cloud.
-fn collect(n: usize, sampler: impl Iterator<Item = (V3, V3)>) -> Cloud {
+fn collect(n: usize, sampler: impl Iterator<Item = SurfacePoint>) -> Cloud {
     let mut cloud = Cloud::with_capacity(n);
-    for (p, nrm) in sampler.take(n) {
-        cloud.push(p, nrm);
+    for s in sampler.take(n) {
+        cloud.push(s.position, s.normal);
     }
     cloud
 }
