@@ -24,6 +24,7 @@ pub use bytes::InputBytes;
 use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
 use crate::io::las::extra_bytes::ScalarType;
+use crate::io::las::header::Quantisation;
 use crate::io::las::parts::LasParts;
 
 pub use las::LasSource;
@@ -59,10 +60,10 @@ pub trait PointSource: Send + Sync {
     ) -> Result<()>;
     /// Decodes one raw record.
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
-    /// The (scale, offset) of x, y and z when [`PointSource::decode`] gives every coordinate
+    /// The scale and offset of x, y and z when [`PointSource::decode`] gives every coordinate
     /// as `integer * scale + offset` (LAS records), None otherwise: the buckets then store the
     /// integers (the f64 bits they give back are checked when a bucket is written).
-    fn integer_coordinates(&self) -> Option<[(f64, f64); 3]> {
+    fn integer_coordinates(&self) -> Option<Quantisation> {
         None
     }
     /// The LAS classification and withheld flag of one raw record (None: the format has
