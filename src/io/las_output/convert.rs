@@ -60,7 +60,7 @@ impl ConvertedSink {
         cols: &OutputColumns,
         provenance: &str,
     ) -> Result<Self> {
-        let (xyz, props) = split_xyz(source)?;
+        let Split { xyz, others: props } = split_xyz(source)?;
         let eb = descriptors(&props);
         let extra = parse(&eb).map_err(Error::Internal)?;
         let vlrs: Vec<Vlr> = if eb.is_empty() {
@@ -109,10 +109,18 @@ impl PointSink for ConvertedSink {
     }
 }
 
-/// A source's x, y, z properties, and the others, which become extra bytes.
-fn split_xyz(source: &dyn PointSource) -> Result<([Property; 3], Vec<Property>)> {
+/// A source's properties, split by [`split_xyz`].
+struct Split {
+    /// Its x, y and z.
+    xyz: [Property; 3],
+    /// The others, in order, which become extra bytes.
+    others: Vec<Property>,
+}
+
+/// A source's x, y, z properties, and the others.
+fn split_xyz(source: &dyn PointSource) -> Result<Split> {
     let mut props = source.properties();
-    let Some(xyz) = xyz_and_normals(props.iter().map(|p| p.name.as_str())).0 else {
+    let Some(xyz) = xyz_and_normals(props.iter().map(|p| p.name.as_str())).xyz else {
         return Err(Error::Internal(format!(
             "{}: the reader lists no x, y, z properties",
             source.path().display()
@@ -120,13 +128,13 @@ fn split_xyz(source: &dyn PointSource) -> Result<([Property; 3], Vec<Property>)>
     };
     let xyz = xyz.map(|i| props[i].clone());
     props.retain(|p| !xyz.contains(p));
-    Ok((xyz, props))
+    Ok(Split { xyz, others: props })
 }
 
 /// The encoded extra-bytes descriptors of a converted output of `source`, before the new
 /// columns': one per property but x, y and z.
 pub fn input_descriptors(source: &dyn PointSource) -> Result<Vec<u8>> {
-    Ok(descriptors(&split_xyz(source)?.1))
+    Ok(descriptors(&split_xyz(source)?.others))
 }
 
 /// The encoded extra-bytes descriptors of the properties kept as extra bytes.

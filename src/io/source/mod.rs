@@ -262,15 +262,25 @@ impl Bounds {
     }
 }
 
+/// Where a point's coordinates and normal are among its properties ([`xyz_and_normals`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct XyzNormals {
+    /// The indices of x, y and z; None when one is missing.
+    pub xyz: Option<[usize; 3]>,
+    /// The indices of nx, ny, nz (or normal_x, normal_y, normal_z); None when one is missing.
+    pub normals: Option<[usize; 3]>,
+}
+
 /// The indices of x, y, z and of the normal (nx ny nz or normal_x normal_y normal_z) among
-/// property names; `None` for x/y/z when one is missing.
-pub fn xyz_and_normals<'a>(
-    names: impl Iterator<Item = &'a str> + Clone,
-) -> (Option<[usize; 3]>, Option<[usize; 3]>) {
+/// property names.
+pub fn xyz_and_normals<'a>(names: impl Iterator<Item = &'a str> + Clone) -> XyzNormals {
     let find = |n: &str| names.clone().position(|m| m == n);
     let three = |a: &str, b: &str, c: &str| Some([find(a)?, find(b)?, find(c)?]);
     let normals = three("nx", "ny", "nz").or_else(|| three("normal_x", "normal_y", "normal_z"));
-    (three("x", "y", "z"), normals)
+    XyzNormals {
+        xyz: three("x", "y", "z"),
+        normals,
+    }
 }
 
 /// A file normal as the engine wants it: `None` when it is not finite or zero (PCL writes NaN
