@@ -6,6 +6,24 @@ pub type V3 = [f64; 3];
 /// A 3x3 matrix, row-major.
 pub type M3 = [[f64; 3]; 3];
 
+/// A point of a surface and its unit normal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePoint {
+    /// Where it is.
+    pub position: V3,
+    /// The unit normal there.
+    pub normal: V3,
+}
+
+/// The first and second derivatives of a scalar field F at a point (F = 0 an implicit surface).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FieldDerivatives {
+    /// grad F.
+    pub gradient: V3,
+    /// Hess F (symmetric).
+    pub hessian: M3,
+}
+
 /// a + b
 #[inline]
 pub fn add(a: V3, b: V3) -> V3 {
@@ -47,9 +65,18 @@ pub fn normalize(a: V3) -> Option<V3> {
     (n > 0.0 && n.is_finite()).then(|| scale(a, 1.0 / n))
 }
 
-/// An orthonormal tangent basis (e1, e2) of the plane orthogonal to the unit vector `n`,
-/// chosen deterministically from `n` alone (so that it does not depend on the tile or thread).
-pub fn tangent_basis(n: V3) -> (V3, V3) {
+/// Two orthonormal vectors of the plane orthogonal to a unit normal n, with e1 x e2 = n.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TangentBasis {
+    /// The first tangent axis.
+    pub e1: V3,
+    /// The second, n x e1.
+    pub e2: V3,
+}
+
+/// An orthonormal tangent basis of the plane orthogonal to the unit vector `n`, chosen
+/// deterministically from `n` alone (so that it does not depend on the tile or thread).
+pub fn tangent_basis(n: V3) -> TangentBasis {
     // Cross with the axis least aligned with n: well conditioned for every n.
     let a = n.map(f64::abs);
     let axis = if a[0] <= a[1] && a[0] <= a[2] {
@@ -61,18 +88,30 @@ pub fn tangent_basis(n: V3) -> (V3, V3) {
     };
     let e1 = normalize(cross(n, axis)).unwrap_or([1.0, 0.0, 0.0]);
     let e2 = cross(n, e1);
-    (e1, e2)
+    TangentBasis { e1, e2 }
+}
+
+/// The eigen-decomposition of a symmetric 2x2 matrix ([`sym2_eigen`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Eigen2 {
+    /// The eigenvalues, ascending.
+    pub values: [f64; 2],
+    /// Their unit eigenvectors, in the same order.
+    pub vectors: [[f64; 2]; 2],
 }
 
 /// Eigen-decomposition of a symmetric 2x2 matrix [[a, b], [b, c]]: eigenvalues ascending and
 /// their unit eigenvectors.
-pub fn sym2_eigen(a: f64, b: f64, c: f64) -> ([f64; 2], [[f64; 2]; 2]) {
+pub fn sym2_eigen(a: f64, b: f64, c: f64) -> Eigen2 {
     let mean = 0.5 * (a + c);
     let diff = 0.5 * (a - c);
     let r = (diff * diff + b * b).sqrt();
     let (l1, l2) = (mean - r, mean + r);
     if r == 0.0 {
-        return ([l1, l2], [[1.0, 0.0], [0.0, 1.0]]);
+        return Eigen2 {
+            values: [l1, l2],
+            vectors: [[1.0, 0.0], [0.0, 1.0]],
+        };
     }
     // Eigenvector of the larger eigenvalue, computed by the better-conditioned formula.
     let v2 = if diff >= 0.0 {
@@ -83,7 +122,47 @@ pub fn sym2_eigen(a: f64, b: f64, c: f64) -> ([f64; 2], [[f64; 2]; 2]) {
     let n = (v2[0] * v2[0] + v2[1] * v2[1]).sqrt();
     let v2 = [v2[0] / n, v2[1] / n];
     let v1 = [-v2[1], v2[0]];
-    ([l1, l2], [v1, v2])
+    Eigen2 {
+        values: [l1, l2],
+        vectors: [v1, v2],
+    }
+}
+
+/// The principal curvatures and directions of a tangent-plane shape operator
+/// ([`principal_from_tangent`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Principal {
+    /// The smaller principal curvature (the operator's smaller eigenvalue).
+    pub k1: f64,
+    /// The larger principal curvature.
+    pub k2: f64,
+    /// Unit 3D direction of k1.
+    pub d1: V3,
+    /// Unit 3D direction of k2.
+    pub d2: V3,
+    /// Whether k1 and k2 are indistinguishable (|k2 - k1| at most 1e-6 of the larger |k|, or
+    /// both zero): the directions are then arbitrary.
+    pub umbilic: bool,
+}
+
+/// The principal curvatures and directions of a 2x2 symmetric tangent-plane operator `s` in the
+/// basis `b`: eigenvalues ascending with their 3D directions, and whether they are
+/// indistinguishable (umbilic).
+pub fn principal_from_tangent(s: [[f64; 2]; 2], b: TangentBasis) -> Principal {
+    let Eigen2 {
+        values: l,
+        vectors: w,
+    } = sym2_eigen(s[0][0], 0.5 * (s[0][1] + s[1][0]), s[1][1]);
+    let dir = |w: [f64; 2]| add(scale(b.e1, w[0]), scale(b.e2, w[1]));
+    let spread = (l[1] - l[0]).abs();
+    let level = l[0].abs().max(l[1].abs());
+    Principal {
+        k1: l[0],
+        k2: l[1],
+        d1: dir(w[0]),
+        d2: dir(w[1]),
+        umbilic: spread <= 1e-6 * level || level == 0.0,
+    }
 }
 
 /// The unit eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix, in closed form:
@@ -118,13 +197,22 @@ pub fn sym3_smallest(m: &M3) -> Option<V3> {
     normalize(best)
 }
 
+/// The sum and the product of two eigenvalues ([`other_two`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SumProduct {
+    /// l1 + l2.
+    pub sum: f64,
+    /// l1 l2.
+    pub product: f64,
+}
+
 /// The sum and the product of the two eigenvalues of a symmetric 3x3 matrix `m` other than the
 /// one of its unit eigenvector `v`: the trace and the determinant of m's compression onto the
 /// plane orthogonal to v, as tr(m) - v'mv and v' adj(m) v (the cofactor form). Exact to
 /// rounding whatever the gaps (the trigonometric eigenvalues lose about half the digits near a
 /// double one), and without a square root: a ratio test on the two needs none
 /// ([`crate::core::normals::pca_normal`]).
-pub fn other_two(m: &M3, v: V3) -> (f64, f64) {
+pub fn other_two(m: &M3, v: V3) -> SumProduct {
     let mv = [dot(m[0], v), dot(m[1], v), dot(m[2], v)];
     let sum = m[0][0] + m[1][1] + m[2][2] - dot(v, mv);
     // The cofactors of the symmetric m (adj(m) is symmetric too).
@@ -138,24 +226,34 @@ pub fn other_two(m: &M3, v: V3) -> (f64, f64) {
         + a11 * v[1] * v[1]
         + a22 * v[2] * v[2]
         + 2.0 * (a01 * v[0] * v[1] + a02 * v[0] * v[2] + a12 * v[1] * v[2]);
-    (sum, product)
+    SumProduct { sum, product }
+}
+
+/// The eigen-decomposition of a symmetric 3x3 matrix ([`sym3_eigen`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Eigen3 {
+    /// The eigenvalues, ascending.
+    pub values: [f64; 3],
+    /// Their unit eigenvectors, in the same order.
+    pub vectors: [V3; 3],
 }
 
 /// Eigen-decomposition of a symmetric 3x3 matrix: eigenvalues ascending and the matching unit
 /// eigenvectors (nalgebra returns them unsorted; we sort).
-pub fn sym3_eigen(m: &M3) -> ([f64; 3], [V3; 3]) {
+pub fn sym3_eigen(m: &M3) -> Eigen3 {
     let mat = nalgebra::Matrix3::new(
         m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2],
     );
     let e = nalgebra::SymmetricEigen::new(mat);
     let mut idx = [0usize, 1, 2];
     idx.sort_by(|&i, &j| e.eigenvalues[i].total_cmp(&e.eigenvalues[j]));
-    let vals = idx.map(|i| e.eigenvalues[i]);
-    let vecs = idx.map(|i| {
-        let c = e.eigenvectors.column(i);
-        [c[0], c[1], c[2]]
-    });
-    (vals, vecs)
+    Eigen3 {
+        values: idx.map(|i| e.eigenvalues[i]),
+        vectors: idx.map(|i| {
+            let c = e.eigenvectors.column(i);
+            [c[0], c[1], c[2]]
+        }),
+    }
 }
 
 #[cfg(test)]
@@ -172,7 +270,7 @@ mod tests {
             let spread = [1.0, 10f64.powi(-(case % 7)), 10f64.powi(-(case % 11) / 2)];
             let scale = 10f64.powi(case % 5 - 2);
             let rot = [unit(), unit(), unit()];
-            let (e1, e2) = tangent_basis(normalize(rot).unwrap_or([0.0, 0.0, 1.0]));
+            let TangentBasis { e1, e2 } = tangent_basis(normalize(rot).unwrap_or([0.0, 0.0, 1.0]));
             let e3 = cross(e1, e2);
             let mut m = [[0.0; 3]; 3];
             for (w, e) in spread.iter().zip([e1, e2, e3]) {
@@ -182,14 +280,17 @@ mod tests {
                     }
                 }
             }
-            let (want_l, want_v) = sym3_eigen(&m);
+            let Eigen3 {
+                values: want_l,
+                vectors: want_v,
+            } = sym3_eigen(&m);
             let Some(v) = sym3_smallest(&m) else {
                 // Undefined only for a multiple of the identity (up to rounding).
                 assert!(spread[1] == 1.0 && spread[2] == 1.0, "case {case}: {m:?}");
                 continue;
             };
             // The other two eigenvalues' sum and product, from v (Rayleigh-accurate).
-            let (sum, product) = other_two(&m, v);
+            let SumProduct { sum, product } = other_two(&m, v);
             let l2 = want_l[2];
             assert!(
                 (sum - (want_l[1] + l2)).abs() <= 1e-13 * l2,
@@ -221,7 +322,10 @@ mod tests {
             (1.0, 1.0, 1.0),
             (-5.0, 1e-9, 3.0),
         ] {
-            let (l, v) = sym2_eigen(a, b, c);
+            let Eigen2 {
+                values: l,
+                vectors: v,
+            } = sym2_eigen(a, b, c);
             assert!(l[0] <= l[1]);
             for k in 0..2 {
                 let mv = [a * v[k][0] + b * v[k][1], b * v[k][0] + c * v[k][1]];
@@ -236,10 +340,13 @@ mod tests {
 
     #[test]
     fn sym3_sorted_and_orthonormal_basis() {
-        let (l, v) = sym3_eigen(&[[3.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 2.0]]);
+        let Eigen3 {
+            values: l,
+            vectors: v,
+        } = sym3_eigen(&[[3.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 2.0]]);
         assert_eq!(l, [1.0, 2.0, 3.0]);
         assert!((v[0][1].abs() - 1.0).abs() < 1e-12);
-        let (e1, e2) = tangent_basis([0.0, 0.6, 0.8]);
+        let TangentBasis { e1, e2 } = tangent_basis([0.0, 0.6, 0.8]);
         assert!(
             dot(e1, [0.0, 0.6, 0.8]).abs() < 1e-15
                 && dot(e2, [0.0, 0.6, 0.8]).abs() < 1e-15

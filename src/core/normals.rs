@@ -1,7 +1,7 @@
 //! Normals: PCA over a point's neighbours (the same K-NN the estimator uses) and orientation.
 //! Pure: works on coordinates and neighbour lists.
 
-use crate::core::geometry::{dot, other_two, scale, sub, sym3_smallest, V3};
+use crate::core::geometry::{dot, other_two, scale, sub, sym3_smallest, SumProduct, V3};
 
 /// How PCA normals are oriented (their sign is otherwise arbitrary).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,7 +52,7 @@ pub fn pca_normal(xyz: &[V3], nbrs: &[u32]) -> Option<V3> {
     // (t <= s / 2 lies between the roots then), that is p <= t (s - t): a test without the
     // roots' square root. NaN sums and products are degenerate.
     const EPS: f64 = 1e-12;
-    let (s, p) = other_two(&c, normal);
+    let SumProduct { sum: s, product: p } = other_two(&c, normal);
     let t = EPS * s / (1.0 + EPS);
     (s > 0.0 && p > t * (s - t)).then_some(normal)
 }

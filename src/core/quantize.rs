@@ -41,6 +41,15 @@ pub fn pow2(e: i32) -> f64 {
     }
 }
 
+/// A non-empty bin of [`Magnitudes`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Bin {
+    /// The biased binary exponent of the values it counts.
+    pub exponent: u16,
+    /// How many values it counts.
+    pub count: u64,
+}
+
 /// Counts of |v| per binary exponent and the largest |v|, over the finite values added.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Magnitudes {
@@ -85,27 +94,30 @@ impl Magnitudes {
         self.max
     }
 
-    /// The non-empty bins as (biased exponent, count), in order.
-    pub fn bins(&self) -> impl Iterator<Item = (u16, u64)> + '_ {
+    /// The non-empty bins, in order.
+    pub fn bins(&self) -> impl Iterator<Item = Bin> + '_ {
         self.counts
             .iter()
             .enumerate()
             .filter(|(_, &c)| c > 0)
-            .map(|(b, &c)| (b as u16, c))
+            .map(|(b, &c)| Bin {
+                exponent: b as u16,
+                count: c,
+            })
     }
 
     /// Rebuilds counts from [`Magnitudes::bins`] and [`Magnitudes::max`]; None when a bin is
     /// out of range, a bin's counts overflow, or the maximum is not a finite non-negative
     /// number.
-    pub fn from_bins(bins: impl IntoIterator<Item = (u16, u64)>, max: f64) -> Option<Self> {
+    pub fn from_bins(bins: impl IntoIterator<Item = Bin>, max: f64) -> Option<Self> {
         let mut m = Magnitudes::default();
         if !(max.is_finite() && max >= 0.0) {
             return None;
         }
         m.max = max;
-        for (b, c) in bins {
-            let slot = m.counts.get_mut(b as usize)?;
-            *slot = slot.checked_add(c)?;
+        for Bin { exponent, count } in bins {
+            let slot = m.counts.get_mut(exponent as usize)?;
+            *slot = slot.checked_add(count)?;
         }
         Some(m)
     }
@@ -249,7 +261,11 @@ mod tests {
         assert_eq!(b, whole);
         let back = Magnitudes::from_bins(whole.bins(), whole.max()).expect("valid");
         assert_eq!(back, whole);
-        assert!(Magnitudes::from_bins([(2047, 1)], 0.0).is_none());
+        let outside = Bin {
+            exponent: 2047,
+            count: 1,
+        };
+        assert!(Magnitudes::from_bins([outside], 0.0).is_none());
         assert!(Magnitudes::from_bins([], f64::NAN).is_none());
     }
 }

@@ -1,64 +1,18 @@
 //! Seeded samplers of the closed-form surfaces of [`crate::core::surface`]: points uniform in
 //! area with their exact unit normals (algorithms.md 13.6), and Gaussian noise on them.
-//! Used by `generate torus` and `generate goursat` and by the test kit, so that a generated file
-//! and a test cloud of the same seed hold the same points. Random streams come from
+//! Used by `generate torus` and `generate goursat` and by the test kit (which collects them
+//! into clouds), so that a generated file and a test cloud of the same seed hold the same points. Random streams come from
 //! [`crate::core::rng::Rng`], so clouds are identical across releases for a given seed.
 
 use std::f64::consts::TAU;
 
-use crate::core::geometry::{dot, normalize, scale, V3};
+use crate::core::geometry::{dot, normalize, scale, SurfacePoint, V3};
 use crate::core::rng::Rng;
 use crate::core::surface::{goursat_implicit, torus_point};
 
-/// Sampled oriented points: positions and exact (or noisy) unit normals, same order.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Cloud {
-    /// Positions.
-    pub positions: Vec<V3>,
-    /// Unit normals.
-    pub normals: Vec<V3>,
-}
-
-impl Cloud {
-    /// An empty cloud with room for `n` points.
-    pub fn with_capacity(n: usize) -> Self {
-        Cloud {
-            positions: Vec::with_capacity(n),
-            normals: Vec::with_capacity(n),
-        }
-    }
-
-    /// Appends the point `p` with unit normal `n`.
-    pub fn push(&mut self, p: V3, n: V3) {
-        self.positions.push(p);
-        self.normals.push(n);
-    }
-
-    /// Number of points.
-    pub fn len(&self) -> usize {
-        self.positions.len()
-    }
-
-    /// True if there are no points.
-    pub fn is_empty(&self) -> bool {
-        self.positions.is_empty()
-    }
-
-    /// Adds centred Gaussian noise of standard deviation `sigma_position` to every position
-    /// coordinate and `sigma_normal` to every normal coordinate, then renormalises the normals
-    /// (algorithms.md 13.6, as in the CNC paper). A normal that the noise cancels exactly is left
-    /// unchanged.
-    pub fn add_noise(&mut self, sigma_position: f64, sigma_normal: f64, seed: u64) {
-        let mut noise = Noise::new(sigma_position, sigma_normal, seed);
-        for (p, n) in self.positions.iter_mut().zip(self.normals.iter_mut()) {
-            (*p, *n) = noise.apply(*p, *n);
-        }
-    }
-}
-
-/// Isotropic Gaussian noise on oriented points, one point at a time from one seeded stream:
-/// [`Cloud::add_noise`] over a cloud, or a generator that streams its points, give the same
-/// numbers for the same seed.
+/// Isotropic Gaussian noise on oriented points, one point at a time from one seeded stream: the
+/// test kit's `Cloud::add_noise` over a cloud, or a generator that streams its points, give the
+/// same numbers for the same seed.
 #[derive(Debug, Clone)]
 pub struct Noise {
     rng: Rng,
@@ -80,7 +34,11 @@ impl Noise {
     /// The next point with its noise: three normal deviates for the position, three for the
     /// normal (drawn even when a sigma is 0, so the stream does not depend on the sigmas), the
     /// normal renormalised, or left unchanged if the noise cancels it exactly.
-    pub fn apply(&mut self, p: V3, n: V3) -> (V3, V3) {
+    pub fn apply(&mut self, point: SurfacePoint) -> SurfacePoint {
+        let SurfacePoint {
+            position: p,
+            normal: n,
+        } = point;
         let mut q = p;
         for c in q.iter_mut() {
             *c += self.sigma_position * self.rng.normal();
@@ -90,7 +48,10 @@ impl Noise {
             n[1] + self.sigma_normal * self.rng.normal(),
             n[2] + self.sigma_normal * self.rng.normal(),
         ];
-        (q, normalize(noisy).unwrap_or(n))
+        SurfacePoint {
+            position: q,
+            normal: normalize(noisy).unwrap_or(n),
+        }
     }
 }
 
@@ -124,9 +85,9 @@ impl TorusSampler {
 }
 
 impl Iterator for TorusSampler {
-    type Item = (V3, V3);
+    type Item = SurfacePoint;
 
-    fn next(&mut self) -> Option<(V3, V3)> {
+    fn next(&mut self) -> Option<SurfacePoint> {
         let (big_r, r) = (self.big_r, self.r);
         loop {
             let theta = TAU * self.rng.uniform();
@@ -136,20 +97,6 @@ impl Iterator for TorusSampler {
             }
         }
     }
-}
-
-/// The first `n` points of [`TorusSampler`]`::new(big_r, r, seed)`.
-pub fn sample_torus(n: usize, big_r: f64, r: f64, seed: u64) -> Cloud {
-    collect(n, TorusSampler::new(big_r, r, seed))
-}
-
-/// The first `n` points of a sampler as a cloud.
-fn collect(n: usize, sampler: impl Iterator<Item = (V3, V3)>) -> Cloud {
-    let mut cloud = Cloud::with_capacity(n);
-    for (p, nrm) in sampler.take(n) {
-        cloud.push(p, nrm);
-    }
-    cloud
 }
 
 /// Upper bound of the goursat area density per unit solid angle, t^2 / <d | n> over the
@@ -184,24 +131,22 @@ impl GoursatSampler {
 }
 
 impl Iterator for GoursatSampler {
-    type Item = (V3, V3);
+    type Item = SurfacePoint;
 
-    fn next(&mut self) -> Option<(V3, V3)> {
+    fn next(&mut self) -> Option<SurfacePoint> {
         loop {
             let d = unit_vector(&mut self.rng);
             let p = goursat_radial(d);
-            let Some(nrm) = normalize(goursat_implicit(p).0) else {
+            let Some(nrm) = normalize(goursat_implicit(p).gradient) else {
                 continue;
             };
             let density = dot(p, p) / dot(d, nrm);
             if self.rng.uniform() * GOURSAT_DENSITY_BOUND <= density {
-                return Some((p, nrm));
+                return Some(SurfacePoint {
+                    position: p,
+                    normal: nrm,
+                });
             }
         }
     }
-}
-
-/// The first `n` points of [`GoursatSampler`]`::new(seed)`.
-pub fn sample_goursat(n: usize, seed: u64) -> Cloud {
-    collect(n, GoursatSampler::new(seed))
 }

@@ -5,8 +5,10 @@
 //! `generate goursat` and of the test kit. Pure numbers. Convention (algorithms.md 1.1):
 //! k1 <= k2, H = (k1 + k2)/2, K = k1 k2.
 
-use crate::core::estimate::principal_from_tangent;
-use crate::core::geometry::{dot, norm, normalize, scale, tangent_basis, M3, V3};
+use crate::core::geometry::{
+    norm, normalize, principal_from_tangent, scale, tangent_basis, FieldDerivatives, SurfacePoint,
+    TangentBasis, M3, V3,
+};
 
 /// The exact curvature of a smooth surface at one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,17 +38,16 @@ impl TrueCurvature {
         }
     }
 
-    /// From the 2x2 symmetric shape operator `s` in the tangent basis (e1, e2): its eigenvalues
+    /// From the 2x2 symmetric shape operator `s` in the tangent basis `b`: its eigenvalues
     /// are the principal curvatures (algorithms.md 13.3).
-    pub fn from_tangent(s: [[f64; 2]; 2], e1: V3, e2: V3) -> Self {
-        let (k1, k2, d1, d2, umbilic) = principal_from_tangent(s, e1, e2);
-        let directions = (umbilic == 0).then_some((d1, d2));
+    pub fn from_tangent(s: [[f64; 2]; 2], b: TangentBasis) -> Self {
+        let p = principal_from_tangent(s, b);
         TrueCurvature {
-            k1,
-            k2,
-            h: 0.5 * (k1 + k2),
-            k: k1 * k2,
-            directions,
+            k1: p.k1,
+            k2: p.k2,
+            h: 0.5 * (p.k1 + p.k2),
+            k: p.k1 * p.k2,
+            directions: (!p.umbilic).then_some((p.d1, p.d2)),
         }
     }
 }
@@ -62,7 +63,8 @@ pub fn plane_curvature() -> TrueCurvature {
 pub fn implicit_curvature(g: V3, hs: &M3) -> Option<TrueCurvature> {
     let gn = norm(g);
     let n = normalize(g)?;
-    let (e1, e2) = tangent_basis(n);
+    let basis = tangent_basis(n);
+    let TangentBasis { e1, e2 } = basis;
     let q = |a: V3, b: V3| {
         let mut acc = 0.0;
         for r in 0..3 {
@@ -74,8 +76,7 @@ pub fn implicit_curvature(g: V3, hs: &M3) -> Option<TrueCurvature> {
     };
     Some(TrueCurvature::from_tangent(
         [[q(e1, e1), q(e1, e2)], [q(e2, e1), q(e2, e2)]],
-        e1,
-        e2,
+        basis,
     ))
 }
 
@@ -132,11 +133,14 @@ pub const PAPER_TORUS: (f64, f64) = (6.0, 2.0);
 
 /// The torus point and outward unit normal at angles (theta around the tube from the outer
 /// equator, phi around the z axis), major radius `big_r`, tube radius `r` (algorithms.md 13.4).
-pub fn torus_point(big_r: f64, r: f64, theta: f64, phi: f64) -> (V3, V3) {
+pub fn torus_point(big_r: f64, r: f64, theta: f64, phi: f64) -> SurfacePoint {
     let (st, ct) = theta.sin_cos();
     let (sp, cp) = phi.sin_cos();
     let rho = big_r + r * ct;
-    ([rho * cp, rho * sp, r * st], [ct * cp, ct * sp, st])
+    SurfacePoint {
+        position: [rho * cp, rho * sp, r * st],
+        normal: [ct * cp, ct * sp, st],
+    }
 }
 
 /// Torus curvature from the parametrisation (algorithms.md 13.4): k1 = cos(theta)/(R + r
@@ -166,45 +170,21 @@ pub fn torus_curvature_at(big_r: f64, r: f64, p: V3) -> TrueCurvature {
     torus_curvature(big_r, r, theta, phi)
 }
 
-/// Gradient and Hessian of the implicit torus of algorithms.md 13.4,
-/// F = (|x|^2 + R^2 - r^2)^2 - 4 R^2 (x^2 + y^2), negative inside.
-pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> (V3, M3) {
-    let s = dot(p, p) + big_r * big_r - r * r;
-    let c = 8.0 * big_r * big_r;
-    let g = [
-        4.0 * s * p[0] - c * p[0],
-        4.0 * s * p[1] - c * p[1],
-        4.0 * s * p[2],
-    ];
-    let mut hs = [[0.0; 3]; 3];
-    for a in 0..3 {
-        for b in 0..3 {
-            hs[a][b] = 8.0 * p[a] * p[b];
-        }
-        hs[a][a] += 4.0 * s - if a < 2 { c } else { 0.0 };
-    }
-    (g, hs)
-}
-
-/// The goursat function of algorithms.md 13.5, F = 0.03 (x^4 + y^4 + z^4) - 2 |x|^2 - 8 (negative
-/// inside).
-pub fn goursat_value(p: V3) -> f64 {
-    let q: f64 = p.iter().map(|x| x.powi(4)).sum();
-    0.03 * q - 2.0 * dot(p, p) - 8.0
-}
-
 /// Gradient and Hessian of the goursat function (algorithms.md 13.5).
-pub fn goursat_implicit(p: V3) -> (V3, M3) {
+pub fn goursat_implicit(p: V3) -> FieldDerivatives {
     let g = p.map(|x| 0.12 * x * x * x - 4.0 * x);
     let mut hs = [[0.0; 3]; 3];
     for a in 0..3 {
         hs[a][a] = 0.36 * p[a] * p[a] - 4.0;
     }
-    (g, hs)
+    FieldDerivatives {
+        gradient: g,
+        hessian: hs,
+    }
 }
 
 /// Goursat curvature at a surface point (outward normal = gradient direction).
 pub fn goursat_curvature(p: V3) -> Option<TrueCurvature> {
-    let (g, hs) = goursat_implicit(p);
-    implicit_curvature(g, &hs)
+    let d = goursat_implicit(p);
+    implicit_curvature(d.gradient, &d.hessian)
 }

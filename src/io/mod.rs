@@ -8,6 +8,7 @@ pub mod direct;
 pub mod durable;
 pub mod info;
 pub mod las;
+pub mod las_output;
 pub mod limits;
 pub mod output;
 pub mod pack;

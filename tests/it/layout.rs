@@ -1,18 +1,20 @@
 //! The layout rules of docs/architecture.md, checked on the source text: `core/` imports nothing
 //! from `io/`, `run/`, the CLI or the configuration and touches no file, thread or channel; no
-//! two source files import each other, directly or through others (a module's own `mod.rs` may
-//! use its children); no source file over 600 lines; no function outside the tests over 100
-//! lines; every citation of docs/algorithms.md names one of its headings. Each rule fails with
-//! the file and line that break it.
+//! import cycle between files nor between folders; no source file over 600 lines; no function
+//! outside the tests over 100 lines; every citation of docs/algorithms.md names one of its
+//! headings. Each rule fails with the files and lines that break it.
+//! The import rules (what a use is, which cycles count) are `imports`' module doc.
 
-use std::collections::{BTreeMap, BTreeSet};
+mod imports;
+
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 const MAX_FILE_LINES: usize = 600;
 const MAX_FN_LINES: usize = 100;
 
 /// Every `.rs` file under `src/`, with its module path (`src/io/las/mod.rs` is `io::las`).
-fn modules() -> BTreeMap<Vec<String>, PathBuf> {
+pub(crate) fn modules() -> BTreeMap<Vec<String>, PathBuf> {
     let src = crate::common::root().join("src");
     let mut out = BTreeMap::new();
     let mut stack = vec![src.clone()];
@@ -81,187 +83,6 @@ fn code_only(text: &str) -> String {
         i += 1;
     }
     out
-}
-
-fn ident_at(b: &[char], mut i: usize) -> (String, usize) {
-    let start = i;
-    while i < b.len() && (b[i].is_alphanumeric() || b[i] == '_') {
-        i += 1;
-    }
-    (b[start..i].iter().collect(), i)
-}
-
-/// The paths named from `at` on (after `crate::` or `super::`): `a::b::c`, or every member of
-/// a `{...}` group, each as segments.
-fn paths_from(b: &[char], mut i: usize, prefix: Vec<String>, out: &mut Vec<Vec<String>>) {
-    let mut segs = prefix;
-    loop {
-        if b.get(i) == Some(&'{') {
-            i += 1;
-            loop {
-                while i < b.len() && (b[i].is_whitespace() || b[i] == ',') {
-                    i += 1;
-                }
-                if i >= b.len() || b[i] == '}' {
-                    return;
-                }
-                let before = i;
-                paths_from(b, i, segs.clone(), out);
-                // Skip this member (to the next comma or the group's end, nested groups whole).
-                let mut depth = 0;
-                while i < b.len() {
-                    match b[i] {
-                        '{' => depth += 1,
-                        '}' if depth == 0 => break,
-                        '}' => depth -= 1,
-                        ',' if depth == 0 => break,
-                        _ => {}
-                    }
-                    i += 1;
-                }
-                if i == before {
-                    return;
-                }
-            }
-        }
-        let (id, j) = ident_at(b, i);
-        if id.is_empty() {
-            out.push(segs);
-            return;
-        }
-        segs.push(id);
-        i = j;
-        if b.get(i) == Some(&':') && b.get(i + 1) == Some(&':') {
-            i += 2;
-        } else {
-            out.push(segs);
-            return;
-        }
-    }
-}
-
-/// The module files a file refers to (`crate::` and `super::` paths resolved to the deepest
-/// module that has a file), without the file itself and its own descendants.
-fn references(
-    module: &[String],
-    code: &str,
-    all: &BTreeMap<Vec<String>, PathBuf>,
-) -> BTreeSet<Vec<String>> {
-    let b: Vec<char> = code.chars().collect();
-    let mut paths = Vec::new();
-    let mut i = 0;
-    while i < b.len() {
-        let boundary =
-            i == 0 || !(b[i - 1].is_alphanumeric() || b[i - 1] == '_' || b[i - 1] == ':');
-        let rest: String = b[i..(i + 7).min(b.len())].iter().collect();
-        if boundary && rest.starts_with("crate::") {
-            paths_from(&b, i + 7, Vec::new(), &mut paths);
-        } else if boundary && rest.starts_with("super::") {
-            // The parent of the module this file is (a mod.rs file is its folder's module).
-            let mut base = module.to_vec();
-            base.pop();
-            let mut j = i + 7;
-            while b[j..].iter().take(7).collect::<String>() == "super::" {
-                base.pop();
-                j += 7;
-            }
-            paths_from(&b, j, base, &mut paths);
-        }
-        i += 1;
-    }
-    let mut out = BTreeSet::new();
-    for p in paths {
-        let target = (0..=p.len())
-            .rev()
-            .map(|n| p[..n].to_vec())
-            .find(|m| all.contains_key(m));
-        if let Some(t) = target {
-            if !t.starts_with(module) {
-                out.insert(t);
-            }
-        }
-    }
-    out
-}
-
-#[test]
-fn core_is_pure_and_there_are_no_import_cycles() {
-    let all = modules();
-    assert!(all.len() > 40, "found only {} source files", all.len());
-    let mut edges: BTreeMap<Vec<String>, BTreeSet<Vec<String>>> = BTreeMap::new();
-    let mut impure = Vec::new();
-    for (m, path) in &all {
-        let text = std::fs::read_to_string(path).expect("readable");
-        // Test modules may use the test kit and anything else: only shipped code counts.
-        let code = if is_test_file(path) {
-            String::new()
-        } else {
-            without_tests(&code_only(&text))
-        };
-        let refs = references(m, &code, &all);
-        if m.first().is_some_and(|s| s == "core") {
-            for r in &refs {
-                if r.first().is_none_or(|s| s != "core") {
-                    impure.push(format!("{} uses crate::{}", path.display(), r.join("::")));
-                }
-            }
-            for (n, line) in code.lines().enumerate() {
-                for banned in [
-                    "std::fs",
-                    "std::thread",
-                    "crossbeam",
-                    "std::sync::mpsc",
-                    "std::net",
-                    "File::",
-                ] {
-                    if line.contains(banned) {
-                        impure.push(format!("{}:{}: {banned}", path.display(), n + 1));
-                    }
-                }
-            }
-        }
-        edges.insert(m.clone(), refs);
-    }
-    assert!(
-        impure.is_empty(),
-        "core/ must be pure:\n{}",
-        impure.join("\n")
-    );
-    // Depth-first search for a cycle; report the first one found as a chain of files.
-    fn visit(
-        m: &Vec<String>,
-        edges: &BTreeMap<Vec<String>, BTreeSet<Vec<String>>>,
-        state: &mut BTreeMap<Vec<String>, u8>,
-        stack: &mut Vec<Vec<String>>,
-    ) -> Option<Vec<Vec<String>>> {
-        match state.get(m) {
-            Some(2) => return None,
-            Some(1) => {
-                let at = stack.iter().position(|s| s == m).unwrap_or(0);
-                let mut cycle = stack[at..].to_vec();
-                cycle.push(m.clone());
-                return Some(cycle);
-            }
-            _ => {}
-        }
-        state.insert(m.clone(), 1);
-        stack.push(m.clone());
-        for n in edges.get(m).into_iter().flatten() {
-            if let Some(c) = visit(n, edges, state, stack) {
-                return Some(c);
-            }
-        }
-        stack.pop();
-        state.insert(m.clone(), 2);
-        None
-    }
-    let mut state = BTreeMap::new();
-    for m in edges.keys() {
-        if let Some(cycle) = visit(m, &edges, &mut state, &mut Vec::new()) {
-            let names: Vec<String> = cycle.iter().map(|c| c.join("::")).collect();
-            panic!("import cycle: {}", names.join(" -> "));
-        }
-    }
 }
 
 /// Whether a file holds only unit tests (`tests.rs`, `*_tests.rs`, declared under
@@ -376,30 +197,13 @@ fn files_and_functions_stay_small() {
     assert!(long.is_empty(), "too long:\n{}", long.join("\n"));
 }
 
-/// The checker itself finds what it must: a cycle, a long function, braces in strings.
+/// The checker itself finds what it must: braces in strings, a long function (the import rules'
+/// own check is in `imports`).
 #[test]
 fn the_checks_catch_what_they_should() {
     let code = code_only("let s = \"{ // not code\"; // a comment with crate::io\nlet c = '{';\n");
     assert!(!code.contains("crate::io") && !code.contains("not code"));
     assert_eq!(code.matches('{').count(), 0, "{code}");
-    let mut all = BTreeMap::new();
-    for m in [
-        vec!["core".to_string()],
-        vec!["core".into(), "a".into()],
-        vec!["io".into()],
-    ] {
-        all.insert(m, PathBuf::new());
-    }
-    let refs = references(
-        &["core".to_string(), "a".into()],
-        "use crate::io::{x, y};\nuse super::{a::Thing, Other};",
-        &all,
-    );
-    // crate::io -> io; super::Other -> core (the parent); super::a is itself: left out.
-    assert_eq!(
-        refs,
-        BTreeSet::from([vec!["io".to_string()], vec!["core".to_string()]])
-    );
     let f: Vec<String> = (0..120)
         .map(|i| {
             if i == 0 {

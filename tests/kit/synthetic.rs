@@ -5,20 +5,121 @@
 //! K = k1 k2, a sphere with outward normals has H = +1/r. Random streams come from
 //! `tilecurv::core::rng::Rng`, so clouds are identical across releases for a given seed. The torus
 //! and goursat formulas and samplers are the library's (`core::surface`, `core::sampling`, which
-//! `generate torus` and `generate goursat` use too), re-exported here.
+//! `generate torus` and `generate goursat` use too), re-exported here; the clouds they fill and
+//! the implicit torus and goursat value that only the checks use are the kit's.
 
 use std::f64::consts::{PI, TAU};
 use tilecurv::core::estimate::{Curvature, Estimator, Neighbourhood, Scratch};
-use tilecurv::core::geometry::{dot, normalize, scale, sub, M3, V3};
+use tilecurv::core::geometry::{
+    dot, normalize, scale, sub, FieldDerivatives, SurfacePoint, M3, V3,
+};
 use tilecurv::core::rng::Rng;
 pub use tilecurv::core::sampling::{
-    goursat_radial, sample_goursat, sample_torus, unit_vector, Cloud, GOURSAT_DENSITY_BOUND,
+    goursat_radial, unit_vector, GoursatSampler, Noise, TorusSampler, GOURSAT_DENSITY_BOUND,
 };
 pub use tilecurv::core::surface::{
-    goursat_curvature, goursat_implicit, goursat_value, height_field_curvature, implicit_curvature,
-    plane_curvature, torus_curvature, torus_curvature_at, torus_implicit, torus_point, HeightField,
-    HeightJet, TrueCurvature,
+    goursat_curvature, goursat_implicit, height_field_curvature, implicit_curvature,
+    plane_curvature, torus_curvature, torus_curvature_at, torus_point, HeightField, HeightJet,
+    TrueCurvature,
 };
+
+/// Sampled oriented points: positions and exact (or noisy) unit normals, same order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cloud {
+    /// Positions.
+    pub positions: Vec<V3>,
+    /// Unit normals.
+    pub normals: Vec<V3>,
+}
+
+impl Cloud {
+    /// An empty cloud with room for `n` points.
+    pub fn with_capacity(n: usize) -> Self {
+        Cloud {
+            positions: Vec::with_capacity(n),
+            normals: Vec::with_capacity(n),
+        }
+    }
+
+    /// Appends the point `p` with unit normal `n`.
+    pub fn push(&mut self, p: V3, n: V3) {
+        self.positions.push(p);
+        self.normals.push(n);
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True if there are no points.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Adds centred Gaussian noise of standard deviation `sigma_position` to every position
+    /// coordinate and `sigma_normal` to every normal coordinate, then renormalises the normals
+    /// (algorithms.md 13.6, as in the CNC paper). A normal that the noise cancels exactly is left unchanged.
+    pub fn add_noise(&mut self, sigma_position: f64, sigma_normal: f64, seed: u64) {
+        let mut noise = Noise::new(sigma_position, sigma_normal, seed);
+        for (p, n) in self.positions.iter_mut().zip(self.normals.iter_mut()) {
+            let s = noise.apply(SurfacePoint {
+                position: *p,
+                normal: *n,
+            });
+            (*p, *n) = (s.position, s.normal);
+        }
+    }
+}
+
+/// The first `n` points of [`TorusSampler`]`::new(big_r, r, seed)`.
+pub fn sample_torus(n: usize, big_r: f64, r: f64, seed: u64) -> Cloud {
+    collect(n, TorusSampler::new(big_r, r, seed))
+}
+
+/// The first `n` points of a sampler as a cloud.
+fn collect(n: usize, sampler: impl Iterator<Item = SurfacePoint>) -> Cloud {
+    let mut cloud = Cloud::with_capacity(n);
+    for s in sampler.take(n) {
+        cloud.push(s.position, s.normal);
+    }
+    cloud
+}
+
+/// The first `n` points of [`GoursatSampler`]`::new(seed)`.
+pub fn sample_goursat(n: usize, seed: u64) -> Cloud {
+    collect(n, GoursatSampler::new(seed))
+}
+
+/// Gradient and Hessian of the implicit torus of algorithms.md 13.4,
+/// F = (|x|^2 + R^2 - r^2)^2 - 4 R^2 (x^2 + y^2), negative inside.
+pub fn torus_implicit(big_r: f64, r: f64, p: V3) -> FieldDerivatives {
+    let s = dot(p, p) + big_r * big_r - r * r;
+    let c = 8.0 * big_r * big_r;
+    let g = [
+        4.0 * s * p[0] - c * p[0],
+        4.0 * s * p[1] - c * p[1],
+        4.0 * s * p[2],
+    ];
+    let mut hs = [[0.0; 3]; 3];
+    for a in 0..3 {
+        for b in 0..3 {
+            hs[a][b] = 8.0 * p[a] * p[b];
+        }
+        hs[a][a] += 4.0 * s - if a < 2 { c } else { 0.0 };
+    }
+    FieldDerivatives {
+        gradient: g,
+        hessian: hs,
+    }
+}
+
+/// The goursat function of algorithms.md 13.5, F = 0.03 (x^4 + y^4 + z^4) - 2 |x|^2 - 8 (negative
+/// inside).
+pub fn goursat_value(p: V3) -> f64 {
+    let q: f64 = p.iter().map(|x| x.powi(4)).sum();
+    0.03 * q - 2.0 * dot(p, p) - 8.0
+}
 
 /// Sphere of radius `r` with outward normals (algorithms.md 13.1): k1 = k2 = 1/r, an umbilic.
 pub fn sphere_curvature(r: f64) -> TrueCurvature {

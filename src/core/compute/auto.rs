@@ -14,18 +14,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use super::{
-    estimate_one, mark, neighbour_lists, stopped, tile_normals, Cancelled, ComputeParams,
-    NeighbourhoodBuf, PointResult, Reach, TileBuffers, TileOutcome, NO_PATCH,
+    estimate_one, mark, neighbour_lists, stopped, tile_normals, Cancelled, ComputeParams, Estimate,
+    ListQuery, NeighbourhoodBuf, PointResult, Reach, TileBuffers, TileOutcome, NO_PATCH,
 };
-use crate::core::estimate::{flags, Curvature, MAX_EXTRA};
+use crate::core::estimate::{flags, Curvature};
 use crate::core::geometry::V3;
 use crate::core::neighbors::NeighbourIndex;
 use crate::core::plan::Rect;
 use crate::core::scale::{choose, Ladder, SMOOTH};
 use crate::core::tile::TilePoints;
-
-/// One rung's result at one point.
-type RungResult = (Curvature, [f64; MAX_EXTRA]);
 
 /// Computes the core points of `t` with the scale chosen per point from `ladder`
 /// (`p.k` is its top rung; no radius, no propagation: refused by the configuration).
@@ -46,7 +43,13 @@ pub(super) fn compute_auto(
         prefix: ladder.normal_k(ladder.rungs() - 1),
     };
     // The core lists, those of their 64 nearest, and of those points' neighbours (normals).
-    neighbour_lists(t, index, scene, reach, &[SMOOTH, k], (bufs, None), cancel);
+    let q = ListQuery {
+        t,
+        index,
+        scene,
+        reach,
+    };
+    neighbour_lists(&q, &[SMOOTH, k], bufs, None, cancel);
     stop()?;
     let bufs = &*bufs;
     let normals = rung_normals(t, p, ladder, bufs, cancel);
@@ -78,9 +81,9 @@ pub(super) fn compute_auto(
                 // Not reached: a verified point is among its own 64 nearest, so compared.
                 return PointResult::not_computed(t.ids[i]);
             }
-            let defined: Vec<bool> = own.iter().map(|(c, _)| is_defined(c)).collect();
+            let defined: Vec<bool> = own.iter().map(|e| is_defined(&e.curvature)).collect();
             let choice = choose(&c, &defined);
-            let (curvature, extra) = own[choice.rung];
+            let Estimate { curvature, extra } = own[choice.rung];
             PointResult {
                 id: t.ids[i],
                 normal: normals[choice.rung][i].unwrap_or([f64::NAN; 3]),
@@ -133,12 +136,12 @@ struct Rungs {
     /// Rungs per point.
     rungs: usize,
     /// `rungs` results per slot.
-    results: Vec<RungResult>,
+    results: Vec<Estimate>,
 }
 
 impl Rungs {
     /// The rungs of point `i` (empty if not computed).
-    fn of(&self, i: usize) -> &[RungResult] {
+    fn of(&self, i: usize) -> &[Estimate] {
         match self.slot[i] {
             u32::MAX => &[],
             s => &self.results[s as usize * self.rungs..][..self.rungs],
@@ -163,8 +166,7 @@ fn rung_results(
     for (s, &i) in points.iter().enumerate() {
         slot[i] = s as u32;
     }
-    let undefined = (Curvature::undefined(0), [f64::NAN; MAX_EXTRA]);
-    let mut results = vec![undefined; points.len() * rungs];
+    let mut results = vec![Estimate::undefined(0); points.len() * rungs];
     results
         .par_chunks_mut(rungs)
         .zip(points.par_iter())
@@ -194,8 +196,8 @@ fn criterion(rungs: &Rungs, near: &[u32], s: usize) -> f64 {
     let (mut sum, mut count) = (0.0, 0usize);
     for &q in near {
         let r = rungs.of(q as usize);
-        if r.len() > s + 1 && is_defined(&r[s].0) && is_defined(&r[s + 1].0) {
-            let d = r[s + 1].0.h - r[s].0.h;
+        if r.len() > s + 1 && is_defined(&r[s].curvature) && is_defined(&r[s + 1].curvature) {
+            let d = r[s + 1].curvature.h - r[s].curvature.h;
             sum += d * d;
             count += 1;
         }

@@ -189,17 +189,36 @@ struct Reach {
     prefix: usize,
 }
 
-/// The neighbourhood of point `i` into `slot` (its k entries of the flat list array): its k
-/// nearest, cut at `radius` when one is given.
-fn knn_into(
-    t: &TilePoints,
-    index: &NeighbourIndex<'_>,
-    scene: &Rect,
+/// What a tile's neighbour lists are found in and how far they reach: the loaded points, their
+/// index, the cloud's extent (a list is complete when nothing nearer can lie outside the loaded
+/// region) and the lists' [`Reach`].
+#[derive(Clone, Copy)]
+struct ListQuery<'a> {
+    /// The loaded points (core and halo).
+    t: &'a TilePoints,
+    /// Their k-NN index.
+    index: &'a NeighbourIndex<'a>,
+    /// The x/y extent of the whole cloud.
+    scene: &'a Rect,
+    /// Entries per list, radius and recorded prefix.
     reach: Reach,
+}
+
+/// The neighbourhood of point `i` into `slot` (its k entries of the flat list array): its k
+/// nearest, cut at `radius` when one is given. `scratch` and `list` are the query's buffers.
+fn knn_into(
+    q: &ListQuery<'_>,
     i: usize,
-    (scratch, list): (&mut KnnScratch, &mut Vec<u32>),
+    scratch: &mut KnnScratch,
+    list: &mut Vec<u32>,
     slot: &mut [u32],
 ) -> ListInfo {
+    let ListQuery {
+        t,
+        index,
+        scene,
+        reach,
+    } = *q;
     let far = index.knn(i, reach.k, scratch, list);
     let full = list.len() == reach.k;
     let cut = reach
@@ -251,15 +270,13 @@ const LIST_CHUNK: usize = 1024;
 /// the grid gathers per cell: in the tile's Morton order a block served fewer than 3 queries.
 /// The lists are exact whatever the order of the queries.
 fn lists_for(
-    t: &TilePoints,
-    index: &NeighbourIndex<'_>,
-    scene: &Rect,
-    reach: Reach,
-    (bufs, normals): (&mut TileBuffers, Option<&mut ListNormals<'_>>),
+    q: &ListQuery<'_>,
+    bufs: &mut TileBuffers,
+    normals: Option<&mut ListNormals<'_>>,
     which: &[bool],
     cancel: &AtomicBool,
 ) {
-    let k = reach.k;
+    let (t, index, k) = (q.t, q.index, q.reach.k);
     let scratch = || {
         let todo: Vec<(u64, u32)> = Vec::with_capacity(LIST_CHUNK);
         (
@@ -298,10 +315,10 @@ fn lists_for(
                     }
                     let (o, i) = (o as usize, first + o as usize);
                     let slot = &mut slots[o * k..(o + 1) * k];
-                    infos[o] = knn_into(t, index, scene, reach, i, (s, list), slot);
+                    infos[o] = knn_into(q, i, s, list, slot);
                     // The normal now, while the list's points are in cache.
                     if let (Some(p), Some(n)) = (p, nrm.get_mut(o)) {
-                        *n = normal_of(t, p, &slot[..infos[o].len as usize], reach.k);
+                        *n = normal_of(t, p, &slot[..infos[o].len as usize], k);
                     }
                 }
             },
@@ -327,14 +344,13 @@ fn mark(bufs: &TileBuffers, k: usize, from: &[bool], prefix: usize) -> Vec<bool>
 /// (point i: `lists[i k ..][..len]`). One fixed k needs one level (the neighbours, whose
 /// normals are used); `-k auto` two (auto.rs). With `normals`, step 3 too, point by point.
 fn neighbour_lists(
-    t: &TilePoints,
-    index: &NeighbourIndex<'_>,
-    scene: &Rect,
-    reach: Reach,
+    q: &ListQuery<'_>,
     levels: &[usize],
-    (bufs, mut normals): (&mut TileBuffers, Option<ListNormals<'_>>),
+    bufs: &mut TileBuffers,
+    mut normals: Option<ListNormals<'_>>,
     cancel: &AtomicBool,
 ) {
+    let (t, reach) = (q.t, q.reach);
     let n = t.xyz.len();
     // Grown, never cleared: a list is read only as far as its info's length, which this tile's
     // query wrote, so zeroing the whole buffer each tile would be work for nothing.
@@ -349,8 +365,7 @@ fn neighbour_lists(
         if let Some(&prefix) = prefix {
             level = mark(bufs, reach.k, &level, prefix);
         }
-        let out = normals.as_mut();
-        lists_for(t, index, scene, reach, (bufs, out), &level, cancel);
+        lists_for(q, bufs, normals.as_mut(), &level, cancel);
     }
 }
 
@@ -406,6 +421,26 @@ fn normal_of(t: &TilePoints, p: &ComputeParams<'_>, list: &[u32], prefix: usize)
         .map(|nrm| orient(nrm, t.xyz[i], p.orientation))
 }
 
+/// The estimator's output at one point.
+#[derive(Clone, Copy)]
+struct Estimate {
+    /// The curvature.
+    curvature: Curvature,
+    /// The extra values ([`Estimator::extra_columns`]): the first [`ComputeParams::extra`]
+    /// computed, the others NaN.
+    extra: [f64; MAX_EXTRA],
+}
+
+impl Estimate {
+    /// Undefined values carrying `flags`.
+    fn undefined(flags: u8) -> Self {
+        Estimate {
+            curvature: Curvature::undefined(flags),
+            extra: [f64::NAN; MAX_EXTRA],
+        }
+    }
+}
+
 /// The estimator at point `i` with the neighbour list `list` and the tile's `normals`: its
 /// curvature (flagged FILE_NORMAL when the file's normal was used) and extra values; undefined
 /// (DEGENERATE_NORMAL, and FEW_NEIGHBOURS below 3 points) without a normal at `i`.
@@ -416,7 +451,7 @@ fn estimate_one(
     i: usize,
     list: &[u32],
     s: &mut NeighbourhoodBuf,
-) -> (Curvature, [f64; MAX_EXTRA]) {
+) -> Estimate {
     let file_flag = if p.use_file_normals && t.file_normal(i).is_some() {
         flags::FILE_NORMAL
     } else {
@@ -430,13 +465,12 @@ fn estimate_one(
         } else {
             0
         };
-        let c = Curvature::undefined(flags::DEGENERATE_NORMAL | few | file_flag);
-        return (c, extra);
+        return Estimate::undefined(flags::DEGENERATE_NORMAL | few | file_flag);
     }
     let out = &mut extra[..p.extra.min(MAX_EXTRA)];
     let mut curvature = s.estimate(p.estimator, &t.xyz, normals, i, list, out);
     curvature.flags |= file_flag;
-    (curvature, extra)
+    Estimate { curvature, extra }
 }
 
 /// Step 4: the estimator at the core points `todo` (verified), written in place (an indexed
@@ -456,8 +490,8 @@ fn estimate_points(
         .map_init(
             || NeighbourhoodBuf::with_capacity(p.k),
             |s, &i| {
-                let (curvature, extra) = match cancel.load(Ordering::Relaxed) {
-                    true => (Curvature::undefined(0), [f64::NAN; MAX_EXTRA]),
+                let Estimate { curvature, extra } = match cancel.load(Ordering::Relaxed) {
+                    true => Estimate::undefined(0),
                     false => estimate_one(t, p, normals, i, bufs.list(i, p.k), s),
                 };
                 PointResult {
@@ -519,7 +553,13 @@ pub fn compute_tile(
         p,
         out: &mut normals,
     };
-    neighbour_lists(t, &index, scene, reach, &[k], (bufs, Some(out)), cancel);
+    let q = ListQuery {
+        t,
+        index: &index,
+        scene,
+        reach,
+    };
+    neighbour_lists(&q, &[k], bufs, Some(out), cancel);
     stop()?;
     let bufs = &*bufs;
     // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.

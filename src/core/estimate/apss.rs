@@ -12,7 +12,7 @@
 //! APSS/ASO reproduce Ponca's figures of algorithms.md 14.3.
 
 use super::{flags, local, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{dot, V3};
+use crate::core::geometry::{dot, TangentBasis, V3};
 use std::ops::{Add, Mul, Sub};
 
 /// Points with |q|^2/r^2 at or above this count as outside the kernel's support. The farthest
@@ -118,7 +118,7 @@ pub(crate) fn fit_sphere<T: FitScalar>(nb: &Neighbourhood<'_>, r: f64) -> Result
 /// Validity checks shared by APSS and ASO, then the kernel radius (module documentation).
 pub(crate) fn prepare(nb: &Neighbourhood<'_>) -> Result<f64, u8> {
     local::check(nb, 3)?;
-    let (e1, e2) = crate::core::geometry::tangent_basis(nb.normals[0]);
+    let TangentBasis { e1, e2 } = crate::core::geometry::tangent_basis(nb.normals[0]);
     if local::is_collinear(local::tangent_moments(nb.positions, e1, e2)) {
         return Err(flags::DEGENERATE);
     }

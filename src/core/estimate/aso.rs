@@ -4,8 +4,11 @@
 //! Hessian of F(x) = f(x; x) at the query point in one pass.
 
 use super::apss::{fit_sphere, prepare, FitScalar, SphereFit, SUPPORT_EDGE};
-use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{dot, norm, normalize, tangent_basis, M3, V3};
+use super::{flags, Curvature, Estimator, Neighbourhood, Scratch};
+use crate::core::geometry::{
+    dot, norm, normalize, principal_from_tangent, tangent_basis, FieldDerivatives, TangentBasis,
+    M3, V3,
+};
 use std::ops::{Add, Mul, Sub};
 
 /// A second-order jet: value, gradient and Hessian with respect to x (algorithms.md 6.4).
@@ -120,7 +123,7 @@ impl FitScalar for Jet {
 
 /// Gradient and Hessian of F(x) = f(x; x) at x = 0 (eqs. 28-29 at the origin):
 /// g = grad u_c + u_l, Hs = Hess u_c + J + J^T + 2 u_q I with J_ab = d u_l[a]/dx_b.
-fn field_derivatives(fit: &SphereFit<Jet>) -> (V3, M3) {
+fn field_derivatives(fit: &SphereFit<Jet>) -> FieldDerivatives {
     let g = [0, 1, 2].map(|a| fit.uc.g[a] + fit.ul[a].v);
     let mut hs = fit.uc.h;
     for (a, row) in hs.iter_mut().enumerate() {
@@ -128,7 +131,10 @@ fn field_derivatives(fit: &SphereFit<Jet>) -> (V3, M3) {
             *x += fit.ul[a].g[b] + fit.ul[b].g[a] + if a == b { 2.0 * fit.uq.v } else { 0.0 };
         }
     }
-    (g, hs)
+    FieldDerivatives {
+        gradient: g,
+        hessian: hs,
+    }
 }
 
 /// ASO (algorithms.md 6.4): principal curvatures and directions from the shape operator
@@ -148,20 +154,23 @@ impl Estimator for Aso {
             Ok(f) => f,
             Err(flag) => return Curvature::undefined(flag),
         };
-        let (g, hs) = field_derivatives(&fit);
+        let FieldDerivatives {
+            gradient: g,
+            hessian: hs,
+        } = field_derivatives(&fit);
         let gn = norm(g);
         // Opposing normals in the ball (thin structures) cancel the gradient (algorithms.md 6.4).
         let Some(n) = normalize(g).filter(|_| gn > 1e-9) else {
             return Curvature::undefined(flags::DEGENERATE);
         };
-        let (e1, e2) = tangent_basis(n);
+        let basis = tangent_basis(n);
+        let TangentBasis { e1, e2 } = basis;
         let w = |a: V3, b: V3| {
             let hb = [dot(hs[0], b), dot(hs[1], b), dot(hs[2], b)];
             dot(a, hb) / gn
         };
         let s = [[w(e1, e1), w(e1, e2)], [w(e2, e1), w(e2, e2)]];
-        let (k1, k2, d1, d2, umbilic) = principal_from_tangent(s, e1, e2);
-        Curvature::from_principal(k1, k2, d1, d2, umbilic)
+        Curvature::from_principal(principal_from_tangent(s, basis))
     }
 }
 
@@ -201,7 +210,10 @@ mod tests {
                 outer - inner
             );
             let r = 0.5 * (inner + outer);
-            let (g, hs) = field_derivatives(&fit_sphere::<Jet>(&nb, r).expect("fit"));
+            let FieldDerivatives {
+                gradient: g,
+                hessian: hs,
+            } = field_derivatives(&fit_sphere::<Jet>(&nb, r).expect("fit"));
             let f = |x: V3| {
                 let shifted: Vec<V3> = pos
                     .iter()

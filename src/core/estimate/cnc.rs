@@ -3,8 +3,11 @@
 //! variant, CNC-Avg-Hexagram.
 
 use super::hexagon::{hexagon_frame, hexagon_normal, sector_sums, HEX};
-use super::{flags, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{add, cross, dot, normalize, scale, sub, tangent_basis, M3, V3};
+use super::{flags, Curvature, Estimator, Neighbourhood, Scratch};
+use crate::core::geometry::{
+    add, cross, dot, normalize, principal_from_tangent, scale, sub, tangent_basis, TangentBasis,
+    M3, V3,
+};
 
 /// Sums of the corrected curvature measures over a set of triangles (algorithms.md 4.3).
 #[derive(Debug, Clone, Copy, Default)]
@@ -68,7 +71,8 @@ impl CncMeasures {
         if self.triangles == 0 || self.a0.is_nan() || self.a0 <= 0.0 {
             return Curvature::undefined(flags::DEGENERATE | extra_flags);
         }
-        let (e1, e2) = tangent_basis(n);
+        let basis = tangent_basis(n);
+        let TangentBasis { e1, e2 } = basis;
         // a^T sym(AM) b / A0, with sym(AM) = (AM + AM^T)/2.
         let sym = |a: V3, b: V3| {
             let am_b = self.am.map(|row| dot(row, b));
@@ -77,16 +81,10 @@ impl CncMeasures {
         };
         // Minus the tangent block, so that its eigenvalues are the curvatures k1 <= k2.
         let s = [[-sym(e1, e1), -sym(e1, e2)], [-sym(e2, e1), -sym(e2, e2)]];
-        let (k1, k2, d1, d2, umb) = principal_from_tangent(s, e1, e2);
-        Curvature {
-            h: self.a1 / self.a0,
-            k: self.a2 / self.a0,
-            k1,
-            k2,
-            d1,
-            d2,
-            flags: umb | extra_flags,
-        }
+        let p = principal_from_tangent(s, basis);
+        let mut c = Curvature::with_principal(self.a1 / self.a0, self.a2 / self.a0, p);
+        c.flags |= extra_flags;
+        c
     }
 }
 
@@ -105,7 +103,7 @@ impl Estimator for CncAvgHexagram {
 
     fn estimate(&self, nb: &Neighbourhood<'_>, _scratch: &mut Scratch) -> Curvature {
         let n0 = nb.normals[0];
-        let (u, v) = hexagon_frame(hexagon_normal(nb));
+        let TangentBasis { e1: u, e2: v } = hexagon_frame(hexagon_normal(nb));
         let sums = sector_sums(nb, u, v);
         let mut pos = [[0.0; 3]; 6];
         let mut nrm = [[0.0; 3]; 6];
@@ -153,7 +151,7 @@ impl Estimator for CncHexagram {
         if let Err(f) = local::check(nb, 3) {
             return Curvature::undefined(f);
         }
-        let (u, v) = hexagon_frame(hexagon_normal(nb));
+        let TangentBasis { e1: u, e2: v } = hexagon_frame(hexagon_normal(nb));
         let radius = 0.5 * local::knn_radius(nb.positions);
         let mut pick = [0usize; 6];
         let mut extra = 0;

@@ -14,7 +14,7 @@
 
 use super::cnc::CncMeasures;
 use super::{local, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{dot, tangent_basis};
+use crate::core::geometry::{dot, tangent_basis, TangentBasis};
 
 /// Label of a Voronoi-cell edge that comes from the bounding square, not from a bisector.
 const BOX: usize = usize::MAX;
@@ -76,7 +76,7 @@ fn clip(cell: &[CellVertex], q: [f64; 2], label: usize, out: &mut Vec<CellVertex
 /// bisectors nearest first; two consecutive bisector edges meet at a Voronoi vertex, the
 /// circumcentre of a Delaunay triangle incident to `c`.
 fn umbrella(nb: &Neighbourhood<'_>, c: usize, s: &mut Buffers) {
-    let (e1, e2) = tangent_basis(nb.normals[c]);
+    let TangentBasis { e1, e2 } = tangent_basis(nb.normals[c]);
     let origin = nb.positions[c];
     s.others.clear();
     let mut far: f64 = 0.0;

@@ -5,11 +5,11 @@
 //! scalar [`hexagon_sector`]. Pure: no files, no threads.
 
 use super::Neighbourhood;
-use crate::core::geometry::{add, cross, dot, normalize, scale, V3};
+use crate::core::geometry::{add, cross, dot, normalize, scale, TangentBasis, V3};
 
-/// The in-plane frame of the reference code's hexagon (algorithms.md 4.5): `e` is the axis after
-/// the normal's largest component, `u = n x e`, `v = n x u`.
-pub(super) fn hexagon_frame(n: V3) -> (V3, V3) {
+/// The in-plane frame of the reference code's hexagon (algorithms.md 4.5): `e` is the axis after the
+/// normal's largest component, `e1 = n x e`, `e2 = n x e1` (unit to a few ulps).
+pub(super) fn hexagon_frame(n: V3) -> TangentBasis {
     let a = n.map(f64::abs);
     let e = if a[0] >= a[1] && a[0] >= a[2] {
         [0.0, 1.0, 0.0]
@@ -23,7 +23,7 @@ pub(super) fn hexagon_frame(n: V3) -> (V3, V3) {
     // length would only scale the sector tests, which compare signs (a normalisation here
     // would lengthen this estimator's chain of dependent operations).
     let v = cross(n, u);
-    (u, v)
+    TangentBasis { e1: u, e2: v }
 }
 
 /// Directions of the six hexagon vertices, (cos k pi/3, sin k pi/3) for k = 0..5.
@@ -262,7 +262,8 @@ mod tests {
         let mut out = [0u8; 40];
         for case in 0..20_000 {
             let n = [unit(), unit(), unit()];
-            let (u, v) = hexagon_frame(normalize(n).unwrap_or([0.0, 0.0, 1.0]));
+            let TangentBasis { e1: u, e2: v } =
+                hexagon_frame(normalize(n).unwrap_or([0.0, 0.0, 1.0]));
             let len = case % 41;
             let ps: Vec<V3> = (0..len)
                 .map(|j| match (case + j) % 9 {

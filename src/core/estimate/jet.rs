@@ -7,7 +7,7 @@
 //! fit, as Cazals and Pouget recommend, to keep the normal equations well conditioned.
 
 use super::{flags, local, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{add, dot, scale, tangent_basis, V3};
+use crate::core::geometry::{add, dot, scale, tangent_basis, TangentBasis, V3};
 
 /// Largest supported degree.
 pub const MAX_DEGREE: usize = 4;
@@ -77,7 +77,7 @@ impl Estimator for Jet {
             return Curvature::undefined(f);
         }
         let n0 = nb.normals[0];
-        let (e1, e2) = tangent_basis(n0);
+        let TangentBasis { e1, e2 } = tangent_basis(n0);
         let h = local::knn_radius(nb.positions);
         if h.is_nan() || h <= 0.0 {
             return Curvature::undefined(flags::DEGENERATE);

@@ -15,7 +15,7 @@ pub mod local;
 pub mod vcm;
 pub mod wme;
 
-use crate::core::geometry::V3;
+use crate::core::geometry::{Principal, V3};
 
 /// Quality flag bits of a point's result (the `CurvatureFlags` column).
 pub mod flags {
@@ -105,17 +105,24 @@ pub fn neg(x: f64) -> f64 {
 }
 
 impl Curvature {
-    /// A result from its principal curvatures and directions, with H = (k1 + k2)/2 and
-    /// K = k1 k2 (algorithms.md 1.4), for estimators that produce no separate H and K.
-    pub fn from_principal(k1: f64, k2: f64, d1: V3, d2: V3, flags: u8) -> Self {
+    /// A result from its principal curvatures and directions `p`, with H = (k1 + k2)/2 and
+    /// K = k1 k2 (algorithms.md 1.4), flagged UMBILIC when `p` is, for estimators that produce no
+    /// separate H and K.
+    pub fn from_principal(p: Principal) -> Self {
+        Self::with_principal(0.5 * (p.k1 + p.k2), p.k1 * p.k2, p)
+    }
+
+    /// A result with its own H and K and the principal curvatures and directions `p`, flagged
+    /// UMBILIC when `p` is.
+    pub fn with_principal(h: f64, k: f64, p: Principal) -> Self {
         Curvature {
-            h: 0.5 * (k1 + k2),
-            k: k1 * k2,
-            k1,
-            k2,
-            d1,
-            d2,
-            flags,
+            h,
+            k,
+            k1: p.k1,
+            k2: p.k2,
+            d1: p.d1,
+            d2: p.d2,
+            flags: if p.umbilic { flags::UMBILIC } else { 0 },
         }
     }
 
@@ -180,27 +187,6 @@ pub trait Estimator: Sync + Send {
         let _ = extra;
         self.estimate(nb, scratch)
     }
-}
-
-/// The principal curvatures and directions of a 2x2 symmetric tangent-plane operator `s` in the
-/// basis (e1, e2): eigenvalues ascending with their 3D directions, plus the UMBILIC flag when
-/// they are indistinguishable.
-pub fn principal_from_tangent(s: [[f64; 2]; 2], e1: V3, e2: V3) -> (f64, f64, V3, V3, u8) {
-    let (l, w) = crate::core::geometry::sym2_eigen(s[0][0], 0.5 * (s[0][1] + s[1][0]), s[1][1]);
-    let dir = |w: [f64; 2]| {
-        crate::core::geometry::add(
-            crate::core::geometry::scale(e1, w[0]),
-            crate::core::geometry::scale(e2, w[1]),
-        )
-    };
-    let spread = (l[1] - l[0]).abs();
-    let level = l[0].abs().max(l[1].abs());
-    let umbilic = if spread <= 1e-6 * level || level == 0.0 {
-        flags::UMBILIC
-    } else {
-        0
-    };
-    (l[0], l[1], dir(w[0]), dir(w[1]), umbilic)
 }
 
 /// Parameters shared by the estimator family constructors (each uses what it needs).

@@ -2,7 +2,7 @@
 //! the K-neighbourhood alone. It ignores the normals' orientation and gives **unsigned**
 //! principal curvatures: k1 <= k2 are magnitudes |kappa| (so H = (|k1| + |k2|)/2 and
 //! K = |k1| |k2| >= 0, even on a saddle). The paper's own use of the VCM is for normals,
-//! principal directions and sharp features ([`sharp_feature_ratio`], algorithms.md 5.5); prefer the
+//! principal directions and sharp features (the ratio of algorithms.md 5.5); prefer the
 //! other estimators for signed curvature. [`Estimator::estimate_extra`] also gives the VCM's own
 //! normal (the convolved VCM's leading eigenvector, signed by the input normal,
 //! algorithms.md 5.3) and the sharp-feature ratio, written by `--features`.
@@ -30,14 +30,25 @@
 //! remains is biased at second order in R kappa.
 
 use super::{flags, local, Curvature, Estimator, ExtraColumn, Neighbourhood, Scratch};
-use crate::core::geometry::{add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, M3, V3};
+use crate::core::geometry::{
+    add, dot, scale, sub, sym2_eigen, sym3_eigen, tangent_basis, Eigen2, Principal, TangentBasis,
+    M3, V3,
+};
 use std::sync::OnceLock;
 
-/// Quadrature nodes on the unit sphere around the z axis: (direction, weight), weights summing
-/// to 4 pi. Polar caps of half-angle 0.6 rad get 32 midpoint rings each (the pencil-shaped
-/// cells need resolution there), the band between them 24, and every ring 48 azimuths.
-fn quadrature() -> &'static [(V3, f64)] {
-    static NODES: OnceLock<Vec<(V3, f64)>> = OnceLock::new();
+/// A quadrature node on the unit sphere.
+struct Node {
+    /// Its unit direction.
+    direction: V3,
+    /// The solid angle it stands for.
+    weight: f64,
+}
+
+/// Quadrature nodes on the unit sphere around the z axis, weights summing to 4 pi. Polar caps
+/// of half-angle 0.6 rad get 32 midpoint rings each (the pencil-shaped cells need resolution
+/// there), the band between them 24, and every ring 48 azimuths.
+fn quadrature() -> &'static [Node] {
+    static NODES: OnceLock<Vec<Node>> = OnceLock::new();
     NODES.get_or_init(|| {
         const CAP: f64 = 0.6;
         const AZIMUTHS: usize = 48;
@@ -59,25 +70,38 @@ fn quadrature() -> &'static [(V3, f64)] {
             let (st, ct) = theta.sin_cos();
             for k in 0..AZIMUTHS {
                 let phi = std::f64::consts::TAU * (k as f64 + 0.5) / AZIMUTHS as f64;
-                nodes.push(([st * phi.cos(), st * phi.sin(), ct], area / AZIMUTHS as f64));
+                nodes.push(Node {
+                    direction: [st * phi.cos(), st * phi.sin(), ct],
+                    weight: area / AZIMUTHS as f64,
+                });
             }
         }
         nodes
     })
 }
 
-/// The estimator's buffers in [`super::Scratch`]: bisector planes of one cell as (w, |w|^2/2),
-/// w = q - p in the quadrature frame.
+/// The bisector plane of a cell's centre p and a neighbour q: the points x with
+/// <x - p, w> = |w|^2 / 2.
+#[derive(Clone, Copy)]
+struct Plane {
+    /// w = q - p, in the quadrature frame.
+    w: V3,
+    /// |w|^2 / 2.
+    half: f64,
+}
+
+/// The estimator's buffers in [`super::Scratch`].
 #[derive(Default)]
 pub struct Buffers {
-    planes: Vec<(V3, f64)>,
+    /// The bisector planes of one cell.
+    planes: Vec<Plane>,
     /// The neighbourhood in the quadrature frame.
     points: Vec<V3>,
 }
 
 /// Covariance of Vor(points[c]) ∩ B(points[c], big_r) about points[c], with `points` already
 /// in the quadrature frame. Points coinciding with the centre (duplicates) do not clip.
-fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<(V3, f64)>) -> M3 {
+fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<Plane>) -> M3 {
     let p = points[c];
     planes.clear();
     let tiny = 1e-24 * big_r * big_r;
@@ -86,13 +110,14 @@ fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<(V3, f6
         let w2 = dot(w, w);
         // Points beyond 2R cannot clip the ball B(p, R) (algorithms.md 5.2).
         if j != c && w2 > tiny && w2 < 4.0 * big_r * big_r {
-            planes.push((w, 0.5 * w2));
+            planes.push(Plane { w, half: 0.5 * w2 });
         }
     }
     let mut cov = [[0.0; 3]; 3];
-    for &(u, weight) in quadrature() {
+    for node in quadrature() {
+        let (u, weight) = (node.direction, node.weight);
         let mut rho = big_r;
-        for &(w, half) in planes.iter() {
+        for &Plane { w, half } in planes.iter() {
             let s = dot(u, w);
             if s * rho > half {
                 rho = half / s;
@@ -108,24 +133,29 @@ fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<(V3, f6
     cov
 }
 
+/// The convolved VCM at the query point and the axis sums of the same cells ([`convolved_vcm`]),
+/// in the quadrature frame.
+struct Convolved {
+    /// The convolved VCM: the sum of the covariances of the cells of the points within the
+    /// convolution radius.
+    vcm: M3,
+    /// Its rank-one part and the cell centres' moments.
+    axes: AxisSums,
+}
+
 /// The convolved VCM at the query point (indicator kernel of radius `small_r`, offset
 /// `big_r`: the sum of the cells of the points within `small_r`), from points given in the
 /// quadrature frame; and its rank-one part, the sum over the same cells of lambda_max v v^T
 /// (each cell's pencil axis weighted by its pencil size), returned with the weighted second
 /// moments of the cell centres needed by the curvature formula.
-fn convolved_vcm(
-    points: &[V3],
-    big_r: f64,
-    small_r: f64,
-    planes: &mut Vec<(V3, f64)>,
-) -> (M3, AxisSums) {
+fn convolved_vcm(points: &[V3], big_r: f64, small_r: f64, planes: &mut Vec<Plane>) -> Convolved {
     let mut v = [[0.0; 3]; 3];
     let mut axes = AxisSums::default();
     for (c, &p) in points.iter().enumerate() {
         if dot(p, p) <= small_r * small_r {
             let cell = cell_covariance(points, c, big_r, planes);
-            let (l, vecs) = sym3_eigen(&cell);
-            let (w, axis) = (l[2], vecs[2]);
+            let e = sym3_eigen(&cell);
+            let (w, axis) = (e.values[2], e.vectors[2]);
             axes.weight += w;
             for a in 0..3 {
                 axes.centre[a] += w * p[a];
@@ -137,7 +167,7 @@ fn convolved_vcm(
             }
         }
     }
-    (v, axes)
+    Convolved { vcm: v, axes }
 }
 
 /// Weighted sums over the convolved cells (weights = the cells' largest eigenvalues).
@@ -154,15 +184,10 @@ struct AxisSums {
 }
 
 /// The sharp-feature ratio of algorithms.md 5.5, lambda_2 / (lambda_1 + lambda_2 + lambda_3) with
-/// the eigenvalues of the convolved VCM `v` in decreasing order: about 0 on smooth parts,
-/// (alpha - sin alpha) / (2 alpha) ~ alpha^2 / 12 on an edge of external angle alpha, at most
-/// 1/2. NaN for a zero matrix.
-pub fn sharp_feature_ratio(v: &M3) -> f64 {
-    ratio_of(sym3_eigen(v).0)
-}
-
-/// [`sharp_feature_ratio`] from the eigenvalues in ascending order (as `sym3_eigen` sorts
-/// them): lambda_2 of the decreasing order is the middle one.
+/// the eigenvalues `l` of the convolved VCM in decreasing order, from them in ascending order
+/// (as `sym3_eigen` sorts them): lambda_2 of the decreasing order is the middle one. About 0
+/// on smooth parts, (alpha - sin alpha) / (2 alpha) ~ alpha^2 / 12 on an edge of external
+/// angle alpha, at most 1/2. NaN for a zero matrix.
 fn ratio_of(l: [f64; 3]) -> f64 {
     l[1] / (l[0] + l[1] + l[2])
 }
@@ -210,10 +235,10 @@ const EXTRA_COLUMNS: [ExtraColumn; 4] = [
 /// The VCM's own normal and sharp-feature score (algorithms.md 5.3, 5.5) from the convolved VCM
 /// `v` given in the query frame `frame` (whose third axis is the query's input normal): the
 /// leading eigenvector, signed to agree with the input normal and mapped to world axes, and
-/// [`sharp_feature_ratio`]. NaN components for a zero or non-finite matrix.
+/// [`ratio_of`] its eigenvalues. NaN components for a zero or non-finite matrix.
 fn extra_of(frame: &M3, v: &M3) -> Features {
-    let (l, vecs) = sym3_eigen(v);
-    let e = vecs[2];
+    let eig = sym3_eigen(v);
+    let (l, e) = (eig.values, eig.vectors[2]);
     let normal = if l[2].is_finite() && l[2] > 0.0 {
         // In the frame the input normal is the z axis: agreeing means a non-negative z.
         from_frame(frame, if e[2] < 0.0 { scale(e, -1.0) } else { e })
@@ -226,34 +251,19 @@ fn extra_of(frame: &M3, v: &M3) -> Features {
     }
 }
 
-/// The query frame ([`frame_of`] the query's input normal) and, in it, the convolved VCM and
+/// In the query frame `frame` ([`frame_of`] the query's input normal), the convolved VCM and
 /// the axis sums of the neighbourhood with the radii of the module documentation: offset
 /// R = `d_k`, convolution radius r = `d_k` / 2.
-fn convolved_in_frame(nb: &Neighbourhood<'_>, d_k: f64, s: &mut Buffers) -> (M3, M3, AxisSums) {
-    let frame = frame_of(nb.normals[0]);
+fn convolved_in_frame(nb: &Neighbourhood<'_>, frame: &M3, d_k: f64, s: &mut Buffers) -> Convolved {
     let Buffers { planes, points } = s;
     points.clear();
-    points.extend(nb.positions.iter().map(|&p| to_frame(&frame, p)));
-    let (v, ax) = convolved_vcm(points, d_k, 0.5 * d_k, planes);
-    (frame, v, ax)
-}
-
-/// The convolved VCM of the neighbourhood at the query point with the radii of the module
-/// documentation (R = d_K, r = d_K / 2), in world axes (for feature detection with
-/// [`sharp_feature_ratio`]). None for fewer than 3 points or a zero radius.
-pub fn neighbourhood_vcm(nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Option<M3> {
-    local::check(nb, 3).ok()?;
-    let d_k = local::knn_radius(nb.positions);
-    if d_k.is_nan() || d_k <= 0.0 {
-        return None;
-    }
-    let (frame, v, _) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
-    Some(from_frame_matrix(&frame, &v))
+    points.extend(nb.positions.iter().map(|&p| to_frame(frame, p)));
+    convolved_vcm(points, d_k, 0.5 * d_k, planes)
 }
 
 /// The quadrature frame (e1, e2, n): its rows map world vectors to frame coordinates.
 fn frame_of(n: V3) -> M3 {
-    let (e1, e2) = tangent_basis(n);
+    let TangentBasis { e1, e2 } = tangent_basis(n);
     [e1, e2, n]
 }
 
@@ -263,21 +273,6 @@ fn to_frame(f: &M3, p: V3) -> V3 {
 
 fn from_frame(f: &M3, p: V3) -> V3 {
     add(add(scale(f[0], p[0]), scale(f[1], p[1])), scale(f[2], p[2]))
-}
-
-/// F^T v F: a frame matrix back to world axes.
-fn from_frame_matrix(f: &M3, v: &M3) -> M3 {
-    let mut out = [[0.0; 3]; 3];
-    for (a, row) in out.iter_mut().enumerate() {
-        for (b, x) in row.iter_mut().enumerate() {
-            for i in 0..3 {
-                for j in 0..3 {
-                    *x += f[i][a] * v[i][j] * f[j][b];
-                }
-            }
-        }
-    }
-    out
 }
 
 /// The VCM estimator: unsigned principal curvature magnitudes and principal directions (see
@@ -310,20 +305,21 @@ impl Estimator for Vcm {
             return Curvature::undefined(f);
         }
         let d_k = local::knn_radius(nb.positions);
-        let (e1, e2) = tangent_basis(nb.normals[0]);
+        let TangentBasis { e1, e2 } = tangent_basis(nb.normals[0]);
         if d_k.is_nan()
             || d_k <= 0.0
             || local::is_collinear(local::tangent_moments(nb.positions, e1, e2))
         {
             return Curvature::undefined(flags::DEGENERATE);
         }
-        let (frame, v, ax) = convolved_in_frame(nb, d_k, &mut scratch.vcm);
-        let f = extra_of(&frame, &v);
+        let frame = frame_of(nb.normals[0]);
+        let c = convolved_in_frame(nb, &frame, d_k, &mut scratch.vcm);
+        let f = extra_of(&frame, &c.vcm);
         let values = [f.feature, f.normal[0], f.normal[1], f.normal[2]];
         for (slot, v) in extra.iter_mut().zip(values) {
             *slot = v;
         }
-        magnitudes(&frame, &ax)
+        magnitudes(&frame, &c.axes)
     }
 }
 
@@ -335,14 +331,17 @@ fn magnitudes(frame: &M3, ax: &AxisSums) -> Curvature {
         return Curvature::undefined(flags::DEGENERATE);
     }
     // The normal: the axis VCM's leading eigenvector (unoriented); lambda_1 its value.
-    let (l, vecs) = sym3_eigen(&ax.vcm);
-    let (lambda1, n) = (l[2], vecs[2]);
-    let (t1, t2) = tangent_basis(n);
+    let eig = sym3_eigen(&ax.vcm);
+    let (lambda1, n) = (eig.values[2], eig.vectors[2]);
+    let TangentBasis { e1: t1, e2: t2 } = tangent_basis(n);
     let quad = |m: &M3, a: V3, b: V3| {
         let mb = [dot(m[0], b), dot(m[1], b), dot(m[2], b)];
         dot(a, mb)
     };
-    let (mu, w) = sym2_eigen(
+    let Eigen2 {
+        values: mu,
+        vectors: w,
+    } = sym2_eigen(
         quad(&ax.vcm, t1, t1),
         quad(&ax.vcm, t1, t2),
         quad(&ax.vcm, t2, t2),
@@ -361,12 +360,13 @@ fn magnitudes(frame: &M3, ax: &AxisSums) -> Curvature {
     }
     out.sort_by(|a, b| a.0.total_cmp(&b.0));
     let [(k1, d1), (k2, d2)] = out;
-    let umbilic = if k2 - k1 <= 1e-6 * k2 || k2 == 0.0 {
-        flags::UMBILIC
-    } else {
-        0
-    };
-    Curvature::from_principal(k1, k2, d1, d2, umbilic)
+    Curvature::from_principal(Principal {
+        k1,
+        k2,
+        d1,
+        d2,
+        umbilic: k2 - k1 <= 1e-6 * k2 || k2 == 0.0,
+    })
 }
 
 #[cfg(test)]

@@ -5,6 +5,40 @@ use crate::core::rng::Rng;
 use crate::kit::synthetic::{estimate_point, knn_brute, Cloud};
 use crate::kit::testkit::{self, below, Shape};
 
+/// The sharp-feature ratio ([`ratio_of`]) of the convolved VCM `v`, from its eigenvalues.
+fn sharp_feature_ratio(v: &M3) -> f64 {
+    ratio_of(sym3_eigen(v).values)
+}
+
+/// The convolved VCM of the neighbourhood at the query point with the radii of the module
+/// documentation (R = d_K, r = d_K / 2), in world axes (for feature detection with
+/// [`sharp_feature_ratio`]). None for fewer than 3 points or a zero radius.
+fn neighbourhood_vcm(nb: &Neighbourhood<'_>, scratch: &mut Scratch) -> Option<M3> {
+    local::check(nb, 3).ok()?;
+    let d_k = local::knn_radius(nb.positions);
+    if d_k.is_nan() || d_k <= 0.0 {
+        return None;
+    }
+    let frame = frame_of(nb.normals[0]);
+    let c = convolved_in_frame(nb, &frame, d_k, &mut scratch.vcm);
+    Some(from_frame_matrix(&frame, &c.vcm))
+}
+
+/// F^T v F: a frame matrix back to world axes.
+fn from_frame_matrix(f: &M3, v: &M3) -> M3 {
+    let mut out = [[0.0; 3]; 3];
+    for (a, row) in out.iter_mut().enumerate() {
+        for (b, x) in row.iter_mut().enumerate() {
+            for i in 0..3 {
+                for j in 0..3 {
+                    *x += f[i][a] * v[i][j] * f[j][b];
+                }
+            }
+        }
+    }
+    out
+}
+
 /// RMS errors of the unsigned magnitudes (sorted |k| against sorted |true k|) and the mean
 /// angle (degrees) of the smaller-magnitude direction, over every `stride`-th point.
 fn unsigned_errors(shape: Shape, k: usize, stride: usize) -> Option<(f64, f64, f64)> {
@@ -82,7 +116,7 @@ fn vcm_extra(cloud: &Cloud, nbrs: &[usize]) -> Features {
 fn normal_errors(cloud: &Cloud, knn: &[Vec<usize>], which: &[usize], what: &str) -> (f64, f64) {
     let tilt = |n: V3, j: usize| {
         // A 20-degree rotation about a tangent axis that varies from point to point.
-        let (t1, t2) = tangent_basis(n);
+        let TangentBasis { e1: t1, e2: t2 } = tangent_basis(n);
         let phi = j as f64 * 2.399;
         let axis = add(scale(t1, phi.cos()), scale(t2, phi.sin()));
         let r = crate::kit::synthetic::rotation(axis, 20f64.to_radians());
@@ -231,7 +265,7 @@ fn sharp_feature_ratio_separates_face_edge_and_corner() {
             "estimator {written} vs sharp_feature_ratio {direct}"
         );
         // lambda2 / lambda3 of the decreasing order: the middle over the smallest.
-        let (l, _) = sym3_eigen(&v);
+        let l = sym3_eigen(&v).values;
         (written, l[1] / l[0])
     };
     let ((face, _), (edge, edge_23), (corner, corner_23)) = (ratio(6000), ratio(6001), ratio(6002));

@@ -3,8 +3,8 @@
 //! B = A G, with neighbour normals first reoriented towards the query normal (one flipped normal
 //! would be a huge outlier).
 
-use super::{flags, local, principal_from_tangent, Curvature, Estimator, Neighbourhood, Scratch};
-use crate::core::geometry::{dot, tangent_basis};
+use super::{flags, local, Curvature, Estimator, Neighbourhood, Scratch};
+use crate::core::geometry::{dot, principal_from_tangent, tangent_basis, TangentBasis};
 
 /// Solves the 2x2 system (m + eps I) x = b for symmetric positive semi-definite `m`, with
 /// eps = 1e-12 trace(m) (algorithms.md 7.1). None if the regularised matrix is still
@@ -34,7 +34,8 @@ impl Estimator for Wme {
             return Curvature::undefined(f);
         }
         let n0 = nb.normals[0];
-        let (e1, e2) = tangent_basis(n0);
+        let basis = tangent_basis(n0);
+        let TangentBasis { e1, e2 } = basis;
         // omega = A^T A (the query point contributes a zero row).
         let omega = local::tangent_moments(nb.positions, e1, e2);
         if local::is_collinear(omega) {
@@ -59,18 +60,9 @@ impl Estimator for Wme {
             return Curvature::undefined(flags::DEGENERATE);
         };
         let g = [[c0[0], c1[0]], [c0[1], c1[1]]];
-        let (k1, k2, d1, d2, umbilic) = principal_from_tangent(g, e1, e2);
         let h = 0.5 * (g[0][0] + g[1][1]);
         let k = g[0][0] * g[1][1] - g[0][1] * g[1][0];
-        Curvature {
-            h,
-            k,
-            k1,
-            k2,
-            d1,
-            d2,
-            flags: umbilic,
-        }
+        Curvature::with_principal(h, k, principal_from_tangent(g, basis))
     }
 }
 

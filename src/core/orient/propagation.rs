@@ -6,6 +6,7 @@
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
+use std::ops::Range;
 
 use super::signs::{PatchAnchor, SharedNormal};
 use super::{orient_outward, Centroid};
@@ -150,33 +151,40 @@ pub fn propagate<L: AsRef<[u32]>>(
         components: Vec::new(),
     };
     // 1. Components by breadth-first search, in order of their smallest index.
-    let (members, spans) = label_components(knn, &rev, &live, &mut out);
+    let labelled = label_components(knn, &rev, &live, &mut out);
     // 2. Seeds: farthest from the centre (ties: smaller position, then smaller index), oriented
     // away from it.
-    for &(a, b) in &spans {
-        let comp = seed_component(xyz, normals, &members[a..b], seed, &mut out.flip);
+    for span in &labelled.spans {
+        let members = &labelled.members[span.clone()];
+        let comp = seed_component(xyz, normals, members, seed, &mut out.flip);
         out.components.push(comp);
     }
-    drop(members);
+    drop(labelled);
     // 3. Prim's minimum spanning tree from each seed; each reached point agrees with its parent.
     grow_trees(knn, &rev, normals, &mut out);
     out
 }
 
+/// The members of the components [`label_components`] labels.
+struct Members {
+    /// The members of every component, component after component.
+    members: Vec<u32>,
+    /// Per component, where its members are in `members`.
+    spans: Vec<Range<usize>>,
+}
+
 /// Step 1 of [`propagate`]: labels the components of the live points in `out.component`, by
-/// breadth-first search from each unlabelled point in index order. Returns the members of
-/// every component, in that order, and per component the span of its members.
+/// breadth-first search from each unlabelled point in index order; their members in that order.
 fn label_components<L: AsRef<[u32]>>(
     knn: &[L],
     rev: &InLists,
     live: &[bool],
     out: &mut Propagation,
-) -> (Vec<u32>, Vec<(usize, usize)>) {
+) -> Members {
     let n = live.len();
     let mut queue: Vec<u32> = Vec::new();
     let mut members: Vec<u32> = Vec::new();
-    // Per component: offsets of its members in `members`.
-    let mut spans: Vec<(usize, usize)> = Vec::new();
+    let mut spans: Vec<Range<usize>> = Vec::new();
     for s in 0..n {
         if !live[s] || out.component[s] != Propagation::NONE {
             continue;
@@ -198,9 +206,9 @@ fn label_components<L: AsRef<[u32]>>(
                 }
             }
         }
-        spans.push((first, members.len()));
+        spans.push(first..members.len());
     }
-    (members, spans)
+    Members { members, spans }
 }
 
 /// Step 2 of [`propagate`] for the component of points `pts`: its seed, the point farthest

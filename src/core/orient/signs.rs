@@ -119,17 +119,24 @@ pub fn patch_signs(n_patches: usize, votes: &[PatchVote], anchors: &[PatchAnchor
         t.0 += ag;
         t.1 += dis;
     }
-    // Adjacency: (neighbour, |margin|, opposite sign).
-    let mut adj: Vec<Vec<(u32, u64, bool)>> = vec![Vec::new(); np];
+    let mut adj: Vec<Vec<Link>> = vec![Vec::new(); np];
     for (&(a, b), &(ag, dis)) in &margin {
         if ag != dis {
-            let m = ag.abs_diff(dis);
-            adj[a as usize].push((b, m, dis > ag));
-            adj[b as usize].push((a, m, dis > ag));
+            let (margin, opposite) = (ag.abs_diff(dis), dis > ag);
+            adj[a as usize].push(Link {
+                to: b,
+                margin,
+                opposite,
+            });
+            adj[b as usize].push(Link {
+                to: a,
+                margin,
+                opposite,
+            });
         }
     }
     // Groups, in order of their smallest patch.
-    let (group, order) = patch_groups(&adj);
+    let Groups { of: group, order } = patch_groups(&adj);
     // The reference of each group: its best anchor, else its smallest patch.
     let mut reference: Vec<Option<PatchAnchor>> = vec![None; order.len()];
     for a in anchors.iter().filter(|a| (a.patch as usize) < np) {
@@ -165,9 +172,27 @@ pub fn patch_signs(n_patches: usize, votes: &[PatchVote], anchors: &[PatchAnchor
     }
 }
 
-/// The connected groups of patches in the graph `adj` (index order of their smallest patch):
-/// per patch its group, and per group its patches in breadth-first order from the smallest.
-fn patch_groups(adj: &[Vec<(u32, u64, bool)>]) -> (Vec<u32>, Vec<Vec<u32>>) {
+/// A link of the patch graph: a neighbouring patch and the margin of their votes.
+#[derive(Debug, Clone, Copy)]
+struct Link {
+    /// The neighbouring patch.
+    to: u32,
+    /// |agree - disagree| of their votes (never 0: tied pairs are not linked).
+    margin: u64,
+    /// Whether their votes mostly disagree: the two take opposite signs.
+    opposite: bool,
+}
+
+/// The connected groups of patches ([`patch_groups`]).
+struct Groups {
+    /// Per patch, its group.
+    of: Vec<u32>,
+    /// Per group, its patches in breadth-first order from the smallest.
+    order: Vec<Vec<u32>>,
+}
+
+/// The connected groups of patches in the graph `adj` (index order of their smallest patch).
+fn patch_groups(adj: &[Vec<Link>]) -> Groups {
     let np = adj.len();
     let mut group = vec![u32::MAX; np];
     let mut order: Vec<Vec<u32>> = Vec::new();
@@ -182,7 +207,7 @@ fn patch_groups(adj: &[Vec<(u32, u64, bool)>]) -> (Vec<u32>, Vec<Vec<u32>>) {
         while head < list.len() {
             let p = list[head] as usize;
             head += 1;
-            for &(q, _, _) in &adj[p] {
+            for &Link { to: q, .. } in &adj[p] {
                 if group[q as usize] == u32::MAX {
                     group[q as usize] = g;
                     list.push(q);
@@ -191,7 +216,7 @@ fn patch_groups(adj: &[Vec<(u32, u64, bool)>]) -> (Vec<u32>, Vec<Vec<u32>>) {
         }
         order.push(list);
     }
-    (group, order)
+    Groups { of: group, order }
 }
 
 /// The flip of every patch: in each group of `order`, its reference (`reference`: the anchor's
@@ -200,7 +225,7 @@ fn patch_groups(adj: &[Vec<(u32, u64, bool)>]) -> (Vec<u32>, Vec<Vec<u32>>) {
 fn follow_margins(
     order: &[Vec<u32>],
     reference: &[Option<PatchAnchor>],
-    adj: &[Vec<(u32, u64, bool)>],
+    adj: &[Vec<Link>],
 ) -> Vec<bool> {
     let np = adj.len();
     let mut flip = vec![false; np];
@@ -216,9 +241,9 @@ fn follow_margins(
         done[root] = true;
         let mut reached = root;
         loop {
-            for &(q, m, opposite) in &adj[reached] {
-                if !done[q as usize] {
-                    heap.push((m, Reverse(q), Reverse(reached as u32), opposite));
+            for l in &adj[reached] {
+                if !done[l.to as usize] {
+                    heap.push((l.margin, Reverse(l.to), Reverse(reached as u32), l.opposite));
                 }
             }
             let next = loop {

@@ -171,10 +171,22 @@ fn check_layers(
     Ok(())
 }
 
-/// The chunk holding point `point`: its index and the chunk.
-pub fn chunk_of(chunks: &[Chunk], point: u64) -> Option<(usize, Chunk)> {
+/// A chunk of a chunk table and its place there.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ChunkAt {
+    /// Its index in the table.
+    pub index: usize,
+    /// The chunk.
+    pub chunk: Chunk,
+}
+
+/// The chunk holding point `point`.
+pub fn chunk_of(chunks: &[Chunk], point: u64) -> Option<ChunkAt> {
     let i = chunks
         .partition_point(|c| c.first_point <= point)
         .checked_sub(1)?;
-    Some((i, chunks[i]))
+    Some(ChunkAt {
+        index: i,
+        chunk: chunks[i],
+    })
 }

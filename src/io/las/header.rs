@@ -10,6 +10,16 @@ use crate::error::{Error, Result};
 /// Size in bytes of the fixed part of each point data record format 0 to 10.
 pub const POINT_FORMAT_SIZES: [u16; 11] = [20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67];
 
+/// How LAS records store coordinates: x = X scale[0] + offset[0] for the record's integer X, and
+/// so on for y and z.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quantisation {
+    /// The scale factor of each axis.
+    pub scale: [f64; 3],
+    /// The offset of each axis.
+    pub offset: [f64; 3],
+}
+
 /// The fields of a LAS header that tilecurv reads, plus the raw bytes it was parsed from.
 #[derive(Debug, Clone)]
 pub struct LasHeader {
@@ -90,10 +100,7 @@ fn signature_and_version(bytes: &[u8], bad: &dyn Fn(usize, String) -> Error) -> 
 
 /// The coordinate scale factors and offsets, checked to be finite (and the scales non-zero);
 /// `bad` makes the error at a byte offset.
-fn scale_and_offset(
-    bytes: &[u8],
-    bad: &dyn Fn(usize, String) -> Error,
-) -> Result<([f64; 3], [f64; 3])> {
+fn scale_and_offset(bytes: &[u8], bad: &dyn Fn(usize, String) -> Error) -> Result<Quantisation> {
     let scale = [f64_at(bytes, 131), f64_at(bytes, 139), f64_at(bytes, 147)];
     let offset = [f64_at(bytes, 155), f64_at(bytes, 163), f64_at(bytes, 171)];
     for (i, s) in scale.iter().enumerate() {
@@ -117,7 +124,7 @@ fn scale_and_offset(
             ));
         }
     }
-    Ok((scale, offset))
+    Ok(Quantisation { scale, offset })
 }
 
 impl LasHeader {
@@ -169,7 +176,7 @@ impl LasHeader {
             return Err(bad(105, format!("point record length {record_length} is shorter than the {base} bytes of point format {point_format}")));
         }
         let legacy_count = u32_at(bytes, 107) as u64;
-        let (scale, offset) = scale_and_offset(bytes, &bad)?;
+        let Quantisation { scale, offset } = scale_and_offset(bytes, &bad)?;
         let max = [f64_at(bytes, 179), f64_at(bytes, 195), f64_at(bytes, 211)];
         let min = [f64_at(bytes, 187), f64_at(bytes, 203), f64_at(bytes, 219)];
         let waveform_start = if version.1 >= 3 {

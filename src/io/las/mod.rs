@@ -1,11 +1,9 @@
 //! The LAS/LAZ file format: header, VLRs, extra-bytes descriptors, and the one writer of LAS/LAZ
-//! files ([`writer`]), which `process` reaches through [`carry`] (a LAS input's parts carried
-//! over) or [`convert`] (any other input converted) and `generate terrain` uses directly.
-//! Reading points is `io::source`'s job.
+//! files ([`writer`]), which `process` reaches through `io::las_output` and `generate terrain`
+//! uses directly. Reading points is `io::source`'s job. Below `io::columns` and `io::source`,
+//! which use it.
 
-pub mod carry;
 pub mod chunks;
-pub mod convert;
 pub mod extra_bytes;
 pub mod fields;
 pub mod header;
@@ -15,3 +13,7 @@ pub mod trim;
 pub mod upgrade;
 pub mod vlr;
 pub mod writer;
+
+// The old paths of the two modules that moved to `io::las_output` (they use `io::columns` and
+// `io::source`, which use this module), until `io/sink.rs` names the new ones: then remove.
+pub use crate::io::las_output::{carry, convert};

@@ -25,10 +25,17 @@ pub struct Vlr {
 /// Points per LAZ chunk in the files we write (LASzip's default).
 pub const LAZ_CHUNK_POINTS: u32 = 50_000;
 
+/// A LASzip layout and the VLR that describes it ([`laszip`]).
+pub struct Laszip {
+    /// The layout, for the compressor.
+    pub layout: laz::LazVlr,
+    /// Its "laszip encoded" VLR, to be written among the file's VLRs.
+    pub vlr: Vlr,
+}
+
 /// The LASzip layout of `point_format` records followed by `extra` bytes, in fixed chunks of
-/// [`LAZ_CHUNK_POINTS`], and the "laszip encoded" VLR that describes it (to be written among the
-/// file's VLRs).
-pub fn laszip(point_format: u8, extra: u16) -> Result<(laz::LazVlr, Vlr)> {
+/// [`LAZ_CHUNK_POINTS`], and the "laszip encoded" VLR that describes it.
+pub fn laszip(point_format: u8, extra: u16) -> Result<Laszip> {
     let lv = laz::LazVlrBuilder::default()
         .with_point_format(point_format, extra)
         .map_err(|e| {
@@ -42,7 +49,7 @@ pub fn laszip(point_format: u8, extra: u16) -> Result<(laz::LazVlr, Vlr)> {
     lv.write_to(&mut data)
         .map_err(|e| Error::Internal(format!("LASzip VLR: {e}")))?;
     let vlr = Vlr::new("laszip encoded", 22204, "http://laszip.org", data);
-    Ok((lv, vlr))
+    Ok(Laszip { layout: lv, vlr })
 }
 
 impl Vlr {

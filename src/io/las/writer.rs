@@ -101,13 +101,8 @@ impl LasFileSpec<'_> {
     }
 
     /// The output's VLRs: the carried ones with the extra-bytes payload in place (or a new
-    /// extra-bytes VLR after them), the provenance, and the LASzip VLR for a LAZ output, whose
-    /// layout is returned with them.
-    fn vlrs(
-        &self,
-        header: &LasHeader,
-        compressed: bool,
-    ) -> Result<(Vec<Vlr>, Option<laz::LazVlr>)> {
+    /// extra-bytes VLR after them), the provenance, and the LASzip VLR for a LAZ output.
+    fn vlrs(&self, header: &LasHeader, compressed: bool) -> Result<Vlrs> {
         let mut vlrs: Vec<Vlr> = Vec::new();
         let home = self.extra_bytes_home();
         for v in self.vlrs {
@@ -133,18 +128,21 @@ impl LasFileSpec<'_> {
             self.provenance.as_bytes().to_vec(),
         ));
         if !compressed {
-            return Ok((vlrs, None));
+            return Ok(Vlrs { vlrs, laz: None });
         }
         let extra = self.record_length - POINT_FORMAT_SIZES[header.point_format as usize];
-        let (lv, vlr) = laszip(header.point_format, extra)?;
-        vlrs.push(vlr);
-        Ok((vlrs, Some(lv)))
+        let laz = laszip(header.point_format, extra)?;
+        vlrs.push(laz.vlr);
+        Ok(Vlrs {
+            vlrs,
+            laz: Some(laz.layout),
+        })
     }
 
     /// The output's EVLRs (COPC dropped, the extra bytes in the first extra-bytes EVLR if no
     /// VLR holds them, other extra-bytes EVLRs dropped) and the index of the waveform record
     /// among them.
-    fn evlrs(&self, header: &LasHeader) -> (Vec<Vlr>, Option<usize>) {
+    fn evlrs(&self, header: &LasHeader) -> Evlrs {
         let mut evlrs: Vec<Vlr> = Vec::new();
         let mut waveform = None;
         let home = self.extra_bytes_home();
@@ -168,7 +166,7 @@ impl LasFileSpec<'_> {
         if home == ExtraBytesHome::NewEvlr {
             evlrs.push(extra_bytes::vlr(self.extra_bytes.clone()));
         }
-        (evlrs, waveform)
+        Evlrs { evlrs, waveform }
     }
 
     /// Where the one extra-bytes record of the output goes.
@@ -193,6 +191,22 @@ impl LasFileSpec<'_> {
             ..v.clone()
         }
     }
+}
+
+/// An output's VLRs ([`LasFileSpec::vlrs`]).
+struct Vlrs {
+    /// The records, in order.
+    vlrs: Vec<Vlr>,
+    /// The LASzip layout they describe, for a LAZ output.
+    laz: Option<laz::LazVlr>,
+}
+
+/// An output's EVLRs ([`LasFileSpec::evlrs`]).
+struct Evlrs {
+    /// The records, in order.
+    evlrs: Vec<Vlr>,
+    /// The index of the waveform record among them.
+    waveform: Option<usize>,
 }
 
 /// Where the output's one extra-bytes record is written: in place of the input's first
@@ -252,8 +266,11 @@ impl LasFileWriter {
     pub fn create(output: &Path, spec: LasFileSpec<'_>) -> Result<Self> {
         let compressed = output_is_laz(output)?;
         let header = spec.start_header(output)?;
-        let (vlrs, laz_vlr) = spec.vlrs(&header, compressed)?;
-        let (evlrs, waveform_evlr) = spec.evlrs(&header);
+        let Vlrs { vlrs, laz: laz_vlr } = spec.vlrs(&header, compressed)?;
+        let Evlrs {
+            evlrs,
+            waveform: waveform_evlr,
+        } = spec.evlrs(&header);
         if spec.extra_bytes.len() > u16::MAX as usize && header.version.1 < 4 {
             return Err(spec.error(too_many_descriptors(spec.extra_bytes.len(), header.version)));
         }

@@ -9,7 +9,7 @@ use crate::io::crs::UnitSource;
 
 use super::{
     no_crs, usable_normal, xyz_and_normals, Bounds, InputBytes, PointSource, Property,
-    SourceLayout, SourcePoint,
+    SourceLayout, SourcePoint, XyzNormals,
 };
 
 /// Fixed-size binary point records in a memory-mapped file (binary PLY vertices, binary PCD),
@@ -39,7 +39,7 @@ impl BinarySource {
         record_length: usize,
         props: Vec<Property>,
     ) -> Result<Self> {
-        let (xyz, normals) = xyz_and_normals(props.iter().map(|p| p.name.as_str()));
+        let XyzNormals { xyz, normals } = xyz_and_normals(props.iter().map(|p| p.name.as_str()));
         let Some(xyz) = xyz else {
             let names: Vec<_> = props.iter().map(|p| p.name.as_str()).collect();
             return Err(Error::bad_input(path, None, format!(

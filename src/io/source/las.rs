@@ -11,9 +11,9 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::io::crs::{horizontal_unit, UnitSource};
-use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk};
+use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk, ChunkAt};
 use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
-use crate::io::las::header::{LasHeader, POINT_FORMAT_SIZES};
+use crate::io::las::header::{LasHeader, Quantisation, POINT_FORMAT_SIZES};
 use crate::io::las::parts::LasParts;
 use crate::io::las::trim::Trim;
 use crate::io::las::vlr::{self, read_evlrs, read_vlrs, Vlr};
@@ -191,7 +191,7 @@ impl LasSource {
                 (0..3).find(|&a| !(p[a] >= h.min[a] - margin && p[a] <= h.max[a] + margin))
             {
                 let id = first + i as u64;
-                let (c, chunk) = chunk_of(&self.chunks, id).unwrap_or_default();
+                let ChunkAt { index: c, chunk } = chunk_of(&self.chunks, id).unwrap_or_default();
                 return Err(Error::bad_input(&self.path, Some(chunk.offset), format!(
                     "LAZ chunk {c} (at the byte offset given) decodes point {id} at {} = {:e}, far outside the header's bounds {:e}..{:e}: the chunk is corrupt",
                     ["x", "y", "z"][a], p[a], h.min[a], h.max[a])));
@@ -360,9 +360,12 @@ impl PointSource for LasSource {
         Some(crate::core::select::PointClass { class, withheld })
     }
 
-    fn integer_coordinates(&self) -> Option<[(f64, f64); 3]> {
+    fn integer_coordinates(&self) -> Option<Quantisation> {
         let h = &self.header;
-        Some([0, 1, 2].map(|a| (h.scale[a], h.offset[a])))
+        Some(Quantisation {
+            scale: h.scale,
+            offset: h.offset,
+        })
     }
 
     /// Decodes one raw record into a [`SourcePoint`].
@@ -437,8 +440,10 @@ impl PointSource for LasSource {
                     let m = (n - first).min(per_call as u64) as usize;
                     let out = &mut buf[..m * rl];
                     dec.decompress_many(out).map_err(|e| {
-                        let (c, chunk) = chunk_of(&self.chunks, first).unwrap_or_default();
-                        let last = chunk_of(&self.chunks, first + m as u64 - 1).map_or(c, |l| l.0);
+                        let ChunkAt { index: c, chunk } =
+                            chunk_of(&self.chunks, first).unwrap_or_default();
+                        let last =
+                            chunk_of(&self.chunks, first + m as u64 - 1).map_or(c, |l| l.index);
                         Error::bad_input(&self.path, Some(chunk.offset), format!(
                             "LAZ decompression failed in points {first}..{} (chunks {c} to {last}, from the byte offset given): {e}; the file is truncated or corrupt (the header says {n} points)", first + m as u64))
                     })?;

@@ -139,7 +139,7 @@ pub fn open_off(path: &Path) -> Result<TextSource> {
 /// [`open_off`] on bytes already read or mapped; `path` names them in errors.
 pub fn off_from_bytes(path: &Path, map: InputBytes) -> Result<TextSource> {
     let h = off_header(path, &map)?;
-    let (_, n, _, _) = first_point_line(path, &map, h.body)?;
+    let n = first_point_line(path, &map, h.body)?.values;
     let mut then = Vec::new();
     if h.prefix.contains('N') {
         then.extend(["nx", "ny", "nz"]);
@@ -270,7 +270,7 @@ pub fn obj_from_bytes(path: &Path, map: InputBytes) -> Result<TextSource> {
         first_line: 1,
         lines: Lines::Keyword("v"),
     };
-    let (_, n, _, _) = first_point_line(path, &map, body)?;
+    let n = first_point_line(path, &map, body)?.values;
     let then: &[&str] = if n == 4 {
         &["w"]
     } else {

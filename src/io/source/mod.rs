@@ -24,6 +24,7 @@ pub use bytes::InputBytes;
 use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
 use crate::io::las::extra_bytes::ScalarType;
+use crate::io::las::header::Quantisation;
 use crate::io::las::parts::LasParts;
 
 pub use las::LasSource;
@@ -59,10 +60,10 @@ pub trait PointSource: Send + Sync {
     ) -> Result<()>;
     /// Decodes one raw record.
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
-    /// The (scale, offset) of x, y and z when [`PointSource::decode`] gives every coordinate
+    /// The scale and offset of x, y and z when [`PointSource::decode`] gives every coordinate
     /// as `integer * scale + offset` (LAS records), None otherwise: the buckets then store the
     /// integers (the f64 bits they give back are checked when a bucket is written).
-    fn integer_coordinates(&self) -> Option<[(f64, f64); 3]> {
+    fn integer_coordinates(&self) -> Option<Quantisation> {
         None
     }
     /// The LAS classification and withheld flag of one raw record (None: the format has
@@ -261,15 +262,25 @@ impl Bounds {
     }
 }
 
+/// Where a point's coordinates and normal are among its properties ([`xyz_and_normals`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct XyzNormals {
+    /// The indices of x, y and z; None when one is missing.
+    pub xyz: Option<[usize; 3]>,
+    /// The indices of nx, ny, nz (or normal_x, normal_y, normal_z); None when one is missing.
+    pub normals: Option<[usize; 3]>,
+}
+
 /// The indices of x, y, z and of the normal (nx ny nz or normal_x normal_y normal_z) among
-/// property names; `None` for x/y/z when one is missing.
-pub fn xyz_and_normals<'a>(
-    names: impl Iterator<Item = &'a str> + Clone,
-) -> (Option<[usize; 3]>, Option<[usize; 3]>) {
+/// property names.
+pub fn xyz_and_normals<'a>(names: impl Iterator<Item = &'a str> + Clone) -> XyzNormals {
     let find = |n: &str| names.clone().position(|m| m == n);
     let three = |a: &str, b: &str, c: &str| Some([find(a)?, find(b)?, find(c)?]);
     let normals = three("nx", "ny", "nz").or_else(|| three("normal_x", "normal_y", "normal_z"));
-    (three("x", "y", "z"), normals)
+    XyzNormals {
+        xyz: three("x", "y", "z"),
+        normals,
+    }
 }
 
 /// A file normal as the engine wants it: `None` when it is not finite or zero (PCL writes NaN

@@ -39,10 +39,20 @@ struct Scalar {
     padding: bool,
 }
 
+/// A `KEY values...` line of a PCD header.
+struct KeyLine {
+    /// The key.
+    key: String,
+    /// Its values.
+    values: Vec<String>,
+    /// Its 1-based line.
+    line: u64,
+}
+
 /// The header of a PCD file: its `KEY values...` lines and its DATA line.
 struct Header {
-    /// Each key with its values and its 1-based line.
-    keys: Vec<(String, Vec<String>, u64)>,
+    /// The key lines, in order.
+    keys: Vec<KeyLine>,
     /// The DATA keyword (`ascii`, `binary`, `binary_compressed`).
     data: String,
     /// Byte offset of the body.
@@ -56,7 +66,7 @@ impl Header {
     fn read(path: &Path, map: &[u8]) -> Result<Self> {
         let mut pos = 0usize;
         let mut line = 0u64;
-        let mut keys: Vec<(String, Vec<String>, u64)> = Vec::new();
+        let mut keys: Vec<KeyLine> = Vec::new();
         let data = loop {
             let rest = &map[pos..];
             let Some(len) = rest.iter().position(|&b| b == b'\n') else {
@@ -77,7 +87,11 @@ impl Header {
             if key == "DATA" {
                 break values.first().cloned().unwrap_or_default();
             }
-            keys.push((key.to_string(), values, line));
+            keys.push(KeyLine {
+                key: key.to_string(),
+                values,
+                line,
+            });
         };
         Ok(Header {
             keys,
@@ -87,8 +101,8 @@ impl Header {
         })
     }
 
-    fn get(&self, key: &str) -> Option<&(String, Vec<String>, u64)> {
-        self.keys.iter().find(|(k, _, _)| k == key)
+    fn get(&self, key: &str) -> Option<&KeyLine> {
+        self.keys.iter().find(|k| k.key == key)
     }
 
     /// The scalars of a point, from FIELDS, SIZE, TYPE and COUNT.
@@ -98,12 +112,13 @@ impl Header {
                 Error::bad_input(path, None, format!("the PCD header has no {key} line"))
             })
         };
-        let (_, fields, fields_line) = need("FIELDS")?;
-        let (_, sizes, _) = need("SIZE")?;
-        let (_, types, _) = need("TYPE")?;
+        let fields_key = need("FIELDS")?;
+        let (fields, fields_line) = (&fields_key.values, fields_key.line);
+        let sizes = &need("SIZE")?.values;
+        let types = &need("TYPE")?.values;
         let ones = vec!["1".to_string(); fields.len()];
-        let counts = self.get("COUNT").map_or(&ones, |(_, c, _)| c);
-        let bad = |what: String| bad_line(path, *fields_line, what);
+        let counts = self.get("COUNT").map_or(&ones, |k| &k.values);
+        let bad = |what: String| bad_line(path, fields_line, what);
         if [sizes.len(), types.len(), counts.len()] != [fields.len(); 3] {
             return Err(bad(format!(
                 "FIELDS names {} fields but SIZE, TYPE and COUNT give {}, {} and {} values",
@@ -153,11 +168,15 @@ impl Header {
         let number = |key: &str| -> Result<Option<u64>> {
             match self.get(key) {
                 None => Ok(None),
-                Some((_, v, l)) => match v.as_slice() {
+                Some(k) => match k.values.as_slice() {
                     [n] => n.parse().map(Some).map_err(|_| {
-                        bad_line(path, *l, format!("{key} is {n:?}, not a whole number"))
+                        bad_line(path, k.line, format!("{key} is {n:?}, not a whole number"))
                     }),
-                    _ => Err(bad_line(path, *l, format!("expected \"{key} <number>\""))),
+                    _ => Err(bad_line(
+                        path,
+                        k.line,
+                        format!("expected \"{key} <number>\""),
+                    )),
                 },
             }
         };

@@ -17,7 +17,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::core::geometry::{cross, dot, sub, V3};
+use crate::core::geometry::{cross, dot, sub, SurfacePoint, V3};
 use crate::core::rng::Rng;
 use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
@@ -151,7 +151,7 @@ const NAMES: [&str; 6] = ["x", "y", "z", "nx", "ny", "nz"];
 
 impl SampledSource {
     /// Point `i` of the sample: its position and the unit normal of its triangle.
-    fn point(&self, i: u64) -> (V3, V3) {
+    fn point(&self, i: u64) -> SurfacePoint {
         let mut rng = Rng::for_point(self.seed, i);
         let [a, b, c] = self
             .mesh
@@ -163,7 +163,10 @@ impl SampledSource {
         let p = [0, 1, 2].map(|k| wa * a[k] + wb * b[k] + wc * c[k]);
         let n = cross(sub(b, a), sub(c, a));
         let len = dot(n, n).sqrt();
-        (p, n.map(|x| x / len))
+        SurfacePoint {
+            position: p,
+            normal: n.map(|x| x / len),
+        }
     }
 }
 
@@ -201,8 +204,8 @@ impl PointSource for SampledSource {
             let end = (first + chunk).min(self.n);
             buf.clear();
             for i in first..end {
-                let (p, n) = self.point(i);
-                for v in p.iter().chain(&n) {
+                let s = self.point(i);
+                for v in s.position.iter().chain(&s.normal) {
                     buf.extend_from_slice(&v.to_le_bytes());
                 }
             }

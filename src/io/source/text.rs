@@ -12,7 +12,7 @@ use crate::io::las::extra_bytes::ScalarType;
 
 use super::{
     map_file, no_crs, usable_normal, xyz_and_normals, Bounds, InputBytes, PointSource, Property,
-    SourceLayout, SourcePoint, Stored,
+    SourceLayout, SourcePoint, Stored, XyzNormals,
 };
 
 /// Which lines of a text body hold points.
@@ -151,12 +151,28 @@ impl<'a> Iterator for PointLines<'a> {
     }
 }
 
-/// The first point line of `body`: (line number, number of values, byte offset and line
-/// number of the line after it). Fails when the body holds no point.
-pub fn first_point_line(path: &Path, data: &[u8], body: Body) -> Result<(u64, usize, usize, u64)> {
+/// The first point line of a body ([`first_point_line`]).
+pub struct FirstPoint {
+    /// Its line number.
+    pub line: u64,
+    /// How many values it holds.
+    pub values: usize,
+    /// The byte offset of the line after it.
+    pub next_pos: usize,
+    /// The line number of the line after it.
+    pub next_line: u64,
+}
+
+/// The first point line of `body`. Fails when the body holds no point.
+pub fn first_point_line(path: &Path, data: &[u8], body: Body) -> Result<FirstPoint> {
     let mut it = PointLines::new(data, body);
     match it.next() {
-        Some((no, content)) => Ok((no, tokens(content).count(), it.pos, it.line)),
+        Some((no, content)) => Ok(FirstPoint {
+            line: no,
+            values: tokens(content).count(),
+            next_pos: it.pos,
+            next_line: it.line,
+        }),
         None => Err(no_points(path)),
     }
 }
@@ -197,12 +213,13 @@ impl TextSource {
             first_line: 1,
             lines: Lines::All,
         };
-        let (mut no, mut n, pos, line) = first_point_line(path, &map, body)?;
-        if n == 1 {
-            body.start = pos;
-            body.first_line = line;
-            (no, n, _, _) = first_point_line(path, &map, body)?;
+        let mut first = first_point_line(path, &map, body)?;
+        if first.values == 1 {
+            body.start = first.next_pos;
+            body.first_line = first.next_line;
+            first = first_point_line(path, &map, body)?;
         }
+        let (no, n) = (first.line, first.values);
         if n < 3 {
             return Err(Error::bad_input(
                 path,
@@ -230,7 +247,7 @@ impl TextSource {
         body: Body,
         columns: Vec<Column>,
     ) -> Result<Self> {
-        let (xyz, normals) = xyz_and_normals(columns.iter().map(|c| c.name.as_str()));
+        let XyzNormals { xyz, normals } = xyz_and_normals(columns.iter().map(|c| c.name.as_str()));
         let Some(xyz) = xyz else {
             return Err(Error::bad_input(
                 path,
@@ -447,142 +464,5 @@ impl PointSource for TextSource {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn write(name: &str, text: &str) -> (tempfile::TempDir, PathBuf) {
-        let dir = tempfile::tempdir().expect("temp dir");
-        let p = dir.path().join(name);
-        std::fs::write(&p, text).expect("write");
-        (dir, p)
-    }
-
-    fn message(r: Result<TextSource>) -> String {
-        match r {
-            Ok(_) => panic!("accepted a malformed file"),
-            Err(e) => e.to_string(),
-        }
-    }
-
-    #[test]
-    fn xyz_with_comments_commas_and_normals() {
-        let (_d, p) = write(
-            "a.xyz",
-            "# x y Mean_Curvature nx ny\n\n1,2,3,0,0,1\n4 5 6 0 0 2 # c\r\n",
-        );
-        let s = TextSource::open_xyz(&p).expect("opens");
-        assert_eq!(s.len(), 2);
-        assert!(s.has_normals());
-        assert_eq!(s.record_length(), 48);
-        let mut pts = Vec::new();
-        s.for_each_chunk(1, &mut |first, r| {
-            pts.push(s.decode(first, r));
-            Ok(())
-        })
-        .expect("streams");
-        assert_eq!(pts[1].xyz, [4.0, 5.0, 6.0]);
-        assert_eq!(pts[1].normal, Some([0.0, 0.0, 2.0]));
-        assert_eq!(
-            s.bounds().expect("bounds"),
-            [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
-        );
-    }
-
-    #[test]
-    fn pts_count_line_is_skipped() {
-        let (_d, p) = write("a.pts", "2\n1 2 3 9\n4 5 6 9\n");
-        let s = TextSource::open_xyz(&p).expect("opens");
-        assert_eq!(s.len(), 2);
-        assert!(!s.has_normals());
-        let names: Vec<_> = s.properties().into_iter().map(|p| p.name).collect();
-        assert_eq!(names, ["x", "y", "z", "column4"]);
-    }
-
-    #[test]
-    fn malformed_text_names_the_line() {
-        let (_d, p) = write("a.xyz", "1 2 3\n4 5\n");
-        assert!(message(TextSource::open_xyz(&p)).contains("line 2: expected 3 values"));
-        let (_d, p) = write("a.xyz", "1 2 3\n4 five 6\n");
-        assert!(message(TextSource::open_xyz(&p)).contains("line 2: value 2 (y) is \"five\""));
-        let (_d, p) = write("a.xyz", "# only a comment\n");
-        assert!(message(TextSource::open_xyz(&p)).contains("no points"));
-        let (_d, p) = write("a.xyz", "1 2\n");
-        assert!(message(TextSource::open_xyz(&p)).contains("line 1: expected at least 3"));
-        let (_d, p) = write("a.xyz", "1 2 nan\n");
-        assert!(message(TextSource::open_xyz(&p)).contains("line 1: coordinate z is NaN"));
-    }
-
-    #[test]
-    fn counted_bodies_check_the_count_and_integer_types() {
-        let (_d, p) = write("a.txt", "h\n1 2 3 7\n4 5 6 8\n3 0 1\n");
-        let body = |count| Body {
-            start: 2,
-            first_line: 2,
-            lines: Lines::Counted {
-                skip: 0,
-                count,
-                noun: "vertices",
-            },
-        };
-        let cols = |ty| {
-            let mut c: Vec<_> = ["x", "y", "z"].into_iter().map(Column::f64).collect();
-            c.push(Column {
-                name: "seg".into(),
-                ty,
-            });
-            c
-        };
-        let open = |count, ty| {
-            TextSource::new(
-                &p,
-                map_file(&p).expect("map"),
-                "t".into(),
-                body(count),
-                cols(ty),
-            )
-        };
-        assert_eq!(open(2, ScalarType::U8).expect("opens").len(), 2);
-        let m = message(open(5, ScalarType::U8));
-        assert!(
-            m.contains(
-                "line 4: expected 4 values (x y z seg) but found 3 (the header declares 5 vertices"
-            ),
-            "{m}"
-        );
-        let (_d3, r) = write("c.txt", "h\n1 2 3 7\n4 5 6 8\n");
-        let m = message(TextSource::new(
-            &r,
-            map_file(&r).expect("map"),
-            "t".into(),
-            body(5),
-            cols(ScalarType::U8),
-        ));
-        assert!(
-            m.contains("line 3: the header declares 5 vertices but the file ends after 2"),
-            "{m}"
-        );
-        let (_d2, q) = write("b.txt", "h\n1 2 3 7.5\n");
-        let m = message(TextSource::new(
-            &q,
-            map_file(&q).expect("map"),
-            "t".into(),
-            body(1),
-            cols(ScalarType::U8),
-        ));
-        assert!(m.contains("line 2: seg is 7.5 but is declared U8"), "{m}");
-    }
-
-    #[test]
-    fn keyword_lines() {
-        let (_d, p) = write("a.obj", "# c\nv 1 2 3\nvn 0 0 1\nf 1 1 1\nv 4 5 6\n");
-        let body = Body {
-            start: 0,
-            first_line: 1,
-            lines: Lines::Keyword("v"),
-        };
-        let lines: Vec<_> = PointLines::new(&map_file(&p).expect("map"), body)
-            .map(|(no, c)| (no, tokens(c).count()))
-            .collect();
-        assert_eq!(lines, [(2, 3), (5, 3)]);
-    }
-}
+#[path = "text_tests.rs"]
+mod tests;

@@ -14,7 +14,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use crate::core::geometry::V3;
+use crate::core::geometry::{SurfacePoint, V3};
 use crate::core::sampling::{GoursatSampler, Noise, TorusSampler};
 use crate::core::surface::{goursat_curvature, torus_curvature_at, TrueCurvature, PAPER_TORUS};
 use crate::error::{Error, Result};
@@ -51,7 +51,7 @@ impl Shape {
     }
 
     /// The endless stream of clean sample points (position, outward unit normal) for `seed`.
-    fn sampler(self, seed: u64) -> Box<dyn Iterator<Item = (V3, V3)>> {
+    fn sampler(self, seed: u64) -> Box<dyn Iterator<Item = SurfacePoint>> {
         match self {
             Shape::Torus => Box::new(TorusSampler::new(PAPER_TORUS.0, PAPER_TORUS.1, seed)),
             Shape::Goursat => Box::new(GoursatSampler::new(seed)),
@@ -160,8 +160,8 @@ pub fn generate_shape(
             }
             buf.clear();
             let batch = (opts.points - written).min(BATCH_POINTS as u64);
-            for (p, n) in samples.by_ref().take(batch as usize) {
-                let (noisy, _) = noise.apply(p, n);
+            for point in samples.by_ref().take(batch as usize) {
+                let (p, noisy) = (point.position, noise.apply(point).position);
                 let xyz = noisy.map(|c| (c / SHAPE_SCALE).round() as i32);
                 bounds.add(xyz);
                 Record {

@@ -263,10 +263,10 @@ fn decode_piece(
 fn grids_of(inputs: &[ScanInput<'_>]) -> Grids {
     let mut grids = Grids::default();
     for input in inputs {
-        let axes = input.source.integer_coordinates().map(|so| {
+        let axes = input.source.integer_coordinates().map(|q| {
             [0, 1, 2].map(|a| AxisGrid {
-                scale: so[a].0,
-                offset: so[a].1,
+                scale: q.scale[a],
+                offset: q.offset[a],
                 post: if a == 2 { input.z_scale } else { 1.0 },
             })
         });

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use crate::core::compute::{PointResult, NO_PATCH};
 use crate::core::orient::GlobalPatch;
 use crate::core::plan::TileKey;
-use crate::core::quantize::{CurvatureStats, Magnitudes};
+use crate::core::quantize::{Bin, CurvatureStats, Magnitudes};
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::pack::Cursor;
@@ -34,11 +34,11 @@ pub(super) fn stats_bytes(s: &CurvatureStats) -> Vec<u8> {
     let mut b = Vec::new();
     for m in [&s.h, &s.k, &s.principal] {
         b.extend_from_slice(&m.max().to_le_bytes());
-        let bins: Vec<(u16, u64)> = m.bins().collect();
+        let bins: Vec<Bin> = m.bins().collect();
         b.extend_from_slice(&(bins.len() as u16).to_le_bytes());
-        for (bin, count) in bins {
-            b.extend_from_slice(&bin.to_le_bytes());
-            b.extend_from_slice(&count.to_le_bytes());
+        for bin in bins {
+            b.extend_from_slice(&bin.exponent.to_le_bytes());
+            b.extend_from_slice(&bin.count.to_le_bytes());
         }
     }
     b
@@ -52,7 +52,10 @@ pub(super) fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
         let n = c.u16()?;
         let mut bins = Vec::with_capacity(n as usize);
         for _ in 0..n {
-            bins.push((c.u16()?, c.u64()?));
+            bins.push(Bin {
+                exponent: c.u16()?,
+                count: c.u64()?,
+            });
         }
         Magnitudes::from_bins(bins, max)
     };

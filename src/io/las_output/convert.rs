@@ -9,12 +9,12 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
-use crate::io::las::carry;
 use crate::io::las::extra_bytes::{self, encode, parse, NewColumn};
-use crate::io::las::header::{LasHeader, NewHeader};
+use crate::io::las::header::{LasHeader, NewHeader, Quantisation};
 use crate::io::las::parts::LasParts;
 use crate::io::las::vlr::Vlr;
 use crate::io::las::writer::LasFileWriter;
+use crate::io::las_output::carry;
 use crate::io::output::PointSink;
 use crate::io::source::{xyz_and_normals, PointSource, Property};
 
@@ -60,7 +60,7 @@ impl ConvertedSink {
         cols: &OutputColumns,
         provenance: &str,
     ) -> Result<Self> {
-        let (xyz, props) = split_xyz(source)?;
+        let Split { xyz, others: props } = split_xyz(source)?;
         let eb = descriptors(&props);
         let extra = parse(&eb).map_err(Error::Internal)?;
         let vlrs: Vec<Vlr> = if eb.is_empty() {
@@ -69,9 +69,9 @@ impl ConvertedSink {
             vec![extra_bytes::vlr(eb)]
         };
         let bounds = source.bounds()?;
-        let (scale, offset) = quantisation(bounds);
         let extra_len: usize = props.iter().map(|p| p.ty.size()).sum();
-        let raw = converted_header(source.len(), extra_len, scale, offset, bounds)?;
+        let q = quantisation(bounds);
+        let raw = converted_header(source.len(), extra_len, q, bounds)?;
         let header = LasHeader::parse(source.path(), &raw, raw.len() as u64)?;
         let input = LasParts {
             path: source.path(),
@@ -86,8 +86,8 @@ impl ConvertedSink {
             props,
             record_length: source.record_length(),
             columns_len: cols.record_size(),
-            scale,
-            offset,
+            scale: q.scale,
+            offset: q.offset,
             buf: Vec::new(),
         };
         Ok(ConvertedSink { convert, writer })
@@ -109,10 +109,18 @@ impl PointSink for ConvertedSink {
     }
 }
 
-/// A source's x, y, z properties, and the others, which become extra bytes.
-fn split_xyz(source: &dyn PointSource) -> Result<([Property; 3], Vec<Property>)> {
+/// A source's properties, split by [`split_xyz`].
+struct Split {
+    /// Its x, y and z.
+    xyz: [Property; 3],
+    /// The others, in order, which become extra bytes.
+    others: Vec<Property>,
+}
+
+/// A source's x, y, z properties, and the others.
+fn split_xyz(source: &dyn PointSource) -> Result<Split> {
     let mut props = source.properties();
-    let Some(xyz) = xyz_and_normals(props.iter().map(|p| p.name.as_str())).0 else {
+    let Some(xyz) = xyz_and_normals(props.iter().map(|p| p.name.as_str())).xyz else {
         return Err(Error::Internal(format!(
             "{}: the reader lists no x, y, z properties",
             source.path().display()
@@ -120,13 +128,13 @@ fn split_xyz(source: &dyn PointSource) -> Result<([Property; 3], Vec<Property>)>
     };
     let xyz = xyz.map(|i| props[i].clone());
     props.retain(|p| !xyz.contains(p));
-    Ok((xyz, props))
+    Ok(Split { xyz, others: props })
 }
 
 /// The encoded extra-bytes descriptors of a converted output of `source`, before the new
 /// columns': one per property but x, y and z.
 pub fn input_descriptors(source: &dyn PointSource) -> Result<Vec<u8>> {
-    Ok(descriptors(&split_xyz(source)?.1))
+    Ok(descriptors(&split_xyz(source)?.others))
 }
 
 /// The encoded extra-bytes descriptors of the properties kept as extra bytes.
@@ -187,15 +195,17 @@ impl Convert {
 /// times the largest extent E. The quantisation error is then at most 0.5e-8 E (far better
 /// than 1e-6 relative to the cloud's size), and since the scale exceeds 1e-9 E, coordinates
 /// stay below 5e8 < 2^31 in magnitude. A cloud of one position uses E = max(|coordinate|, 1).
-pub fn quantisation(bounds: [[f64; 3]; 2]) -> ([f64; 3], [f64; 3]) {
+pub fn quantisation(bounds: [[f64; 3]; 2]) -> Quantisation {
     let [lo, hi] = bounds;
     let mut extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
     if extent <= 0.0 {
         extent = lo.iter().chain(&hi).map(|c| c.abs()).fold(1.0, f64::max);
     }
     let scale = 10f64.powf((extent * 1e-8).log10().floor());
-    let offset = [0, 1, 2].map(|a| (lo[a] + hi[a]) / 2.0);
-    ([scale; 3], offset)
+    Quantisation {
+        scale: [scale; 3],
+        offset: [0, 1, 2].map(|a| (lo[a] + hi[a]) / 2.0),
+    }
 }
 
 /// A LAS 1.4 header (375 bytes) for point format 0 records with `extra_len` extra bytes; the
@@ -203,8 +213,7 @@ pub fn quantisation(bounds: [[f64; 3]; 2]) -> ([f64; 3], [f64; 3]) {
 fn converted_header(
     points: u64,
     extra_len: usize,
-    scale: [f64; 3],
-    offset: [f64; 3],
+    q: Quantisation,
     bounds: [[f64; 3]; 2],
 ) -> Result<Vec<u8>> {
     let record_length = u16::try_from(20 + extra_len).map_err(|_| {
@@ -220,8 +229,8 @@ fn converted_header(
         point_format: 0,
         record_length,
         points,
-        scale,
-        offset,
+        scale: q.scale,
+        offset: q.offset,
         min: bounds[0],
         max: bounds[1],
     }
@@ -241,7 +250,10 @@ mod tests {
             (7.0, 7.0),
         ] {
             let b = [[lo, lo, lo], [hi, hi, lo]];
-            let (s, o) = quantisation(b);
+            let Quantisation {
+                scale: s,
+                offset: o,
+            } = quantisation(b);
             let extent = if hi > lo { hi - lo } else { lo.abs().max(1.0) };
             assert!(
                 s[0] <= 1e-8 * extent && s[0] > 1e-9 * extent,

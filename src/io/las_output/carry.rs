@@ -67,7 +67,7 @@ pub fn create(
 /// in file order (padded with an "undocumented" descriptor if the input's records have more
 /// extra bytes than they describe), then ours. The writer stores them as one record.
 pub fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result<Vec<u8>> {
-    let records = super::vlr::records(input.vlrs, input.evlrs);
+    let records = crate::io::las::vlr::records(input.vlrs, input.evlrs);
     let mut data = extra_bytes::merged_payload(records)
         .map_err(|why| Error::bad_input(input.path, None, why))?;
     let described: usize = parse(&data)
