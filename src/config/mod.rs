@@ -95,13 +95,29 @@ pub struct OptionDef {
     /// The help: a first paragraph for `-h`, the whole for `--help`.
     pub help: &'static str,
     /// The accepted values with a line of help each, when they are a fixed list.
-    pub choices: Option<fn() -> Vec<(&'static str, &'static str)>>,
+    pub choices: Option<fn() -> Vec<Choice>>,
     /// Sets the field from text (a switch's text is `true` or `false`).
     pub set: Setter,
     /// The field as text that `set` reads back to the same value (empty: not given).
     pub get: fn(&RunOptions) -> String,
     /// What the output's provenance records for it (key and value), if anything.
-    pub provenance: Option<(&'static str, fn(&RunParams, &Resolved) -> Option<String>)>,
+    pub provenance: Option<ProvenanceLine>,
+}
+
+/// One accepted value of an option whose values are a fixed list.
+pub struct Choice {
+    /// The value as written.
+    pub name: &'static str,
+    /// A line of help for it.
+    pub help: &'static str,
+}
+
+/// What the provenance records for an option: its key and its value in words (None: no line).
+pub struct ProvenanceLine {
+    /// The provenance key, e.g. `orientation` for `--orient`.
+    pub key: &'static str,
+    /// The value in words, from the validated options and what the inputs resolved.
+    pub value: fn(&RunParams, &Resolved) -> Option<String>,
 }
 
 /// What the inputs settle about a run: the provenance records it beside the options.

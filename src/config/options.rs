@@ -84,8 +84,13 @@ impl RunParams {
     pub fn provenance(&self, resolved: &Resolved) -> Vec<Param> {
         let mut v: Vec<Param> = OPTIONS
             .iter()
-            .filter_map(|row| row.provenance)
-            .filter_map(|(key, value)| value(self, resolved).map(|value| Param { key, value }))
+            .filter_map(|row| row.provenance.as_ref())
+            .filter_map(|line| {
+                (line.value)(self, resolved).map(|value| Param {
+                    key: line.key,
+                    value,
+                })
+            })
             .collect();
         v.extend(resolved.z_words.clone().map(|value| Param {
             key: "z_scale",
@@ -130,7 +135,7 @@ impl OptionDef {
         if let Some(choices) = self.choices {
             let values = choices()
                 .into_iter()
-                .map(|(n, h)| clap::builder::PossibleValue::new(n).help(h));
+                .map(|c| clap::builder::PossibleValue::new(c.name).help(c.help));
             return a.value_parser(clap::builder::PossibleValuesParser::new(values));
         }
         let set = self.set;

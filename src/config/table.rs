@@ -4,7 +4,7 @@
 use std::fmt::Display;
 
 use super::values::{KArg, OrientMode};
-use super::{Length, OptionDef};
+use super::{Choice, Length, OptionDef, ProvenanceLine};
 use crate::core::estimate::EstimatorKind;
 use crate::core::scale::Ladder;
 use crate::core::select::{parse_classes, Classes};
@@ -47,7 +47,10 @@ pub static OPTIONS: &[OptionDef] = &[
         choices: Some(|| {
             EstimatorKind::ALL
                 .iter()
-                .map(|e| (e.name(), e.summary()))
+                .map(|e| Choice {
+                    name: e.name(),
+                    help: e.summary(),
+                })
                 .collect()
         }),
         set: |o, v| {
@@ -58,7 +61,10 @@ pub static OPTIONS: &[OptionDef] = &[
             Ok(())
         },
         get: |o| text(o.estimator),
-        provenance: Some(("estimator", |p, _| Some(text(p.estimator)))),
+        provenance: Some(ProvenanceLine {
+            key: "estimator",
+            value: |p, _| Some(text(p.estimator)),
+        }),
     },
     OptionDef {
         key: "k",
@@ -81,7 +87,10 @@ and ScaleFlags (1: the top rung was chosen while the error was still falling).",
             Ok(())
         },
         get: |o| opt_text(&o.k),
-        provenance: Some(("k", |p, _| Some(text(p.k)))),
+        provenance: Some(ProvenanceLine {
+            key: "k",
+            value: |p, _| Some(text(p.k)),
+        }),
     },
     OptionDef {
         key: "k_range",
@@ -98,12 +107,15 @@ times 4 to 64, MIN at least 16). Implies -k auto.",
             Ok(())
         },
         get: |o| opt_text(&o.k_range),
-        provenance: Some(("k_range", |p, _| {
-            Some(match p.ladder {
-                Some(l) => format!("{l} (-k auto: the scale chosen per point, ScaleK)"),
-                None => "none (one k)".into(),
-            })
-        })),
+        provenance: Some(ProvenanceLine {
+            key: "k_range",
+            value: |p, _| {
+                Some(match p.ladder {
+                    Some(l) => format!("{l} (-k auto: the scale chosen per point, ScaleK)"),
+                    None => "none (one k)".into(),
+                })
+            },
+        }),
     },
     OptionDef {
         key: "radius",
@@ -125,15 +137,18 @@ it are flagged FEW_NEIGHBOURS (flag 1).",
             Ok(())
         },
         get: |o| opt_text(&o.radius),
-        provenance: Some(("radius", |p, r| {
-            Some(match (p.radius, r.radius) {
-                (Some(given), Some(size)) => format!(
-                    "{given} ({size} {}; at most k neighbours within it)",
-                    r.unit_name
-                ),
-                _ => "none (k nearest neighbours)".into(),
-            })
-        })),
+        provenance: Some(ProvenanceLine {
+            key: "radius",
+            value: |p, r| {
+                Some(match (p.radius, r.radius) {
+                    (Some(given), Some(size)) => format!(
+                        "{given} ({size} {}; at most k neighbours within it)",
+                        r.unit_name
+                    ),
+                    _ => "none (k nearest neighbours)".into(),
+                })
+            },
+        }),
     },
     OptionDef {
         key: "seed",
@@ -150,7 +165,10 @@ point's coordinates, so that it does not depend on the order of the records).",
             Ok(())
         },
         get: |o| text(o.seed),
-        provenance: Some(("seed", |p, _| Some(text(p.estimator_params.seed)))),
+        provenance: Some(ProvenanceLine {
+            key: "seed",
+            value: |p, _| Some(text(p.estimator_params.seed)),
+        }),
     },
     OptionDef {
         key: "triangles",
@@ -166,7 +184,10 @@ point's coordinates, so that it does not depend on the order of the records).",
             Ok(())
         },
         get: |o| text(o.triangles),
-        provenance: Some(("triangles", |p, _| Some(text(p.estimator_params.triangles)))),
+        provenance: Some(ProvenanceLine {
+            key: "triangles",
+            value: |p, _| Some(text(p.estimator_params.triangles)),
+        }),
     },
     OptionDef {
         key: "jet_degree",
@@ -184,10 +205,13 @@ provenance when it is not 2.",
             Ok(())
         },
         get: |o| text(o.jet_degree),
-        provenance: Some(("jet_degree", |p, _| {
-            let d = p.estimator_params.jet_degree;
-            (d != 2).then(|| text(d))
-        })),
+        provenance: Some(ProvenanceLine {
+            key: "jet_degree",
+            value: |p, _| {
+                let d = p.estimator_params.jet_degree;
+                (d != 2).then(|| text(d))
+            },
+        }),
     },
     OptionDef {
         key: "ignore_file_normals",
@@ -204,9 +228,10 @@ own NormalX/Y/Z are never the file's normals: a re-run replaces them).",
             Ok(())
         },
         get: |o| text(o.ignore_file_normals),
-        provenance: Some(("normals", |_, r| {
-            Some(if r.file_normals { "file" } else { "pca" }.into())
-        })),
+        provenance: Some(ProvenanceLine {
+            key: "normals",
+            value: |_, r| Some(if r.file_normals { "file" } else { "pca" }.into()),
+        }),
     },
     OptionDef {
         key: "orient",
@@ -227,7 +252,10 @@ unless --ignore-file-normals.",
             Ok(())
         },
         get: |o| text(o.orient),
-        provenance: Some(("orientation", |p, _| Some(text(p.orientation)))),
+        provenance: Some(ProvenanceLine {
+            key: "orientation",
+            value: |p, _| Some(text(p.orientation)),
+        }),
     },
     OptionDef {
         key: "tile",
@@ -246,9 +274,10 @@ halo overhead.",
             Ok(())
         },
         get: |o| text(o.tile),
-        provenance: Some(("tile", |p, r| {
-            Some(format!("{} ({} {})", p.tile, r.tile_size, r.unit_name))
-        })),
+        provenance: Some(ProvenanceLine {
+            key: "tile",
+            value: |p, r| Some(format!("{} ({} {})", p.tile, r.tile_size, r.unit_name)),
+        }),
     },
     OptionDef {
         key: "columns",
@@ -269,7 +298,10 @@ input). Normals already in the input are kept and not written again.",
             Ok(())
         },
         get: |o| text(o.columns),
-        provenance: Some(("columns", |p, _| Some(text(p.columns)))),
+        provenance: Some(ProvenanceLine {
+            key: "columns",
+            value: |p, _| Some(text(p.columns)),
+        }),
     },
     OptionDef {
         key: "directions",
@@ -336,16 +368,19 @@ PLY has no scale field: PLY outputs are f32 unless --f64.",
             Ok(())
         },
         get: |o| text(o.f32),
-        provenance: Some(("encoding", |p, _| {
-            Some(
-                match p.column_type {
-                    ColumnType::Scaled => "scaled (LAS/LAZ; f32 in PLY), column.* lines below",
-                    ColumnType::F32 => "f32",
-                    ColumnType::F64 => "f64",
-                }
-                .into(),
-            )
-        })),
+        provenance: Some(ProvenanceLine {
+            key: "encoding",
+            value: |p, _| {
+                Some(
+                    match p.column_type {
+                        ColumnType::Scaled => "scaled (LAS/LAZ; f32 in PLY), column.* lines below",
+                        ColumnType::F32 => "f32",
+                        ColumnType::F64 => "f64",
+                    }
+                    .into(),
+                )
+            },
+        }),
     },
     OptionDef {
         key: "f64",
@@ -381,7 +416,10 @@ counts), because PDAL reads the extra-bytes columns of LAS 1.4 files only (witho
             Ok(())
         },
         get: |o| text(o.keep_version),
-        provenance: Some(("keep_version", |p, _| Some(text(p.keep_version)))),
+        provenance: Some(ProvenanceLine {
+            key: "keep_version",
+            value: |p, _| Some(text(p.keep_version)),
+        }),
     },
     OptionDef {
         key: "ply_las_names",
@@ -400,7 +438,10 @@ other names) and shows without the scalar_ prefix.",
             Ok(())
         },
         get: |o| text(o.ply_las_names),
-        provenance: Some(("ply_las_names", |p, _| Some(text(p.ply_las_names)))),
+        provenance: Some(ProvenanceLine {
+            key: "ply_las_names",
+            value: |p, _| Some(text(p.ply_las_names)),
+        }),
     },
     OptionDef {
         key: "classes",
@@ -424,7 +465,10 @@ cannot be filtered. Default: every class but --skip-classes",
                 .map(|c| text(Classes(c)))
                 .unwrap_or_default()
         },
-        provenance: Some(("classes", |p, _| Some(p.select.only_text("all")))),
+        provenance: Some(ProvenanceLine {
+            key: "classes",
+            value: |p, _| Some(p.select.only_text("all")),
+        }),
     },
     OptionDef {
         key: "skip_classes",
@@ -442,7 +486,10 @@ would bend their neighbours' curvature; `none` computes on every class",
             Ok(())
         },
         get: |o| text(Classes(&o.skip_classes)),
-        provenance: Some(("skip_classes", |p, _| Some(text(Classes(&p.select.skip))))),
+        provenance: Some(ProvenanceLine {
+            key: "skip_classes",
+            value: |p, _| Some(text(Classes(&p.select.skip))),
+        }),
     },
     OptionDef {
         key: "skip_withheld",
@@ -458,7 +505,10 @@ would bend their neighbours' curvature; `none` computes on every class",
             Ok(())
         },
         get: |o| text(o.skip_withheld),
-        provenance: Some(("skip_withheld", |p, _| Some(text(p.select.skip_withheld)))),
+        provenance: Some(ProvenanceLine {
+            key: "skip_withheld",
+            value: |p, _| Some(text(p.select.skip_withheld)),
+        }),
     },
     OptionDef {
         key: "sample_faces",
@@ -478,9 +528,12 @@ depend on --threads or --chunk-size. The mesh is held in memory, the samples are
             Ok(())
         },
         get: |o| opt_text(&o.sample_faces),
-        provenance: Some(("sample_faces", |p, _| {
-            p.sample_faces
-                .map(|n| format!("{n} (points sampled on the mesh faces)"))
-        })),
+        provenance: Some(ProvenanceLine {
+            key: "sample_faces",
+            value: |p, _| {
+                p.sample_faces
+                    .map(|n| format!("{n} (points sampled on the mesh faces)"))
+            },
+        }),
     },
 ];

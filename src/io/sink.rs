@@ -9,8 +9,8 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns};
 use crate::io::columns::ColumnSet;
-use crate::io::las::carry;
-use crate::io::las::convert::{self, ConvertedSink};
+use crate::io::las_output::carry;
+use crate::io::las_output::convert::{self, ConvertedSink};
 use crate::io::ply::{PlyNames, PlyWriter};
 use crate::io::source::{PointSource, SourceLayout};
 

@@ -312,13 +312,15 @@ mod tests {
             }
             let params = RunParams::new(options).expect("valid");
             let out = dir.path().join(format!("o{i}.las"));
-            let spec = prepare::prepare(&[input.clone()], &out, params.clone(), &Silent)
-                .expect("prepared");
+            let spec =
+                prepare::prepare(std::slice::from_ref(&input), &out, params.clone(), &Silent)
+                    .expect("prepared");
             let of_process = Exec::new(&opts, &spec, &Silent, &cancel)
                 .expect("exec")
                 .memory;
             let work = dir.path().join(format!("w{i}"));
-            let spec = prepare::open_inputs(&[input.clone()], params, &Silent).expect("opened");
+            let spec = prepare::open_inputs(std::slice::from_ref(&input), params, &Silent)
+                .expect("opened");
             drop(Run::plan(spec, &work, TaskLayout::single(1), &Silent).expect("planned"));
             let attached = Run::attach(&work, &Silent).expect("attached");
             let of_task = Exec::new(&opts, &attached.spec, &Silent, &cancel)

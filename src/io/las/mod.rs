@@ -13,7 +13,3 @@ pub mod trim;
 pub mod upgrade;
 pub mod vlr;
 pub mod writer;
-
-// The old paths of the two modules that moved to `io::las_output` (they use `io::columns` and
-// `io::source`, which use this module), until `io/sink.rs` names the new ones: then remove.
-pub use crate::io::las_output::{carry, convert};
