@@ -5,12 +5,25 @@
 //! source -> plan -> bucket -> tile (core + halo) -> neighbors -> normals -> estimate -> results -> assemble
 //!                                     \______________ compute (per tile) ______________/
 //! ```
-//! `core` is the pure computation, `io` the formats and files, `run` the stages over the work
-//! directory (`process` runs them in one process), `cli` the command line, `tools` generators.
+//!
+//! The public API is what the binary, the Python package and other crates use:
+//!
+//! - [`core`]: the pure engine (neighbours, normals, estimators, the tile plan), numbers in and
+//!   numbers out;
+//! - [`config`]: the options that change the output ([`config::RunOptions`], one table of them),
+//!   validated into [`config::RunParams`], and [`config::ExecOptions`];
+//! - [`run`]: [`run::process`] (the whole run) and the cluster stages ([`run::cluster`]);
+//! - [`io`]: the readers of point clouds ([`io::source`]) and what they report (LAS headers and
+//!   records, CRS units, `info`);
+//! - [`progress`] (the [`progress::Reporter`] a run reports through), [`error`], [`tools`] (the
+//!   generators of clouds with closed-form curvature) and [`main_with_args`] (the command line).
+//!
+//! Everything else (the work directory's formats, the writers, the stages' insides) is
+//! `pub(crate)`: `unreachable_pub` keeps it so.
 
-#![warn(missing_docs)]
+#![warn(missing_docs, unreachable_pub)]
 
-pub mod cli;
+mod cli;
 pub mod config;
 pub mod core;
 pub mod error;
@@ -19,9 +32,13 @@ pub mod progress;
 pub mod run;
 pub mod tools;
 
+pub use cli::main_with_args;
+
 // The library's unit tests use the test kit of tests/kit, which names the library `tilecurv`.
 #[cfg(test)]
 extern crate self as tilecurv;
+// The kit is shared with the integration tests, which need its items public.
 #[cfg(test)]
+#[allow(unreachable_pub)]
 #[path = "../tests/kit/mod.rs"]
 mod kit;

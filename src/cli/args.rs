@@ -11,7 +11,7 @@ use crate::run::Process;
 
 /// The options that change how a run executes, never its output.
 #[derive(clap::Args, Debug, Clone)]
-pub struct ExecArgs {
+pub(super) struct ExecArgs {
     /// Memory budget for buckets and tiles in flight: 2G, 512M, ... (K, M, G = powers of 1024).
     /// Past it, buckets spill to the work directory (zstd). Default: half the machine's memory,
     /// at most 4G; lowered (with a message) to what `ulimit -v` leaves beside the mapped inputs
@@ -41,7 +41,7 @@ pub struct ExecArgs {
 
 /// `tilecurv process`.
 #[derive(clap::Args, Debug)]
-pub struct ProcessArgs {
+pub(super) struct ProcessArgs {
     /// Input point clouds: LAS or LAZ (LAS 1.0-1.4, point formats 0-10, COPC-LAZ), PLY, XYZ
     /// text (.xyz, .pts, .txt), PCD, or the vertices of OFF and OBJ meshes. Several inputs are
     /// one scene (adjacent tiles of a survey: neighbourhoods cross file borders) and give one
@@ -98,12 +98,12 @@ fn default_threads(threads: Option<usize>) -> usize {
 
 impl ExecArgs {
     /// Whether only warnings and errors are printed.
-    pub fn quiet(&self) -> bool {
+    pub(super) fn quiet(&self) -> bool {
         self.quiet
     }
 
     /// The execution settings.
-    pub fn options(&self) -> ExecOptions {
+    pub(super) fn options(&self) -> ExecOptions {
         let defaults = ExecOptions::default();
         ExecOptions {
             memory_bytes: self.memory.unwrap_or(defaults.memory_bytes),
@@ -116,17 +116,17 @@ impl ExecArgs {
 
 impl ProcessArgs {
     /// Whether only warnings and errors are printed.
-    pub fn quiet(&self) -> bool {
+    pub(super) fn quiet(&self) -> bool {
         self.exec.quiet
     }
 
     /// The execution settings.
-    pub fn exec(&self) -> ExecOptions {
+    pub(super) fn exec(&self) -> ExecOptions {
         self.exec.options()
     }
 
     /// The run, validated.
-    pub fn into_process(self) -> Result<Process> {
+    pub(super) fn into_process(self) -> Result<Process> {
         let mut job = Process::new(self.inputs, self.output, self.result)?;
         job.dry_run = self.dry_run;
         job.work_dir = self.work_dir;
@@ -136,7 +136,7 @@ impl ProcessArgs {
 
 /// `tilecurv plan`.
 #[derive(clap::Args, Debug)]
-pub struct PlanArgs {
+pub(super) struct PlanArgs {
     /// Input point clouds: LAS or LAZ (LAS 1.0-1.4, point formats 0-10, COPC-LAZ), PLY, XYZ
     /// text (.xyz, .pts, .txt), PCD, or the vertices of OFF and OBJ meshes. Several inputs are
     /// one scene (adjacent tiles of a survey: neighbourhoods cross file borders) and give one
@@ -165,7 +165,7 @@ pub struct PlanArgs {
 impl PlanArgs {
     /// The inputs as absolute paths, since the tasks run elsewhere (another directory, another
     /// node).
-    pub fn inputs(&self) -> Vec<PathBuf> {
+    pub(super) fn inputs(&self) -> Vec<PathBuf> {
         self.inputs
             .iter()
             .map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone()))
@@ -173,14 +173,14 @@ impl PlanArgs {
     }
 
     /// The options, validated.
-    pub fn params(&self) -> Result<RunParams> {
+    pub(super) fn params(&self) -> Result<RunParams> {
         RunParams::new(self.result.clone())
     }
 }
 
 /// A task index, or `env`: read from the scheduler's environment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TaskArg {
+pub(super) enum TaskArg {
     /// This index.
     Index(u64),
     /// TILECURV_TASK, SLURM_ARRAY_TASK_ID, AWS_BATCH_JOB_ARRAY_INDEX or JOB_COMPLETION_INDEX,
@@ -189,7 +189,7 @@ pub enum TaskArg {
 }
 
 /// The variables `--task env` reads, in order.
-pub const TASK_VARIABLES: [&str; 4] = [
+pub(super) const TASK_VARIABLES: [&str; 4] = [
     "TILECURV_TASK",
     "SLURM_ARRAY_TASK_ID",
     "AWS_BATCH_JOB_ARRAY_INDEX",
@@ -198,7 +198,7 @@ pub const TASK_VARIABLES: [&str; 4] = [
 
 impl TaskArg {
     /// Parses a task index or `env`.
-    pub fn parse(s: &str) -> std::result::Result<Self, String> {
+    pub(super) fn parse(s: &str) -> std::result::Result<Self, String> {
         if s == "env" {
             return Ok(TaskArg::Env);
         }
@@ -208,7 +208,7 @@ impl TaskArg {
     }
 
     /// The index.
-    pub fn resolve(self) -> Result<u64> {
+    pub(super) fn resolve(self) -> Result<u64> {
         match self {
             TaskArg::Index(i) => Ok(i),
             TaskArg::Env => {
@@ -230,7 +230,7 @@ impl TaskArg {
 
 /// `tilecurv bucket`.
 #[derive(clap::Args, Debug)]
-pub struct BucketArgs {
+pub(super) struct BucketArgs {
     /// The work directory `tilecurv plan` made.
     #[arg(long)]
     pub work: PathBuf,
@@ -246,7 +246,7 @@ pub struct BucketArgs {
 
 /// `tilecurv run-tile`.
 #[derive(clap::Args, Debug)]
-pub struct RunTileArgs {
+pub(super) struct RunTileArgs {
     /// The work directory `tilecurv plan` made.
     #[arg(long)]
     pub work: PathBuf,
@@ -262,7 +262,7 @@ pub struct RunTileArgs {
 
 /// `tilecurv status`.
 #[derive(clap::Args, Debug)]
-pub struct StatusArgs {
+pub(super) struct StatusArgs {
     /// The work directory `tilecurv plan` made.
     #[arg(long)]
     pub work: PathBuf,
@@ -275,7 +275,7 @@ pub struct StatusArgs {
 
 /// `tilecurv assemble`.
 #[derive(clap::Args, Debug)]
-pub struct AssembleArgs {
+pub(super) struct AssembleArgs {
     /// The work directory `tilecurv plan` made.
     #[arg(long)]
     pub work: PathBuf,
@@ -296,7 +296,7 @@ pub struct AssembleArgs {
 
 /// `tilecurv info`.
 #[derive(clap::Args, Debug)]
-pub struct InfoArgs {
+pub(super) struct InfoArgs {
     /// Point cloud files (any format `process` reads).
     #[arg(required = true, num_args = 1..)]
     pub files: Vec<PathBuf>,

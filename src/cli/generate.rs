@@ -12,13 +12,13 @@ use crate::tools::generate::{
 use super::{exit, fail, CANCEL, EXIT_HELP};
 
 #[derive(clap::Args, Debug)]
-pub struct GenerateArgs {
+pub(super) struct GenerateArgs {
     #[command(subcommand)]
     pub kind: GenerateKind,
 }
 
 #[derive(clap::Subcommand, Debug)]
-pub enum GenerateKind {
+pub(super) enum GenerateKind {
     /// Aerial-LIDAR-like terrain (hills and hollows on a gentle slope) of any size, with the
     /// closed-form curvature of every point. Streams: memory does not grow with --points.
     ///
@@ -55,7 +55,7 @@ pub enum GenerateKind {
 
 /// The options every generator has.
 #[derive(clap::Args, Debug)]
-pub struct CommonArgs {
+pub(super) struct CommonArgs {
     /// Output file; the extension chooses the format: .las or .laz. Written to a temporary file
     /// and renamed when complete.
     #[arg(short, long)]
@@ -77,7 +77,7 @@ pub struct CommonArgs {
 }
 
 #[derive(clap::Args, Debug)]
-pub struct TerrainArgs {
+pub(super) struct TerrainArgs {
     #[command(flatten)]
     pub common: CommonArgs,
 
@@ -93,7 +93,7 @@ pub struct TerrainArgs {
 }
 
 #[derive(clap::Args, Debug)]
-pub struct ShapeArgs {
+pub(super) struct ShapeArgs {
     #[command(flatten)]
     pub common: CommonArgs,
 
@@ -106,7 +106,7 @@ pub struct ShapeArgs {
 }
 
 /// `tilecurv generate ...`.
-pub fn generate(args: GenerateArgs) -> Result<i32, i32> {
+pub(super) fn generate(args: GenerateArgs) -> Result<i32, i32> {
     match args.kind {
         GenerateKind::Terrain(a) => terrain(a),
         GenerateKind::Torus(a) => shape(Shape::Torus, a),

@@ -4,12 +4,12 @@
 
 use super::args::InfoArgs;
 use super::{exit, fail};
-use crate::io::crs::UnitSource;
+use crate::io::crs::{LengthUnit, UnitSource};
 use crate::io::info::{file_info, FileInfo};
 use crate::progress::out;
 
 /// `tilecurv info`: every file's info; the first unreadable file fails the command (exit 3).
-pub fn info(a: InfoArgs) -> Result<i32, i32> {
+pub(super) fn info(a: InfoArgs) -> Result<i32, i32> {
     let infos = a
         .files
         .iter()
@@ -30,15 +30,31 @@ pub fn info(a: InfoArgs) -> Result<i32, i32> {
     Ok(exit::OK)
 }
 
-/// The horizontal unit in words and as JSON fields (symbol, metres or null, reason or null).
-fn horizontal(f: &FileInfo) -> (String, Option<(String, f64)>, Option<String>) {
+/// The horizontal unit of `f`, or why it has none.
+fn horizontal(f: &FileInfo) -> Result<&LengthUnit, &str> {
     match &f.crs.horizontal {
-        UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => (
-            format!("{} ({} m)", u.name, u.metres),
-            Some((u.symbol(), u.metres)),
-            None,
+        UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => Ok(u),
+        UnitSource::Unknown(why) => Err(why),
+    }
+}
+
+/// A unit in words: `name (metres m)`, or `none: why`.
+fn unit_words(unit: Result<&LengthUnit, &str>) -> String {
+    match unit {
+        Ok(u) => format!("{} ({} m)", u.name, u.metres),
+        Err(why) => format!("none: {why}"),
+    }
+}
+
+/// A unit as JSON: its symbol and metres, or nulls and the reason there is none.
+fn unit_json(unit: Result<&LengthUnit, &str>) -> String {
+    match unit {
+        Ok(u) => format!(
+            "{{\"symbol\":{},\"metres\":{}}}",
+            s(&u.symbol()),
+            n(u.metres)
         ),
-        UnitSource::Unknown(why) => (format!("none: {why}"), None, Some(why.clone())),
+        Err(why) => format!("{{\"symbol\":null,\"metres\":null,\"reason\":{}}}", s(why)),
     }
 }
 
@@ -62,11 +78,11 @@ fn text(f: &FileInfo) -> String {
             .map(|n| format!(", {n}"))
             .unwrap_or_default()
     ));
-    t.push_str(&format!("  horizontal unit: {}\n", horizontal(f).0));
-    let vertical = match &f.crs.vertical {
-        Ok(u) => format!("{} ({} m)", u.name, u.metres),
-        Err(why) => format!("none: {why}"),
-    };
+    t.push_str(&format!(
+        "  horizontal unit: {}\n",
+        unit_words(horizontal(f))
+    ));
+    let vertical = unit_words(f.crs.vertical.as_ref().map_err(String::as_str));
     t.push_str(&format!("  vertical unit: {vertical}\n"));
     if f.extra.is_empty() {
         t.push_str("  extra dimensions: none\n");
@@ -120,18 +136,7 @@ fn opt(v: Option<String>) -> String {
 
 fn json(f: &FileInfo) -> String {
     let [lo, hi] = f.bounds;
-    let (_, h_unit, h_why) = horizontal(f);
-    let unit = |u: Option<(String, f64)>, why: Option<String>| match u {
-        Some((sym, m)) => format!("{{\"symbol\":{},\"metres\":{}}}", s(&sym), n(m)),
-        None => format!(
-            "{{\"symbol\":null,\"metres\":null,\"reason\":{}}}",
-            opt(why)
-        ),
-    };
-    let (v_unit, v_why) = match &f.crs.vertical {
-        Ok(u) => (Some((u.symbol(), u.metres)), None),
-        Err(why) => (None, Some(why.clone())),
-    };
+
     let extra: Vec<String> = f
         .extra
         .iter()
@@ -158,8 +163,8 @@ fn json(f: &FileInfo) -> String {
         n(lo[0]), n(lo[1]), n(lo[2]), n(hi[0]), n(hi[1]), n(hi[2]),
         s(f.crs.stored_as),
         opt(f.crs.name.clone()),
-        unit(h_unit, h_why),
-        unit(v_unit, v_why),
+        unit_json(horizontal(f)),
+        unit_json(f.crs.vertical.as_ref().map_err(String::as_str)),
         extra.join(","),
         opt(f.provenance.as_ref().map(|p| p.trim_end_matches('\0').to_string())),
     )

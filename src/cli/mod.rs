@@ -16,23 +16,23 @@ use args::{AssembleArgs, BucketArgs, InfoArgs, PlanArgs, ProcessArgs, RunTileArg
 use generate::GenerateArgs;
 
 /// Exit codes, as documented in `--help` and the README.
-pub mod exit {
+pub(crate) mod exit {
     /// Success.
-    pub const OK: i32 = 0;
+    pub(crate) const OK: i32 = 0;
     /// Internal error (a bug).
-    pub const INTERNAL: i32 = 1;
+    pub(crate) const INTERNAL: i32 = 1;
     /// Usage error: bad option or value.
-    pub const USAGE: i32 = 2;
+    pub(crate) const USAGE: i32 = 2;
     /// Bad input: unreadable, malformed or unsupported input file.
-    pub const BAD_INPUT: i32 = 3;
+    pub(crate) const BAD_INPUT: i32 = 3;
     /// Output failure: the output or the work directory could not be written or read, or a
     /// limit of the machine (disk space, file size, open files, memory) stopped the run.
-    pub const OUTPUT: i32 = 4;
+    pub(crate) const OUTPUT: i32 = 4;
     /// A cluster stage found tasks of an earlier stage not done (`assemble` while tile tasks
     /// are missing); nothing was written.
-    pub const INCOMPLETE: i32 = 5;
+    pub(crate) const INCOMPLETE: i32 = 5;
     /// Interrupted by SIGINT or SIGTERM; no output was written.
-    pub const INTERRUPTED: i32 = 130;
+    pub(crate) const INTERRUPTED: i32 = 130;
 }
 
 const EXIT_HELP: &str = "\

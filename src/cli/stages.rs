@@ -8,7 +8,7 @@ use crate::run::cluster;
 
 /// `tilecurv plan`: prints `bucket tasks: B`, `tiles per task: K`, then `tasks: N` (the last
 /// line of stdout).
-pub fn plan(a: PlanArgs) -> Result<i32, i32> {
+pub(super) fn plan(a: PlanArgs) -> Result<i32, i32> {
     let params = a.params().map_err(|e| fail(&e))?;
     let reporter = reporter(a.quiet, None)?;
     let p = cluster::plan(&a.inputs(), params, &a.work, a.tiles_per_task, &reporter)
@@ -29,7 +29,7 @@ pub fn plan(a: PlanArgs) -> Result<i32, i32> {
 }
 
 /// `tilecurv bucket`.
-pub fn bucket(a: BucketArgs) -> Result<i32, i32> {
+pub(super) fn bucket(a: BucketArgs) -> Result<i32, i32> {
     let opts = a.exec.options();
     let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
     let task = a
@@ -45,7 +45,7 @@ pub fn bucket(a: BucketArgs) -> Result<i32, i32> {
 }
 
 /// `tilecurv run-tile`.
-pub fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
+pub(super) fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
     let opts = a.exec.options();
     let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
     let task = a.task.resolve().map_err(|e| fail(&e))?;
@@ -60,7 +60,7 @@ pub fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
 }
 
 /// `tilecurv status`: `done D of N tasks`, or the missing indices with --missing.
-pub fn status(a: StatusArgs) -> Result<i32, i32> {
+pub(super) fn status(a: StatusArgs) -> Result<i32, i32> {
     let reporter = reporter(true, None)?;
     let s = cluster::status(&a.work, &reporter).map_err(|e| fail(&e))?;
     if a.missing {
@@ -74,7 +74,7 @@ pub fn status(a: StatusArgs) -> Result<i32, i32> {
 }
 
 /// `tilecurv assemble`.
-pub fn assemble(a: AssembleArgs) -> Result<i32, i32> {
+pub(super) fn assemble(a: AssembleArgs) -> Result<i32, i32> {
     let opts = a.exec.options();
     let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
     let s =

@@ -20,7 +20,7 @@ const ALIGN: usize = 4096;
 const BLOCK: usize = 4 << 20;
 
 /// A file written front to back (see the module doc).
-pub struct DirectFile {
+pub(crate) struct DirectFile {
     /// The ordinary descriptor: the tail, rewrites, and everything when `direct` is None.
     file: File,
     /// The direct descriptor of the same file, None where the file system refuses it.
@@ -36,7 +36,7 @@ pub struct DirectFile {
 
 impl DirectFile {
     /// A writer at the start of `file`, the newly created, empty file at `path`.
-    pub fn new(file: File, path: &Path) -> DirectFile {
+    pub(crate) fn new(file: File, path: &Path) -> DirectFile {
         let buf = vec![0u8; BLOCK + ALIGN];
         let start = buf.as_ptr().align_offset(ALIGN);
         DirectFile {
@@ -50,7 +50,7 @@ impl DirectFile {
     }
 
     /// Appends `data`.
-    pub fn write_all(&mut self, mut data: &[u8]) -> io::Result<()> {
+    pub(crate) fn write_all(&mut self, mut data: &[u8]) -> io::Result<()> {
         while !data.is_empty() {
             let n = (BLOCK - self.held).min(data.len());
             let from = self.start + self.held;
@@ -67,12 +67,12 @@ impl DirectFile {
     }
 
     /// Bytes written so far (the file offset of the next byte).
-    pub fn position(&self) -> u64 {
+    pub(crate) fn position(&self) -> u64 {
         self.at + self.held as u64
     }
 
     /// Writes what is held and returns the ordinary descriptor, for rewrites and the sync.
-    pub fn into_file(mut self) -> io::Result<File> {
+    pub(crate) fn into_file(mut self) -> io::Result<File> {
         let aligned = self.held / ALIGN * ALIGN;
         if aligned > 0 {
             self.write_aligned(aligned)?;

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 
 /// Writes `bytes` to `path` durably: a temporary name in the same directory, fsync, rename,
 /// fsync of the directory. Readers see the old file or the new one, never a part.
-pub fn write_durably(path: &Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn write_durably(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = tmp_name(path);
     let mut f = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
     f.write_all(bytes)
@@ -26,7 +26,7 @@ pub fn write_durably(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// The temporary name of `path` for this process: `.<name>.tilecurv-<host>-<pid>.tmp` beside
 /// it.
-pub fn tmp_name(path: &Path) -> PathBuf {
+pub(crate) fn tmp_name(path: &Path) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -55,7 +55,7 @@ fn temp_of_this_host(entry: &str) -> Option<(&str, &str)> {
 /// manifests, bucket task directories, outputs. Those of running processes (another task on
 /// this node) and of other hosts are left alone; one that cannot be removed is left for the
 /// next run.
-pub fn sweep_dead_temps(dir: &Path, only: Option<&str>) {
+pub(crate) fn sweep_dead_temps(dir: &Path, only: Option<&str>) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
@@ -72,12 +72,6 @@ pub fn sweep_dead_temps(dir: &Path, only: Option<&str>) {
             };
         }
     }
-}
-
-/// Whether `name` is the temporary name of a file, left by a process of this host that no
-/// longer runs.
-pub fn is_dead_temp(name: &str) -> bool {
-    temp_of_this_host(name).is_some_and(|(_, pid)| is_dead_process(pid))
 }
 
 /// Whether `pid` (as written in a temporary name of this host) names a process that no longer
@@ -103,7 +97,7 @@ fn pid_alive(pid: i32) -> bool {
 }
 
 /// This machine's host name (`localhost` if it cannot be read), with path separators replaced.
-pub fn host_name() -> String {
+pub(crate) fn host_name() -> String {
     let mut buf = [0u8; 256];
     // SAFETY: gethostname writes at most `len` bytes into the buffer we own.
     let r = unsafe { libc::gethostname(buf.as_mut_ptr() as *mut libc::c_char, buf.len()) };
@@ -117,7 +111,7 @@ pub fn host_name() -> String {
 }
 
 /// Renames a finished, synced temporary file over `path` and syncs the directory.
-pub fn commit_file(tmp: &Path, path: &Path) -> Result<()> {
+pub(crate) fn commit_file(tmp: &Path, path: &Path) -> Result<()> {
     std::fs::rename(tmp, path).map_err(|e| Error::write(path, e))?;
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         sync_dir(dir);
@@ -127,7 +121,7 @@ pub fn commit_file(tmp: &Path, path: &Path) -> Result<()> {
 
 /// Syncs a directory so that a rename in it survives a power loss. A directory that cannot be
 /// opened for syncing (some network file systems) is not an error.
-pub fn sync_dir(dir: &Path) {
+pub(crate) fn sync_dir(dir: &Path) {
     if let Ok(d) = File::open(dir) {
         let _ = d.sync_all();
     }
@@ -136,7 +130,7 @@ pub fn sync_dir(dir: &Path) {
 /// Flushes `files` (all in `dir`'s file system) to disk: one `syncfs` of that file system where
 /// the OS has it (an fsync costs milliseconds, and runs write thousands of files), else an
 /// fsync per file.
-pub fn sync_files<'a>(dir: &Path, files: impl IntoIterator<Item = &'a Path>) -> Result<()> {
+pub(crate) fn sync_files<'a>(dir: &Path, files: impl IntoIterator<Item = &'a Path>) -> Result<()> {
     #[cfg(target_os = "linux")]
     {
         use std::os::fd::AsRawFd;
@@ -161,7 +155,7 @@ pub fn sync_files<'a>(dir: &Path, files: impl IntoIterator<Item = &'a Path>) -> 
 /// dropped unfinished leaves nothing beside the output. Only [`TempFile::commit`] keeps it, as
 /// the output.
 #[derive(Debug)]
-pub struct TempFile {
+pub(crate) struct TempFile {
     path: PathBuf,
     output: PathBuf,
     /// Set once the rename succeeded: the file is the output now.
@@ -172,7 +166,7 @@ impl TempFile {
     /// Creates the temporary file of `output` ([`tmp_name`]), empty, after removing those of
     /// killed runs ([`sweep_dead_temps`]); write errors are to name the output
     /// ([`TempFile::error`]).
-    pub fn create(output: &Path) -> Result<(Self, File)> {
+    pub(crate) fn create(output: &Path) -> Result<(Self, File)> {
         let dir = output
             .parent()
             .filter(|d| !d.as_os_str().is_empty())
@@ -190,25 +184,25 @@ impl TempFile {
     }
 
     /// Its path.
-    pub fn path(&self) -> &Path {
+    pub(crate) fn path(&self) -> &Path {
         &self.path
     }
 
     /// The output it becomes.
-    pub fn output(&self) -> &Path {
+    pub(crate) fn output(&self) -> &Path {
         &self.output
     }
 
     /// A write error of this output: it names the output (the temporary file is removed
     /// anyway), with the standard hint.
-    pub fn error(&self, e: std::io::Error) -> Error {
+    pub(crate) fn error(&self, e: std::io::Error) -> Error {
         Error::write(&self.output, e)
     }
 
     /// Makes the completely written `file` the output: syncs it, renames it over the output and
     /// syncs the directory so that the rename is durable. On failure the temporary file is
     /// removed.
-    pub fn commit(mut self, file: File) -> Result<()> {
+    pub(crate) fn commit(mut self, file: File) -> Result<()> {
         file.sync_all().map_err(|e| self.error(e))?;
         drop(file);
         commit_file(&self.path, &self.output)?;
@@ -228,6 +222,12 @@ impl Drop for TempFile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Whether `name` is the temporary name of a file, left by a process of this host that no
+    /// longer runs.
+    fn is_dead_temp(name: &str) -> bool {
+        temp_of_this_host(name).is_some_and(|(_, pid)| is_dead_process(pid))
+    }
 
     #[test]
     fn dead_temps_are_recognised_only_on_this_host() {

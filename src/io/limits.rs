@@ -6,7 +6,7 @@
 /// [`MAX_FAN_IN`](crate::io::workdir::results::MAX_FAN_IN) result files at once when it merges them,
 /// as its memory budget allows);
 /// a limit that cannot be raised is left as it is, and the merge fits itself to it.
-pub fn raise_open_files() {
+pub(crate) fn raise_open_files() {
     if let Some(lim) = current(Limit::OpenFiles).filter(|l| l.rlim_cur < l.rlim_max) {
         let raised = libc::rlimit {
             rlim_cur: lim.rlim_max,
@@ -18,20 +18,20 @@ pub fn raise_open_files() {
 }
 
 /// The soft limit on open files, if it can be read (`RLIM_INFINITY` is `u64::MAX`).
-pub fn open_files_limit() -> Option<u64> {
+pub(crate) fn open_files_limit() -> Option<u64> {
     current(Limit::OpenFiles).map(|l| l.rlim_cur)
 }
 
 /// The file descriptors this process has open now (Linux: `/proc/self/fd`, less the one the
 /// listing itself holds); None where that cannot be read.
-pub fn open_descriptors() -> Option<u64> {
+pub(crate) fn open_descriptors() -> Option<u64> {
     let n = std::fs::read_dir("/proc/self/fd").ok()?.count() as u64;
     Some(n.saturating_sub(1))
 }
 
 /// The address-space limit (`RLIMIT_AS`, `ulimit -v`) in bytes; None when unlimited. Every
 /// mapping counts against it: the memory-mapped inputs, thread stacks, the allocator's arenas.
-pub fn address_space_limit() -> Option<u64> {
+pub(crate) fn address_space_limit() -> Option<u64> {
     current(Limit::AddressSpace)
         .map(|l| l.rlim_cur)
         .filter(|&cur| cur != libc::RLIM_INFINITY)
@@ -65,7 +65,7 @@ fn current(which: Limit) -> Option<libc::rlimit> {
 /// of address space for each further arena (up to 8 per core), which counts against
 /// `ulimit -v` though it is never used; one arena costs a few percent of speed. Call before any
 /// thread starts. Elsewhere (other C libraries, no limit) nothing changes.
-pub fn fit_allocator_to_address_space() {
+pub(crate) fn fit_allocator_to_address_space() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     if address_space_limit().is_some() {
         // SAFETY: mallopt only sets an allocator parameter; no thread allocates yet.
@@ -78,7 +78,7 @@ pub fn fit_allocator_to_address_space() {
 /// The memory limit of this process's cgroup in bytes and the file that sets it: the lowest
 /// `memory.max` (cgroup v2) or `memory.limit_in_bytes` (v1) from its cgroup up to the root of
 /// the mounted hierarchy; None when there is none (or no cgroup file system).
-pub fn cgroup_memory_limit() -> Option<(u64, std::path::PathBuf)> {
+pub(crate) fn cgroup_memory_limit() -> Option<(u64, std::path::PathBuf)> {
     let cgroup = std::fs::read_to_string("/proc/self/cgroup").ok()?;
     let mountinfo = std::fs::read_to_string("/proc/self/mountinfo").ok()?;
     cgroup_limit(&cgroup, &mountinfo, &|p| std::fs::read_to_string(p).ok())
@@ -157,7 +157,7 @@ fn cgroup_limit(
 /// would otherwise stay resident through the write phase and add to its own (30M points,
 /// `--memory 128M`: peak anonymous memory 182 -> 122 MiB, the write phase 179 -> 99 MiB).
 /// Elsewhere nothing happens.
-pub fn return_free_memory() {
+pub(crate) fn return_free_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: malloc_trim only releases free pages of the allocator's own heaps.
     unsafe {

@@ -1,18 +1,18 @@
 //! Formats and files: reading point sources, writing outputs atomically, the work directory
 //! (lock, manifest, buckets, the tile results journal). No curvature is computed here.
 
-pub mod columns;
+pub(crate) mod columns;
 pub mod crs;
 pub mod crs_summary;
-pub mod direct;
-pub mod durable;
+pub(crate) mod direct;
+pub(crate) mod durable;
 pub mod info;
 pub mod las;
-pub mod las_output;
-pub mod limits;
-pub mod output;
-pub mod pack;
+pub(crate) mod las_output;
+pub(crate) mod limits;
+pub(crate) mod output;
+pub(crate) mod pack;
 pub mod ply;
-pub mod sink;
+pub(crate) mod sink;
 pub mod source;
-pub mod workdir;
+pub(crate) mod workdir;

@@ -5,7 +5,7 @@
 use crate::error::Result;
 
 /// An output being written: records in, a complete file (or nothing) out.
-pub trait PointSink {
+pub(crate) trait PointSink {
     /// Appends whole output records (input record + new columns), in file order.
     fn write_points(&mut self, records: &[u8]) -> Result<()>;
     /// Completes the file and renames it over the output; on failure the temporary file is

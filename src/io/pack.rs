@@ -12,7 +12,7 @@ use std::cell::RefCell;
 const LEVEL: i32 = 1;
 
 /// Appends `v` as an LEB128 varint (7 bits a byte, low first; 1 byte below 128).
-pub fn put_varint(out: &mut Vec<u8>, mut v: u64) {
+pub(crate) fn put_varint(out: &mut Vec<u8>, mut v: u64) {
     while v >= 0x80 {
         out.push((v as u8) | 0x80);
         v >>= 7;
@@ -21,18 +21,18 @@ pub fn put_varint(out: &mut Vec<u8>, mut v: u64) {
 }
 
 /// A signed difference as an unsigned number, small for small magnitudes (zigzag).
-pub fn zigzag(v: i64) -> u64 {
+pub(crate) fn zigzag(v: i64) -> u64 {
     ((v << 1) ^ (v >> 63)) as u64
 }
 
 /// The inverse of [`zigzag`].
-pub fn unzigzag(v: u64) -> i64 {
+pub(crate) fn unzigzag(v: u64) -> i64 {
     ((v >> 1) as i64) ^ -((v & 1) as i64)
 }
 
 /// Appends the byte planes of `rows`, records of `width` bytes: byte 0 of every record, then
 /// byte 1, and so on. `rows.len()` must be a multiple of `width`.
-pub fn put_planes(out: &mut Vec<u8>, rows: &[u8], width: usize) {
+pub(crate) fn put_planes(out: &mut Vec<u8>, rows: &[u8], width: usize) {
     if width == 0 {
         return;
     }
@@ -49,7 +49,7 @@ pub fn put_planes(out: &mut Vec<u8>, rows: &[u8], width: usize) {
 
 /// The inverse of [`put_planes`]: `n` records of `width` bytes from their planes, appended to
 /// `out`. `planes` must hold `n * width` bytes.
-pub fn get_planes(out: &mut Vec<u8>, planes: &[u8], n: usize, width: usize) {
+pub(crate) fn get_planes(out: &mut Vec<u8>, planes: &[u8], n: usize, width: usize) {
     let start = out.len();
     out.resize(start + n * width, 0);
     let rows = &mut out[start..];
@@ -61,61 +61,61 @@ pub fn get_planes(out: &mut Vec<u8>, planes: &[u8], n: usize, width: usize) {
 }
 
 /// A cursor over decoded bytes whose every read is checked: `None` past the end.
-pub struct Cursor<'a> {
+pub(crate) struct Cursor<'a> {
     bytes: &'a [u8],
     at: usize,
 }
 
 impl<'a> Cursor<'a> {
     /// A cursor at the start of `bytes`.
-    pub fn new(bytes: &'a [u8]) -> Self {
+    pub(crate) fn new(bytes: &'a [u8]) -> Self {
         Cursor { bytes, at: 0 }
     }
 
     /// How many bytes are left.
-    pub fn remaining(&self) -> usize {
+    pub(crate) fn remaining(&self) -> usize {
         self.bytes.len() - self.at
     }
 
     /// Whether every byte was read.
-    pub fn is_done(&self) -> bool {
+    pub(crate) fn is_done(&self) -> bool {
         self.at == self.bytes.len()
     }
 
     /// The next `n` bytes.
-    pub fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+    pub(crate) fn take(&mut self, n: usize) -> Option<&'a [u8]> {
         let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
         self.at += n;
         Some(s)
     }
 
     /// The next byte.
-    pub fn u8(&mut self) -> Option<u8> {
+    pub(crate) fn u8(&mut self) -> Option<u8> {
         self.take(1).map(|b| b[0])
     }
 
     /// The next little-endian u16.
-    pub fn u16(&mut self) -> Option<u16> {
+    pub(crate) fn u16(&mut self) -> Option<u16> {
         Some(u16::from_le_bytes(self.take(2)?.try_into().ok()?))
     }
 
     /// The next little-endian u32.
-    pub fn u32(&mut self) -> Option<u32> {
+    pub(crate) fn u32(&mut self) -> Option<u32> {
         Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
     }
 
     /// The next little-endian u64.
-    pub fn u64(&mut self) -> Option<u64> {
+    pub(crate) fn u64(&mut self) -> Option<u64> {
         Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
     }
 
     /// The next little-endian f64 (its bits as written).
-    pub fn f64(&mut self) -> Option<f64> {
+    pub(crate) fn f64(&mut self) -> Option<f64> {
         self.u64().map(f64::from_bits)
     }
 
     /// The next LEB128 varint ([`put_varint`]); None if it runs past the end or past 64 bits.
-    pub fn varint(&mut self) -> Option<u64> {
+    pub(crate) fn varint(&mut self) -> Option<u64> {
         let mut v = 0u64;
         for shift in (0..64).step_by(7) {
             let b = self.u8()?;
@@ -146,7 +146,7 @@ fn new_compressor() -> std::io::Result<zstd::bulk::Compressor<'static>> {
 }
 
 /// `raw` as one zstd frame with a checksum of its content.
-pub fn compress(raw: &[u8]) -> std::io::Result<Vec<u8>> {
+pub(crate) fn compress(raw: &[u8]) -> std::io::Result<Vec<u8>> {
     COMPRESSOR.with(|cell| {
         let Ok(mut cached) = cell.try_borrow_mut() else {
             return new_compressor()?.compress(raw);
@@ -171,7 +171,7 @@ const MAX_RESERVE: usize = 64 << 20;
 
 /// Decodes one frame of [`compress`] into `out` (cleared first), which must come to exactly
 /// `len` bytes; false if the frame is damaged (its checksum, its structure) or of another size.
-pub fn decompress_into(frame: &[u8], len: usize, out: &mut Vec<u8>) -> bool {
+pub(crate) fn decompress_into(frame: &[u8], len: usize, out: &mut Vec<u8>) -> bool {
     out.clear();
     if len > MAX_RESERVE {
         use std::io::Read;

@@ -14,11 +14,11 @@ use crate::io::las_output::convert::{self, ConvertedSink};
 use crate::io::ply::{PlyNames, PlyWriter};
 use crate::io::source::{PointSource, SourceLayout};
 
-pub use crate::io::output::PointSink;
+pub(crate) use crate::io::output::PointSink;
 
 /// The output formats, chosen by the output's extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum OutputFormat {
+pub(crate) enum OutputFormat {
     /// `.las`
     Las,
     /// `.laz`
@@ -31,7 +31,7 @@ pub enum OutputFormat {
 }
 
 /// The format an output path asks for.
-pub fn output_format(output: &Path) -> Result<OutputFormat> {
+pub(crate) fn output_format(output: &Path) -> Result<OutputFormat> {
     let name = output
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
@@ -51,14 +51,14 @@ pub fn output_format(output: &Path) -> Result<OutputFormat> {
 }
 
 /// Checks that the output path has a supported extension before any work is done.
-pub fn check_output_path(output: &Path) -> Result<()> {
+pub(crate) fn check_output_path(output: &Path) -> Result<()> {
     output_format(output).map(|_| ())
 }
 
 /// How outputs are written, besides their columns (the options of a run that change the
 /// output's bytes but not its values).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct OutputOptions {
+pub(crate) struct OutputOptions {
     /// A LAS/LAZ output keeps its LAS input's version instead of becoming LAS 1.4.
     pub keep_las_version: bool,
     /// How a PLY output names the new columns.
@@ -67,7 +67,7 @@ pub struct OutputOptions {
 
 /// The new columns of `output` as `encoding` stores them: in a PLY output, which has no scale
 /// field, scaled integers become f32.
-pub fn output_columns(
+pub(crate) fn output_columns(
     output: &Path,
     cols: &ColumnSet,
     encoding: Encoding,
@@ -82,7 +82,10 @@ pub fn output_columns(
 /// The extra-bytes descriptors (encoded) of a LAS/LAZ output of `source` with the new columns
 /// `cols`: the one payload its writer stores (the input's descriptors, merged, or a converted
 /// input's, then the new columns'), whose size decides whether it fits a VLR.
-pub fn extra_bytes_payload(source: &dyn PointSource, cols: &OutputColumns) -> Result<Vec<u8>> {
+pub(crate) fn extra_bytes_payload(
+    source: &dyn PointSource,
+    cols: &OutputColumns,
+) -> Result<Vec<u8>> {
     match source.layout() {
         SourceLayout::Las(parts) => carry::extra_bytes_payload(&parts, cols),
         SourceLayout::Converted => {
@@ -97,7 +100,7 @@ pub fn extra_bytes_payload(source: &dyn PointSource, cols: &OutputColumns) -> Re
 
 /// Creates the writer for `output`: LAS/LAZ (a LAS input's records kept byte for byte, any
 /// other input converted) or PLY, with the new columns `cols` ([`output_columns`]).
-pub fn create_sink(
+pub(crate) fn create_sink(
     source: &dyn PointSource,
     output: &Path,
     cols: &OutputColumns,

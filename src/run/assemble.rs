@@ -30,7 +30,7 @@ use crate::run::{Exec, Run};
 /// Writes every output of `run` from its tile results (the tiles of `tiles`, all finished).
 /// Returns the number of points written whose curvature is undefined (from every tile's
 /// results, whichever run computed them; points the class filter left out are not counted).
-pub fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> Result<u64> {
+pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> Result<u64> {
     let spec = &run.spec;
     let store = run.work.results()?;
     let files = store.files(&tiles.tiles);
@@ -81,7 +81,7 @@ pub fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> Result<
 }
 
 /// What one output's merge reads: its input, the results' layout and the output's columns.
-pub struct Merge<'a> {
+pub(crate) struct Merge<'a> {
     /// The input whose records the output repeats.
     pub source: &'a dyn PointSource,
     /// The global id of the input's point 0.
@@ -110,7 +110,7 @@ pub struct Merge<'a> {
 /// point was matched with its result; otherwise the temporary file is removed. Points
 /// `m.select` does not select have no result and are written as not computed. Returns the
 /// number of points written whose curvature is undefined.
-pub fn assemble(
+pub(crate) fn assemble(
     m: &Merge<'_>,
     merger: &mut Merger,
     output: &Path,
@@ -242,9 +242,9 @@ fn merge_records(m: &Merge<'_>, merger: &mut Merger, hand: &HandOff) -> Result<u
                         },
                     )
                 });
-                for (buf, u) in encoded {
-                    undefined += u;
-                    hand.send(buf)?;
+                for e in encoded {
+                    undefined += e.undefined;
+                    hand.send(e.buf)?;
                 }
                 taken?;
                 std::mem::swap(ready, next);
@@ -255,9 +255,16 @@ fn merge_records(m: &Merge<'_>, merger: &mut Merger, hand: &HandOff) -> Result<u
     Ok(undefined)
 }
 
+/// One piece of output records, encoded.
+struct Encoded {
+    /// The output records.
+    buf: Vec<u8>,
+    /// How many of them have an undefined curvature.
+    undefined: u64,
+}
+
 /// The buffers of a group of `records` (the first is point `first_id`) with their `results`:
-/// each piece of `piece` records fills one, in parallel, and comes back with its number of
-/// undefined points, in order.
+/// each piece of `piece` records fills one, in parallel, in order.
 fn encode_group(
     m: &Merge<'_>,
     hand: &HandOff,
@@ -265,13 +272,13 @@ fn encode_group(
     records: &[u8],
     piece: usize,
     results: &GroupResults,
-) -> Vec<(Vec<u8>, u64)> {
+) -> Vec<Encoded> {
     let rl = m.source.record_length();
     let encode = |(p, records): (usize, &[u8])| {
         let mut buf = hand.buffer();
         let first_id = first_id + (p * piece) as u64;
-        let u = encode_piece(m, first_id, records, results, p, &mut buf);
-        (buf, u)
+        let undefined = encode_piece(m, first_id, records, results, p, &mut buf);
+        Encoded { buf, undefined }
     };
     records
         .par_chunks(piece * rl)

@@ -7,22 +7,14 @@
 
 use std::sync::atomic::Ordering;
 
-use crate::core::plan::ScanStats;
 use crate::error::{Error, Result};
+pub(crate) use crate::io::workdir::bucket::Bucketed;
 use crate::io::workdir::bucket::{scan, task_stats, Buckets, ScanInput};
 use crate::run::spec::RunSpec;
 use crate::run::{Exec, Run};
 
-/// The scan's product: the buckets and what the scan learned.
-pub struct Bucketed {
-    /// Every tile's core points (in memory, or in the task directories).
-    pub buckets: Buckets,
-    /// Bounds, counts per tile, centroid, merged over the bucket tasks.
-    pub stats: ScanStats,
-}
-
 /// Points per read chunk for the inputs of `spec`: the user's choice, capped by the budget.
-pub fn chunk_points(spec: &RunSpec, exec: &Exec<'_>) -> usize {
+pub(crate) fn chunk_points(spec: &RunSpec, exec: &Exec<'_>) -> usize {
     let widest = spec
         .sources
         .iter()
@@ -35,7 +27,7 @@ pub fn chunk_points(spec: &RunSpec, exec: &Exec<'_>) -> usize {
 /// Runs bucket task `task` of `run` unless its directory is already complete (then None).
 /// With `keep_in_memory` (`process`), buckets that fit the budget are returned in memory and
 /// not written.
-pub fn bucket_task(
+pub(crate) fn bucket_task(
     run: &Run,
     task: usize,
     keep_in_memory: bool,
@@ -66,7 +58,7 @@ pub fn bucket_task(
     let points = scan_inputs.iter().map(|s| s.source.len()).sum();
     exec.reporter.phase("scan", points);
     let chunk = chunk_points(spec, exec);
-    let (buckets, stats) = exec.pool.install(|| {
+    let bucketed = exec.pool.install(|| {
         scan(
             &scan_inputs,
             spec.grid,
@@ -85,15 +77,15 @@ pub fn bucket_task(
         )
     })?;
     exec.reporter.finish_phase();
-    Ok(Some(Bucketed { buckets, stats }))
+    Ok(Some(bucketed))
 }
 
 /// The buckets of every bucket task of `run`, from their directories; an error naming the
 /// tasks that are not done yet.
-pub fn open_buckets(run: &Run) -> Result<Bucketed> {
+pub(crate) fn open_buckets(run: &Run) -> Result<Bucketed> {
     let dirs = run.work.bucket_task_dirs(run.layout.bucket_tasks.len());
     match Buckets::open(run.spec.grid, &dirs) {
-        Ok((buckets, stats)) => Ok(Bucketed { buckets, stats }),
+        Ok(b) => Ok(b),
         Err(missing) => Err(Error::TasksMissing {
             stage: "bucket",
             tasks: crate::core::tasks::array_syntax(
@@ -110,7 +102,7 @@ pub fn open_buckets(run: &Run) -> Result<Bucketed> {
 /// The bucket stage of `process` (its layout has one bucket task over every input): the scan,
 /// in memory while the buckets fit, or the buckets an interrupted run of the same manifest left
 /// complete.
-pub fn bucket_all(run: &Run, exec: &Exec<'_>) -> Result<Bucketed> {
+pub(crate) fn bucket_all(run: &Run, exec: &Exec<'_>) -> Result<Bucketed> {
     match bucket_task(run, 0, true, exec)? {
         Some(b) => Ok(b),
         None => {

@@ -27,7 +27,11 @@ const MIB: u64 = 1 << 20;
 /// The budget for a run of `spec` as `exec` asks: `--memory`, lowered to what the address-space
 /// limit and the cgroup's memory limit leave, with a message; a usage error (exit 2) naming the
 /// limit and what to raise it to when it cannot hold even the smallest budget.
-pub fn fit_memory(exec: &ExecOptions, spec: &RunSpec, reporter: &dyn Reporter) -> Result<u64> {
+pub(crate) fn fit_memory(
+    exec: &ExecOptions,
+    spec: &RunSpec,
+    reporter: &dyn Reporter,
+) -> Result<u64> {
     let mapped: u64 = spec
         .sources
         .iter()

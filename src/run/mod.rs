@@ -15,16 +15,19 @@
 //! memory instead of being written and read back. The work directory is removed only after
 //! every output is written: every failure keeps it, so that the same command resumes.
 
-pub mod assemble;
-pub mod bucket;
+pub(crate) mod assemble;
+pub(crate) mod bucket;
 pub mod cluster;
-pub mod dry_run;
-pub mod limits;
-pub mod orientation;
-pub mod prepare;
-pub mod rerun;
-pub mod spec;
-pub mod tiles;
+pub(crate) mod dry_run;
+pub(crate) mod limits;
+pub(crate) mod orientation;
+pub(crate) mod prepare;
+pub(crate) mod rerun;
+pub(crate) mod spec;
+pub(crate) mod tiles;
+
+pub use crate::io::workdir::default_path;
+pub use tiles::TilesDone;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -59,7 +62,7 @@ pub struct Summary {
 }
 
 /// How the stages execute: none of this changes the output.
-pub struct Exec<'a> {
+pub(crate) struct Exec<'a> {
     /// The worker threads.
     pub pool: rayon::ThreadPool,
     /// How the memory budget is shared.
@@ -80,9 +83,9 @@ pub(crate) const WORKER_STACK: usize = 16 << 20;
 
 impl<'a> Exec<'a> {
     /// The execution settings `opts` for a run of `spec`: its budget fitted to the machine's
-    /// memory limits ([`limits::fit_memory`]) and shared as the run's parameters need
-    /// ([`RunSpec::memory_plan`]), whichever command runs it.
-    pub fn new(
+    /// memory limits (`limits::fit_memory`) and shared as the run's parameters need
+    /// (`RunSpec::memory_plan`), whichever command runs it.
+    pub(crate) fn new(
         opts: &ExecOptions,
         spec: &RunSpec,
         reporter: &'a dyn Reporter,
@@ -144,7 +147,7 @@ impl Process {
 /// A run over its work directory: the checked spec, the directory and the task layout. Made
 /// by [`Run::plan`] (`process`, `plan`) or [`Run::attach`] (the other cluster stages), so that
 /// every command runs the same stages on the same spec.
-pub struct Run {
+pub(crate) struct Run {
     /// The checked run.
     pub spec: RunSpec,
     /// Its work directory.
@@ -157,7 +160,7 @@ impl Run {
     /// Opens (creating it if needed) and locks the work directory at `path` for `spec`, writes
     /// its manifest and the task `layout`; work left there by another manifest is discarded,
     /// and buckets made under another task layout are.
-    pub fn plan(
+    pub(crate) fn plan(
         spec: RunSpec,
         path: &Path,
         layout: TaskLayout,
@@ -181,8 +184,12 @@ impl Run {
 
     /// Attaches to the planned work directory at `path`, without its lock: the run's inputs and
     /// options from its manifest, which must still describe the inputs.
-    pub fn attach(path: &Path, reporter: &dyn Reporter) -> Result<Run> {
-        let (work, planned, manifest) = WorkDir::attach(path)?;
+    pub(crate) fn attach(path: &Path, reporter: &dyn Reporter) -> Result<Run> {
+        let crate::io::workdir::Attached {
+            work,
+            planned,
+            manifest,
+        } = WorkDir::attach(path)?;
         let mut options = RunOptions::default();
         for (k, v) in &planned.params {
             options.set(k, v).map_err(|e| {
@@ -209,7 +216,10 @@ impl Run {
     }
 
     /// The tiles of `tplan` that are not finished, with the tile task of each.
-    pub fn missing_tiles<'p>(&self, tplan: &'p TilePlan) -> Result<Vec<(u64, &'p TileSpec)>> {
+    pub(crate) fn missing_tiles<'p>(
+        &self,
+        tplan: &'p TilePlan,
+    ) -> Result<Vec<(u64, &'p TileSpec)>> {
         let store = self.work.results()?;
         let propagate = self.spec.propagates();
         Ok(tplan

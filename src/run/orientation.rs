@@ -12,7 +12,7 @@ use crate::progress::Reporter;
 /// `--orient propagate`, across tiles: reads every tile's patch anchors and shared normals,
 /// turns the normals that two patches both oriented into votes, solves one sign per patch
 /// (orient::patch_signs) and returns, per tile of the plan, which of its patches to flip.
-pub fn resolve_orientation(
+pub(crate) fn resolve_orientation(
     dir: &Path,
     tplan: &TilePlan,
     reporter: &dyn Reporter,

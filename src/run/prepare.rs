@@ -24,7 +24,7 @@ fn same_file(a: &Path, b: &Path) -> bool {
 
 /// The output path of each input: `output` itself for one input (or a file in it if it is a
 /// directory), `<output dir>/<input file name>` for several.
-pub fn output_paths(inputs: &[PathBuf], output: &Path) -> Result<Vec<PathBuf>> {
+pub(crate) fn output_paths(inputs: &[PathBuf], output: &Path) -> Result<Vec<PathBuf>> {
     let is_dir = output.is_dir() || output.as_os_str().to_string_lossy().ends_with('/');
     if inputs.len() == 1 && !is_dir {
         return Ok(vec![output.to_path_buf()]);
@@ -56,7 +56,7 @@ pub fn output_paths(inputs: &[PathBuf], output: &Path) -> Result<Vec<PathBuf>> {
 }
 
 /// Checks the outputs: a supported extension, and never one of the inputs.
-pub fn check_outputs(inputs: &[PathBuf], outputs: &[PathBuf]) -> Result<()> {
+pub(crate) fn check_outputs(inputs: &[PathBuf], outputs: &[PathBuf]) -> Result<()> {
     for output in outputs {
         crate::io::sink::check_output_path(output)?;
         if inputs.iter().any(|i| same_file(i, output)) {
@@ -69,14 +69,23 @@ pub fn check_outputs(inputs: &[PathBuf], outputs: &[PathBuf]) -> Result<()> {
     Ok(())
 }
 
+/// The horizontal unit shared by the inputs.
+struct CommonUnit {
+    /// Its symbol ("unit" without a CRS).
+    symbol: String,
+    /// With a CRS, the unit and its length in metres.
+    unit: Option<crate::io::crs::LengthUnit>,
+    /// Its words for the log ("unit m", or "no length unit (why)").
+    words: String,
+}
+
 /// The horizontal unit shared by every input (the first one decides; another unit is an
-/// error): its symbol ("unit" without one), with a CRS its length in metres, and its words for
-/// the log ("unit m", or "no length unit (why)").
+/// error).
 fn common_unit(
     cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     reporter: &dyn Reporter,
-) -> Result<(String, Option<crate::io::crs::LengthUnit>, String)> {
+) -> Result<CommonUnit> {
     let unit = sources[0].unit();
     for s in &sources[1..] {
         let u = s.unit();
@@ -93,7 +102,11 @@ fn common_unit(
     Ok(match unit {
         UnitSource::Wkt(u) | UnitSource::GeoTiff(u) => {
             let symbol = u.symbol();
-            (symbol.clone(), Some(u), format!("unit {symbol}"))
+            CommonUnit {
+                words: format!("unit {symbol}"),
+                symbol,
+                unit: Some(u),
+            }
         }
         UnitSource::Unknown(why) => {
             if cfg.tile.has_unit() {
@@ -109,13 +122,24 @@ fn common_unit(
                     sources[0].path().display(),
                 ));
             }
-            let words = format!("no length unit ({why})");
-            ("unit".to_string(), None, words)
+            CommonUnit {
+                symbol: "unit".to_string(),
+                unit: None,
+                words: format!("no length unit ({why})"),
+            }
         }
     })
 }
 
-/// The factor from the inputs' z unit to their horizontal unit, and its words for the
+/// The factor from the inputs' z unit to their horizontal unit.
+struct VerticalScale {
+    /// The factor (1 unless the CRS declares another vertical unit).
+    factor: f64,
+    /// Its words for the provenance when it is not 1.
+    words: Option<String>,
+}
+
+/// The factor from the inputs' z unit to their horizontal unit, with its words for the
 /// provenance when it is not 1 (unconverted, heights in US survey feet under a compound CRS in
 /// metres make H 2.5x and K 5.1x too large). Without a horizontal unit there is nothing to
 /// convert to; a vertical CRS whose unit cannot be read is warned about; inputs whose factors
@@ -124,10 +148,14 @@ fn vertical_scale(
     sources: &[Box<dyn PointSource>],
     horizontal: Option<&crate::io::crs::LengthUnit>,
     reporter: &dyn Reporter,
-) -> Result<(f64, Option<String>)> {
+) -> Result<VerticalScale> {
     use crate::io::crs_summary::VerticalUnit;
+    let one = VerticalScale {
+        factor: 1.0,
+        words: None,
+    };
     let Some(h) = horizontal else {
-        return Ok((1.0, None));
+        return Ok(one);
     };
     let mut found: Option<(f64, String)> = None;
     for s in sources {
@@ -168,9 +196,12 @@ fn vertical_scale(
         Some((f, words)) if f != 1.0 => {
             let words = format!("{f} ({words})");
             reporter.info(&format!("{}: z x {words}", sources[0].path().display()));
-            (f, Some(words))
+            VerticalScale {
+                factor: f,
+                words: Some(words),
+            }
         }
-        _ => (1.0, None),
+        _ => one,
     })
 }
 
@@ -227,7 +258,7 @@ fn use_file_normals(cfg: &RunParams, sources: &[Box<dyn PointSource>]) -> Result
 /// descriptors that need an EVLR (`check_extra_bytes`); returns the warnings to give.
 ///
 /// [`check_ply_names`]: crate::run::rerun::check_ply_names
-pub fn check_output_columns(
+pub(crate) fn check_output_columns(
     cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     outputs: &[PathBuf],
@@ -299,7 +330,7 @@ fn check_extent(sources: &[Box<dyn PointSource>], grid: TileGrid) -> Result<()> 
 
 /// Opens and checks `inputs`, checks the outputs `output` names, and resolves the run with
 /// `params`. Nothing is written except the output directory of a multi-input run.
-pub fn prepare(
+pub(crate) fn prepare(
     inputs: &[PathBuf],
     output: &Path,
     params: RunParams,
@@ -312,7 +343,7 @@ pub fn prepare(
 
 /// Opens and checks `inputs` and resolves the run with `params`, without outputs (the stages
 /// of a cluster run that write none).
-pub fn open_inputs(
+pub(crate) fn open_inputs(
     inputs: &[PathBuf],
     params: RunParams,
     reporter: &dyn Reporter,
@@ -345,9 +376,9 @@ fn open_sources(
         .iter()
         .map(|p| match cfg.sample_faces {
             Some(n) => crate::io::source::open_sampled(p, n, cfg.estimator_params.seed),
-            None => crate::run::rerun::open_input(p).map(|(s, note)| {
-                notes.extend(note);
-                s
+            None => crate::run::rerun::open_input(p).map(|o| {
+                notes.extend(o.note);
+                o.source
             }),
         })
         .collect()
@@ -374,14 +405,21 @@ fn open_checked(
 ) -> Result<RunSpec> {
     let mut notes = Vec::new();
     let sources = open_sources(inputs, &cfg, &mut notes)?;
-    let (unit_name, unit, unit_words) = common_unit(&cfg, &sources, reporter)?;
+    let CommonUnit {
+        symbol: unit_name,
+        unit,
+        words: unit_words,
+    } = common_unit(&cfg, &sources, reporter)?;
     let tile_units = match unit {
         Some(_) => unit_name.clone(),
         None => "file units".to_string(),
     };
     let tile_size = cfg.tile.in_file_units(unit.as_ref());
     let radius = cfg.radius.map(|r| r.in_file_units(unit.as_ref()));
-    let (z_scale, z_words) = vertical_scale(&sources, unit.as_ref(), reporter)?;
+    let VerticalScale {
+        factor: z_scale,
+        words: z_words,
+    } = vertical_scale(&sources, unit.as_ref(), reporter)?;
     check_extent(&sources, TileGrid { size: tile_size })?;
     check_classes(&cfg, &sources)?;
     let file_normals = use_file_normals(&cfg, &sources)?;

@@ -18,10 +18,20 @@ use crate::io::ply::PlyNames;
 use crate::io::sink::{output_format, OutputFormat};
 use crate::io::source::{self, Format, LasSource, PointSource, SourceLayout};
 
+/// An input opened for a run.
+pub(crate) struct Opened {
+    /// The input.
+    pub(crate) source: Box<dyn PointSource>,
+    /// The warning that its previous run's columns are replaced, for the caller to give once
+    /// every check passed.
+    pub(crate) note: Option<String>,
+}
+
 /// Opens the input `path` of a run: a LAS/LAZ tilecurv output without its previous run's
-/// columns, with the warning that says so (for the caller to give once every check passed),
-/// a tilecurv PLY output refused, any other file as it is.
-pub fn open_input(path: &Path) -> Result<(Box<dyn PointSource>, Option<String>)> {
+/// columns, with the warning that says so, a tilecurv PLY output refused, any other file as
+/// it is.
+pub(crate) fn open_input(path: &Path) -> Result<Opened> {
+    let plain = |source| Opened { source, note: None };
     match source::detect(path)? {
         Format::Las => {
             let mut s = LasSource::from_bytes(path, source::map_file(path)?)?;
@@ -32,7 +42,10 @@ pub fn open_input(path: &Path) -> Result<(Box<dyn PointSource>, Option<String>)>
                 s.drop_extra(&run.columns)?;
                 note = Some(replaced_note(path, &run));
             }
-            Ok((Box::new(s), note))
+            Ok(Opened {
+                source: Box::new(s),
+                note,
+            })
         }
         Format::Ply => {
             let map = source::map_file(path)?;
@@ -45,10 +58,10 @@ pub fn open_input(path: &Path) -> Result<(Box<dyn PointSource>, Option<String>)>
                         run_words(&text)
                     ),
                 )),
-                None => Ok((source::ply::from_bytes(path, map)?, None)),
+                None => Ok(plain(source::ply::from_bytes(path, map)?)),
             }
         }
-        format => Ok((source::open_format(path, format)?, None)),
+        format => Ok(plain(source::open_format(path, format)?)),
     }
 }
 
@@ -117,7 +130,7 @@ fn clash(cfg: &RunParams, source: &dyn PointSource, what: &str, column: &Column)
 /// Refuses, before any work, an input that has an extra dimension or property named like one
 /// of the new columns (any case, as LAS readers match names): the output would hold two.
 /// Tilecurv's own columns are gone by now ([`open_input`]), so this is someone else's column.
-pub fn check_new_names(
+pub(crate) fn check_new_names(
     cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     cols: &ColumnSet,
@@ -136,7 +149,7 @@ pub fn check_new_names(
 
 /// Refuses, before any work, a PLY output (among `outputs`, one per source) whose new
 /// columns' PLY names (`scalar_H`, `nx`, as `style` names them) an input property already has.
-pub fn check_ply_names(
+pub(crate) fn check_ply_names(
     cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     outputs: &[PathBuf],

@@ -16,7 +16,7 @@ use crate::io::source::PointSource;
 use crate::io::workdir::manifest::{InputStamp, Manifest};
 
 /// A checked run: open inputs, their outputs, and every resolved parameter.
-pub struct RunSpec {
+pub(crate) struct RunSpec {
     /// The inputs as the run was given them (absolute for a cluster run).
     pub inputs: Vec<PathBuf>,
     /// The open inputs, one scene, in command-line order.
@@ -43,18 +43,18 @@ pub struct RunSpec {
 
 impl RunSpec {
     /// Whether normals are oriented by propagation (`--orient propagate`).
-    pub fn propagates(&self) -> bool {
+    pub(crate) fn propagates(&self) -> bool {
         self.params.orientation == OrientMode::Propagate
     }
 
     /// The tiles over the scanned cloud: their cores from the statistics, halos for `k` (or
     /// the radius).
-    pub fn tile_plan(&self, stats: &ScanStats) -> TilePlan {
+    pub(crate) fn tile_plan(&self, stats: &ScanStats) -> TilePlan {
         plan(stats, self.grid.size, self.params.k, self.resolved.radius)
     }
 
     /// What to compute per point, once the scan has seen the cloud's centroid.
-    pub fn compute_params(&self, stats: &ScanStats) -> ComputeParams<'_> {
+    pub(crate) fn compute_params(&self, stats: &ScanStats) -> ComputeParams<'_> {
         ComputeParams {
             k: self.params.k,
             radius: self.resolved.radius,
@@ -75,19 +75,19 @@ impl RunSpec {
 
     /// How a budget of `budget_bytes` is shared among `threads` for this run: tiles hold `k`
     /// neighbours a point, and every rung of `-k auto`.
-    pub fn memory_plan(&self, budget_bytes: usize, threads: usize) -> MemoryPlan {
+    pub(crate) fn memory_plan(&self, budget_bytes: usize, threads: usize) -> MemoryPlan {
         let rungs = self.params.ladder.map_or(1, |l| l.rungs());
         MemoryPlan::new(budget_bytes, self.params.k, rungs, threads)
     }
 
     /// The provenance's parameter lines.
-    pub fn parameters(&self) -> Vec<Param> {
+    pub(crate) fn parameters(&self) -> Vec<Param> {
         self.params.provenance(&self.resolved)
     }
 
     /// The provenance text stored in every output: tool version, input names and every
     /// parameter, then the sign convention and unit.
-    pub fn provenance(&self) -> String {
+    pub(crate) fn provenance(&self) -> String {
         let inputs: Vec<String> = self
             .sources
             .iter()
@@ -115,7 +115,7 @@ impl RunSpec {
 
     /// The work directory's manifest of this run: its inputs, tile size, parameters in words,
     /// and the options every stage rebuilds the run from.
-    pub fn manifest(&self) -> String {
+    pub(crate) fn manifest(&self) -> String {
         Manifest {
             inputs: self
                 .inputs

@@ -146,7 +146,7 @@ fn write_failures_are_output_failures_that_resume() {
             let args = ["process", s(input), "-o", s(&out), "--tile", "50m"];
             process(input, &reference, &["--tile", "50m"]);
             let failed = tilecurv_limited(&format!("-f {blocks}"), &args);
-            let work = tilecurv::io::workdir::default_path(&out);
+            let work = tilecurv::run::default_path(&out);
             failed_then_resumed(&failed, &args, &out, &work, "ulimit -f", &reference);
         }
     }
@@ -291,7 +291,8 @@ fn dead_pid() -> u32 {
 #[test]
 fn reruns_sweep_the_temporary_files_of_dead_processes() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let host = tilecurv::io::durable::host_name();
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").expect("hostname");
+    let host = host.trim();
     let (dead, live) = (dead_pid(), std::process::id());
     let work = dir.path().join("work");
     let input = sample();
@@ -432,7 +433,7 @@ fn the_summary_counts_undefined_points_of_resumed_tiles() {
     }
     crate::common::write_las(&input, &xyz, None, 0.001);
     let out = dir.path().join("out.las");
-    let work = tilecurv::io::workdir::default_path(&out);
+    let work = tilecurv::run::default_path(&out);
     let args = [
         "process",
         s(&input),
@@ -502,7 +503,7 @@ fn too_many_open_files_is_a_resource_error_not_bad_input() {
     let reference = dir.path().join("reference.las");
     process(&input, &reference, &["--tile", "20m"]);
     let out = dir.path().join("out.las");
-    let work = tilecurv::io::workdir::default_path(&out);
+    let work = tilecurv::run::default_path(&out);
     let args = ["process", s(&input), "-o", s(&out), "--tile", "20m"];
     let mut named = Vec::new();
     let mut done = None;

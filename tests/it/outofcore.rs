@@ -253,7 +253,7 @@ fn killed_runs_resume_to_a_byte_identical_output() {
     assert!(tiles >= 200, "{tiles} tiles");
 
     let out = dir.path().join("resumed.las");
-    let work = tilecurv::io::workdir::default_path(&out);
+    let work = tilecurv::run::default_path(&out);
     let args = [
         "process",
         s(&input),
@@ -331,7 +331,7 @@ fn stale_work_is_discarded() {
     let input = dir.path().join("terrain.las");
     generate(&input, "300k", "4");
     let out = dir.path().join("out.las");
-    let work = tilecurv::io::workdir::default_path(&out);
+    let work = tilecurv::run::default_path(&out);
     let log = dir.path().join("stderr.txt");
     let run = |k: &str| {
         vec![

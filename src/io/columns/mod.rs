@@ -5,13 +5,13 @@
 //! encoding, which is chosen when the outputs are written ([`output`]: scaled integers, f32 or
 //! f64).
 
-pub mod output;
+pub(crate) mod output;
 
 use crate::core::compute::{PointResult, NO_PATCH};
 use crate::core::estimate::{Curvature, EstimatorKind, EstimatorParams, ExtraColumn, MAX_EXTRA};
 
 /// Name of the quality-flag column.
-pub const FLAGS_NAME: &str = "CurvatureFlags";
+pub(crate) const FLAGS_NAME: &str = "CurvatureFlags";
 
 /// How the new columns are stored in a LAS/LAZ output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -273,7 +273,7 @@ pub struct Column {
 /// The name of every column tilecurv can write (every group, every estimator's extra
 /// columns): what an output's provenance record is taken to claim when it does not list its
 /// columns (outputs of a tilecurv older than the list).
-pub fn every_name() -> Vec<&'static str> {
+pub(crate) fn every_name() -> Vec<&'static str> {
     let mut extra: Vec<ExtraColumn> = Vec::new();
     for kind in EstimatorKind::ALL {
         for c in kind.build(&EstimatorParams::default()).extra_columns() {

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 /// Size in bytes of the fixed part of each point data record format 0 to 10.
 pub const POINT_FORMAT_SIZES: [u16; 11] = [20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67];
 
-/// How LAS records store coordinates: x = X scale[0] + offset[0] for the record's integer X, and
+/// How LAS records store coordinates: x = X scale\[0\] + offset\[0\] for the record's integer X, and
 /// so on for y and z.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Quantisation {

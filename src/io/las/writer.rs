@@ -4,7 +4,7 @@
 //! compressor in fixed chunks) and EVLRs to a temporary file beside the output, patches the
 //! header's layout fields (and, if asked, its bounds) at the end, syncs the file and renames it
 //! over the output on `finish` (after checking that as many records were written as the header
-//! counts); any failure, `abandon` or a drop removes it ([`TempFile`]). It knows the LAS format, not where the records come from:
+//! counts); any failure, `abandon` or a drop removes it (`TempFile`). It knows the LAS format, not where the records come from:
 //! `carry` and `convert` build its [`LasFileSpec`] for `process`.
 
 use std::fs::File;
@@ -335,7 +335,7 @@ impl LasFileWriter {
 
     /// Finishes the points, writes the EVLRs, rewrites the header with the final layout, syncs
     /// the file and renames it over the output. On failure the temporary file is removed (by
-    /// [`TempFile`]'s drop, whichever step failed).
+    /// `TempFile`'s drop, whichever step failed).
     pub fn finish(mut self) -> Result<()> {
         // The header's counts are the caller's (an input's are carried over untouched): a file
         // with another number of records would be corrupt.

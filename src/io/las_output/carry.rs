@@ -16,7 +16,7 @@ use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
 
 /// The LAS version of the output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Version {
+pub(crate) enum Version {
     /// The input's.
     Input,
     /// LAS 1.4, whatever the input's (a 1.0-1.3 header is rewritten by [`upgrade::to_las14`]).
@@ -24,7 +24,7 @@ pub enum Version {
 }
 
 /// Creates the writer of `output` for records of `input` followed by the columns `cols`.
-pub fn create(
+pub(crate) fn create(
     input: LasParts<'_>,
     output: &Path,
     cols: &OutputColumns,
@@ -66,7 +66,7 @@ pub fn create(
 /// The extra-bytes descriptors of the output: the input's, from all its extra-bytes records
 /// in file order (padded with an "undocumented" descriptor if the input's records have more
 /// extra bytes than they describe), then ours. The writer stores them as one record.
-pub fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result<Vec<u8>> {
+pub(crate) fn extra_bytes_payload(input: &LasParts<'_>, cols: &OutputColumns) -> Result<Vec<u8>> {
     let records = crate::io::las::vlr::records(input.vlrs, input.evlrs);
     let mut data = extra_bytes::merged_payload(records)
         .map_err(|why| Error::bad_input(input.path, None, why))?;

@@ -47,14 +47,14 @@ const STANDARD_NAMES: [&str; 22] = [
 
 /// A LAS output of a non-LAS source: each batch of source records (with their new columns) is
 /// converted, then written by the one LAS writer.
-pub struct ConvertedSink {
+pub(crate) struct ConvertedSink {
     convert: Convert,
     writer: LasFileWriter,
 }
 
 impl ConvertedSink {
     /// Creates the converted output of `source` (see the module doc).
-    pub fn create(
+    pub(crate) fn create(
         source: &dyn PointSource,
         output: &Path,
         cols: &OutputColumns,
@@ -133,7 +133,7 @@ fn split_xyz(source: &dyn PointSource) -> Result<Split> {
 
 /// The encoded extra-bytes descriptors of a converted output of `source`, before the new
 /// columns': one per property but x, y and z.
-pub fn input_descriptors(source: &dyn PointSource) -> Result<Vec<u8>> {
+pub(crate) fn input_descriptors(source: &dyn PointSource) -> Result<Vec<u8>> {
     Ok(descriptors(&split_xyz(source)?.others))
 }
 
@@ -195,7 +195,7 @@ impl Convert {
 /// times the largest extent E. The quantisation error is then at most 0.5e-8 E (far better
 /// than 1e-6 relative to the cloud's size), and since the scale exceeds 1e-9 E, coordinates
 /// stay below 5e8 < 2^31 in magnitude. A cloud of one position uses E = max(|coordinate|, 1).
-pub fn quantisation(bounds: [[f64; 3]; 2]) -> Quantisation {
+pub(crate) fn quantisation(bounds: [[f64; 3]; 2]) -> Quantisation {
     let [lo, hi] = bounds;
     let mut extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
     if extent <= 0.0 {

@@ -3,5 +3,5 @@
 //! other input converted to LAS records first). Above `io::las`, `io::columns` and
 //! `io::source`, which it combines.
 
-pub mod carry;
-pub mod convert;
+pub(crate) mod carry;
+pub(crate) mod convert;

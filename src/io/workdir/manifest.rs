@@ -32,7 +32,7 @@ impl Fingerprint {
 
 /// An input as the manifest identifies it.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct InputStamp {
+pub(crate) struct InputStamp {
     /// The path as the run was given it (absolute for a cluster run).
     pub path: PathBuf,
     /// Its points.
@@ -41,7 +41,7 @@ pub struct InputStamp {
 
 /// What a run's manifest records.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Manifest {
+pub(crate) struct Manifest {
     /// The inputs, in order.
     pub inputs: Vec<InputStamp>,
     /// The tile edge in file units: buckets depend on it bit for bit.
@@ -57,7 +57,7 @@ const INPUT: &str = "input";
 
 impl Manifest {
     /// The manifest's text; its first line holds the fingerprint.
-    pub fn text(&self) -> String {
+    pub(crate) fn text(&self) -> String {
         let mut fp = Fingerprint::default();
         let mut text = String::new();
         fp.text(env!("CARGO_PKG_VERSION"));
@@ -106,16 +106,16 @@ impl Manifest {
 
 /// What a stage reads back from a manifest: the inputs and the options.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Planned {
+pub(crate) struct Planned {
     /// The inputs as the run was given them.
-    pub inputs: Vec<PathBuf>,
+    pub(crate) inputs: Vec<PathBuf>,
     /// The options as `key=value`, in order.
-    pub params: Vec<(String, String)>,
+    pub(crate) params: Vec<(String, String)>,
 }
 
 /// Reads the inputs and options of the manifest `text` (of the file `path`); a manifest
 /// without the header or without inputs is damaged work.
-pub fn parse(path: &Path, text: &str) -> Result<Planned> {
+pub(crate) fn parse(path: &Path, text: &str) -> Result<Planned> {
     if !text.starts_with("tilecurv work directory, fingerprint ") {
         return Err(damaged(path, "it does not start with the tilecurv header"));
     }

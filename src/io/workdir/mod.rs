@@ -7,10 +7,10 @@
 //! the result store (`results/`, [`results`], [`ResultStore`]) are reached through
 //! [`WorkDir`]; no other module joins a path inside the directory.
 
-pub mod bucket;
-pub mod manifest;
+pub(crate) mod bucket;
+pub(crate) mod manifest;
 pub(crate) mod names;
-pub mod results;
+pub(crate) mod results;
 
 use std::fs::{File, OpenOptions};
 use std::io::Write;
@@ -27,11 +27,11 @@ use names::{BUCKETS, LOCK, MANIFEST, RESULTS, TASKS};
 /// manifest and its fingerprint: work left by a tilecurv that wrote other formats is discarded
 /// by `process` and refused by the cluster stages, never misread. Each file also starts with
 /// its own magic and version.
-pub const FORMAT_VERSION: u32 = 3;
+pub(crate) const FORMAT_VERSION: u32 = 3;
 
 /// What was found in the work directory when a run started.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Resume {
+pub(crate) enum Resume {
     /// Nothing: a fresh start.
     Fresh,
     /// Work from the same inputs and parameters: finished steps are reused.
@@ -40,8 +40,18 @@ pub enum Resume {
     Discarded,
 }
 
+/// A work directory attached to by a cluster stage, with its manifest.
+pub(crate) struct Attached {
+    /// The directory.
+    pub(crate) work: WorkDir,
+    /// The inputs and options the manifest holds.
+    pub(crate) planned: manifest::Planned,
+    /// The manifest's text, to compare with the run rebuilt from it.
+    pub(crate) manifest: String,
+}
+
 /// An open work directory.
-pub struct WorkDir {
+pub(crate) struct WorkDir {
     path: PathBuf,
     /// What was found there.
     pub resume: Resume,
@@ -105,7 +115,7 @@ fn take_lock(path: &Path) -> Result<File> {
 impl WorkDir {
     /// Opens (creating it if needed) and locks the work directory at `path`, compares its
     /// manifest with `manifest` (whose first line is the fingerprint), and discards stale work.
-    pub fn open(path: &Path, manifest: &str) -> Result<Self> {
+    pub(crate) fn open(path: &Path, manifest: &str) -> Result<Self> {
         std::fs::create_dir_all(path).map_err(|e| Error::write(path, e))?;
         let lock_file = take_lock(path)?;
         sweep_dead_temps(path, None);
@@ -133,13 +143,13 @@ impl WorkDir {
 
     /// The scratch directory of a dry run beside the work directory `path`, opened and locked
     /// as [`WorkDir::open`] does.
-    pub fn open_scratch(path: &Path, manifest: &str) -> Result<Self> {
+    pub(crate) fn open_scratch(path: &Path, manifest: &str) -> Result<Self> {
         WorkDir::open(&path.with_extension("dryrun"), manifest)
     }
 
     /// Attaches to the work directory a `plan` made at `path`, without its lock (tasks of one
     /// stage run at the same time, on any node), and returns it with what its manifest says.
-    pub fn attach(path: &Path) -> Result<(Self, manifest::Planned, String)> {
+    pub(crate) fn attach(path: &Path) -> Result<Attached> {
         let mpath = path.join(MANIFEST);
         let text = std::fs::read_to_string(&mpath).map_err(|e| match e.kind() {
             std::io::ErrorKind::NotFound => Error::Usage(format!(
@@ -157,16 +167,20 @@ impl WorkDir {
             locked: false,
             _lock: None,
         };
-        Ok((work, planned, text))
+        Ok(Attached {
+            work,
+            planned,
+            manifest: text,
+        })
     }
 
     /// The directory.
-    pub fn path(&self) -> &Path {
+    pub(crate) fn path(&self) -> &Path {
         &self.path
     }
 
     /// Records the task layout `text`; buckets made under another layout are discarded.
-    pub fn set_task_layout(&self, text: &str) -> Result<()> {
+    pub(crate) fn set_task_layout(&self, text: &str) -> Result<()> {
         let tasks = self.path.join(TASKS);
         if std::fs::read_to_string(&tasks).ok().as_deref() == Some(text) {
             return Ok(());
@@ -180,7 +194,7 @@ impl WorkDir {
 
     /// The task layout's text as `plan` wrote it, parsed by `parse`; a missing layout asks for
     /// a new plan, one that does not parse is damaged work (exit 4).
-    pub fn task_layout<T>(&self, parse: impl FnOnce(&str) -> Option<T>) -> Result<T> {
+    pub(crate) fn task_layout<T>(&self, parse: impl FnOnce(&str) -> Option<T>) -> Result<T> {
         let tasks = self.path.join(TASKS);
         let text = std::fs::read_to_string(&tasks).map_err(|e| match e.kind() {
             std::io::ErrorKind::NotFound => Error::Usage(format!(
@@ -195,18 +209,18 @@ impl WorkDir {
     }
 
     /// The directory of bucket task `task`.
-    pub fn bucket_task_dir(&self, task: usize) -> PathBuf {
+    pub(crate) fn bucket_task_dir(&self, task: usize) -> PathBuf {
         names::bucket_task_dir(&self.path.join(BUCKETS), task)
     }
 
     /// The directories of bucket tasks `0..tasks`.
-    pub fn bucket_task_dirs(&self, tasks: usize) -> Vec<PathBuf> {
+    pub(crate) fn bucket_task_dirs(&self, tasks: usize) -> Vec<PathBuf> {
         (0..tasks).map(|t| self.bucket_task_dir(t)).collect()
     }
 
     /// Makes the buckets directory ready for a scan: created, with the attempts of killed
     /// scans of this host removed (their frames are never reused).
-    pub fn prepare_buckets(&self) -> Result<()> {
+    pub(crate) fn prepare_buckets(&self) -> Result<()> {
         let buckets = self.path.join(BUCKETS);
         std::fs::create_dir_all(&buckets).map_err(|e| Error::write(&buckets, e))?;
         sweep_dead_temps(&buckets, None);
@@ -215,7 +229,7 @@ impl WorkDir {
 
     /// The result store, created if needed, with the half-written files of killed runs of this
     /// host removed.
-    pub fn results(&self) -> Result<ResultStore> {
+    pub(crate) fn results(&self) -> Result<ResultStore> {
         let dir = self.path.join(RESULTS);
         std::fs::create_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
         sweep_dead_temps(&dir, None);
@@ -223,7 +237,7 @@ impl WorkDir {
     }
 
     /// Removes the whole directory (after a successful run).
-    pub fn remove(self) {
+    pub(crate) fn remove(self) {
         let _ = std::fs::remove_dir_all(&self.path);
     }
 }
@@ -239,25 +253,25 @@ impl Drop for WorkDir {
 
 /// The tile results of a work directory: which tiles are done, the journal that commits new
 /// ones, and the files assemble merges.
-pub struct ResultStore {
+pub(crate) struct ResultStore {
     dir: PathBuf,
 }
 
 impl ResultStore {
     /// Whether tile `t` is finished: its result file is complete (and, with `propagate`
     /// (`--orient propagate`), its orientation sidecar is there: it is renamed first).
-    pub fn tile_done(&self, t: &TileSpec, cols: &ColumnSet, propagate: bool) -> bool {
+    pub(crate) fn tile_done(&self, t: &TileSpec, cols: &ColumnSet, propagate: bool) -> bool {
         (!propagate || names::tile_orientation(&self.dir, t.key).exists())
             && results::is_complete(&names::tile_result(&self.dir, t.key), t.count, cols)
     }
 
     /// The journal that writes and commits finished tiles.
-    pub fn journal(&self) -> results::Journal {
+    pub(crate) fn journal(&self) -> results::Journal {
         results::Journal::new(&self.dir)
     }
 
     /// The result files of `tiles`, in order.
-    pub fn files(&self, tiles: &[TileSpec]) -> Vec<PathBuf> {
+    pub(crate) fn files(&self, tiles: &[TileSpec]) -> Vec<PathBuf> {
         tiles
             .iter()
             .map(|t| names::tile_result(&self.dir, t.key))
@@ -265,7 +279,7 @@ impl ResultStore {
     }
 
     /// The directory, for the merge's run files and the orientation sidecars.
-    pub fn dir(&self) -> &Path {
+    pub(crate) fn dir(&self) -> &Path {
         &self.dir
     }
 }

@@ -24,7 +24,7 @@ struct Verified {
 }
 
 /// Everything a tile's computation reads, shared by the drivers.
-pub struct TileJob<'a> {
+pub(crate) struct TileJob<'a> {
     /// The buckets.
     pub buckets: &'a Buckets,
     /// The tile plan.
@@ -36,7 +36,7 @@ pub struct TileJob<'a> {
 }
 
 /// One computed tile.
-pub struct ComputedTile {
+pub(crate) struct ComputedTile {
     /// Its core points' results.
     pub results: Vec<PointResult>,
     /// Its orientation sidecar (`--orient propagate`).
@@ -48,7 +48,7 @@ pub struct ComputedTile {
 impl TileJob<'_> {
     /// Computes one tile, all its parts in order, on `pool` with the driver's buffers (`exec`
     /// for the signal and the progress).
-    pub fn compute(
+    pub(crate) fn compute(
         &self,
         spec: &TileSpec,
         exec: &Exec<'_>,

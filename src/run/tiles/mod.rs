@@ -20,7 +20,7 @@ use crate::run::bucket::Bucketed;
 use crate::run::spec::RunSpec;
 use crate::run::{Exec, Run};
 use drive::drive;
-pub use job::{ComputedTile, TileJob};
+pub(crate) use job::TileJob;
 
 /// What the tiles stage did.
 #[derive(Debug, Clone)]
@@ -38,7 +38,12 @@ pub struct TilesDone {
 /// Runs the tiles stage of `run`: plans the tiles from the scan statistics, skips the
 /// finished ones, computes the others (only those of tile task `task` when given) and
 /// journals them in the result store.
-pub fn tiles(run: &Run, scan: &Bucketed, task: Option<u64>, exec: &Exec<'_>) -> Result<TilesDone> {
+pub(crate) fn tiles(
+    run: &Run,
+    scan: &Bucketed,
+    task: Option<u64>,
+    exec: &Exec<'_>,
+) -> Result<TilesDone> {
     let spec = &run.spec;
     let params = spec.compute_params(&scan.stats);
     let tplan = spec.tile_plan(&scan.stats);

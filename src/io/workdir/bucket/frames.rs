@@ -27,7 +27,7 @@ const MAGIC: &[u8; 4] = b"TCB2";
 /// `(q * scale + offset) * post`, `post` being the z factor of the input's vertical unit (1 for
 /// x and y).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AxisGrid {
+pub(super) struct AxisGrid {
     /// The file's scale.
     pub scale: f64,
     /// The file's offset.
@@ -57,14 +57,14 @@ impl AxisGrid {
 
 /// The inputs of a scan by id range, with the grids their coordinates decode from.
 #[derive(Debug, Clone, Default)]
-pub struct Grids {
+pub(super) struct Grids {
     /// (first id, grids of x, y and z or None) per input, in id order.
     inputs: Vec<(u64, Option<[AxisGrid; 3]>)>,
 }
 
 impl Grids {
     /// Adds the next input: its first global id, and its coordinates' grids if it has some.
-    pub fn push(&mut self, first_id: u64, axes: Option<[AxisGrid; 3]>) {
+    pub(super) fn push(&mut self, first_id: u64, axes: Option<[AxisGrid; 3]>) {
         self.inputs.push((first_id, axes));
     }
 
@@ -254,7 +254,7 @@ fn get_run(c: &mut Cursor<'_>, out: &mut Points) -> Option<()> {
 }
 
 /// Encodes points (in scan order) as one frame: runs of one input each.
-pub fn encode_frame(points: &Points, grids: &Grids) -> std::io::Result<Vec<u8>> {
+pub(super) fn encode_frame(points: &Points, grids: &Grids) -> std::io::Result<Vec<u8>> {
     let mut runs = Vec::new();
     let mut start = 0;
     let ids = points.ids();
@@ -278,7 +278,7 @@ pub fn encode_frame(points: &Points, grids: &Grids) -> std::io::Result<Vec<u8>> 
 
 /// Decodes every frame of a bucket file (`bytes`, read from `path`). A damaged or truncated
 /// file, or one of another format, is an error that names it.
-pub fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Points> {
+pub(super) fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Points> {
     let bad = |what: &str| Error::damaged_work(path, &format!("bucket file {what}"));
     let raw = zstd::stream::decode_all(bytes).map_err(|_| bad("is damaged or truncated"))?;
     let mut c = Cursor::new(&raw);
@@ -297,7 +297,7 @@ pub fn decode_frames(path: &Path, bytes: &[u8]) -> Result<Points> {
 
 /// Appends one frame per bucket of `buckets` to its bucket file. The frames are compressed in
 /// parallel (on the caller's rayon pool), then appended in the given order.
-pub fn spill(dir: &Path, buckets: Vec<(TileKey, Points)>, grids: &Grids) -> Result<()> {
+pub(super) fn spill(dir: &Path, buckets: Vec<(TileKey, Points)>, grids: &Grids) -> Result<()> {
     let frames: Vec<(TileKey, std::io::Result<Vec<u8>>)> = buckets
         .into_par_iter()
         .map(|(key, points)| (key, encode_frame(&points, grids)))

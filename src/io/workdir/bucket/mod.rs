@@ -20,8 +20,16 @@ use crate::core::tile::{Part, TilePoints};
 use crate::error::{Error, Result};
 use crate::io::workdir::names::{bucket_file, BUCKETS_DONE as DONE};
 use frames::decode_frames;
-pub use scan::{scan, ScanInput};
-pub use stats::{parse_stats, stats_text};
+pub(crate) use scan::{scan, ScanInput};
+pub(crate) use stats::parse_stats;
+
+/// The scan's product: the buckets and what the scan learned.
+pub(crate) struct Bucketed {
+    /// Every tile's core points (in memory, or in the task directories).
+    pub(crate) buckets: Buckets,
+    /// Bounds, counts per tile, centroid, merged over the bucket tasks.
+    pub(crate) stats: ScanStats,
+}
 
 /// A complete bucket task directory and the tiles it holds points of, with their counts.
 struct TaskDir {
@@ -30,7 +38,7 @@ struct TaskDir {
 }
 
 /// The points of every tile core.
-pub struct Buckets {
+pub(crate) struct Buckets {
     grid: TileGrid,
     mem: HashMap<TileKey, Arc<Points>>,
     dirs: Vec<TaskDir>,
@@ -46,7 +54,7 @@ struct Cache {
 }
 
 /// The statistics of a complete bucket task directory, or None if it is not complete.
-pub fn task_stats(dir: &Path) -> Option<ScanStats> {
+pub(crate) fn task_stats(dir: &Path) -> Option<ScanStats> {
     parse_stats(&std::fs::read_to_string(dir.join(DONE)).ok()?)
 }
 
@@ -71,10 +79,10 @@ impl Buckets {
 
     /// The buckets of the complete task directories `dirs` (in task order) with their merged
     /// statistics, or the indices of the tasks that are not complete.
-    pub fn open(
+    pub(crate) fn open(
         grid: TileGrid,
         dirs: &[PathBuf],
-    ) -> std::result::Result<(Self, ScanStats), Vec<usize>> {
+    ) -> std::result::Result<Bucketed, Vec<usize>> {
         let mut stats = ScanStats::empty();
         let mut tasks = Vec::with_capacity(dirs.len());
         let mut missing = Vec::new();
@@ -91,26 +99,29 @@ impl Buckets {
             }
         }
         if missing.is_empty() {
-            Ok((Self::on_disk(grid, tasks), stats))
+            Ok(Bucketed {
+                buckets: Self::on_disk(grid, tasks),
+                stats,
+            })
         } else {
             Err(missing)
         }
     }
 
     /// Whether the buckets live on disk.
-    pub fn spilled(&self) -> bool {
+    pub(crate) fn spilled(&self) -> bool {
         !self.dirs.is_empty()
     }
 
     /// Sets how many bytes of decoded spilled buckets may be kept for reuse by neighbouring tiles.
-    pub fn set_cache_budget(&self, bytes: usize) {
+    pub(crate) fn set_cache_budget(&self, bytes: usize) {
         if let Ok(mut c) = self.cache.lock() {
             c.budget = bytes;
         }
     }
 
     /// The core points of a tile.
-    pub fn core(&self, key: TileKey) -> Result<Arc<Points>> {
+    pub(crate) fn core(&self, key: TileKey) -> Result<Arc<Points>> {
         if let Some(v) = self.mem.get(&key) {
             return Ok(v.clone());
         }
@@ -173,7 +184,7 @@ impl Buckets {
 
     /// Calls `f` for every point in `region` that is not in the core of `exclude`, tile by tile
     /// in key order.
-    pub fn gather(
+    pub(crate) fn gather(
         &self,
         region: &Rect,
         exclude: TileKey,
@@ -202,7 +213,7 @@ impl Buckets {
 /// Loads `part` of tile `key` with a halo of width `halo`. With `only`, just those core points
 /// (by id) are to be computed and the rest of the part is context (a wider-halo retry). `known`
 /// lists the tiles that hold points (the plan's counts).
-pub fn load_tile(
+pub(crate) fn load_tile(
     buckets: &Buckets,
     key: TileKey,
     part: &Part,

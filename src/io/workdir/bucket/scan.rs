@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::frames::{spill, AxisGrid, Grids};
 use super::stats::stats_text;
-use super::{Buckets, TaskDir, DONE};
+use super::{Bucketed, Buckets, TaskDir, DONE};
 use crate::core::plan::{computable, MemoryPlan, ScanStats, TileGrid, TileKey, MAX_COORDINATE};
 use crate::core::point::{Points, SourcePoint};
 use crate::core::select::ClassFilter;
@@ -22,7 +22,7 @@ use crate::io::source::PointSource;
 use crate::io::workdir::names::bucket_file;
 
 /// One source of a scan and the id of its first point in the scene.
-pub struct ScanInput<'a> {
+pub(crate) struct ScanInput<'a> {
     /// The source.
     pub source: &'a dyn PointSource,
     /// Global id of its point 0 (the sum of the earlier inputs' counts).
@@ -83,7 +83,7 @@ impl Held {
 /// written; otherwise (or once they do not fit) every bucket ends on disk with the statistics
 /// in `buckets.done`. `progress(n)` is called after each chunk with the points read; an error
 /// from it (cancellation) stops the scan.
-pub fn scan(
+pub(crate) fn scan(
     inputs: &[ScanInput<'_>],
     grid: TileGrid,
     chunk_points: usize,
@@ -91,7 +91,7 @@ pub fn scan(
     task_dir: &Path,
     keep_in_memory: bool,
     mut progress: impl FnMut(u64) -> Result<()>,
-) -> Result<(Buckets, ScanStats)> {
+) -> Result<Bucketed> {
     let mut held = Held {
         mem: HashMap::new(),
         bytes: 0,
@@ -151,7 +151,10 @@ pub fn scan(
         .into_iter()
         .map(|(k, v)| (k, Arc::new(v)))
         .collect();
-    Ok((Buckets::in_memory(grid, mem), stats))
+    Ok(Bucketed {
+        buckets: Buckets::in_memory(grid, mem),
+        stats,
+    })
 }
 
 /// Records of a chunk decoded by one task: the pieces of a chunk are decoded in parallel (on
@@ -294,12 +297,7 @@ fn check_point(source: &dyn PointSource, grid: TileGrid, p: &SourcePoint) -> Res
 
 /// Spills what is still held, makes the task directory durable with its statistics, and
 /// renames it into place (keeping an identical one another attempt finished first).
-fn publish(
-    mut held: Held,
-    grid: TileGrid,
-    task_dir: &Path,
-    stats: ScanStats,
-) -> Result<(Buckets, ScanStats)> {
+fn publish(mut held: Held, grid: TileGrid, task_dir: &Path, stats: ScanStats) -> Result<Bucketed> {
     let tmp = held.tmp.clone();
     std::fs::create_dir_all(&tmp).map_err(|e| Error::write(&tmp, e))?;
     held.spill_largest(0)?;
@@ -325,5 +323,8 @@ fn publish(
         path: task_dir.to_path_buf(),
         tiles: stats.per_tile.clone(),
     };
-    Ok((Buckets::on_disk(grid, vec![dir]), stats))
+    Ok(Bucketed {
+        buckets: Buckets::on_disk(grid, vec![dir]),
+        stats,
+    })
 }

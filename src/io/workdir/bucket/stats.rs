@@ -6,7 +6,7 @@
 use crate::core::plan::{Centroid, ScanStats};
 
 /// The statistics as text.
-pub fn stats_text(s: &ScanStats) -> String {
+pub(crate) fn stats_text(s: &ScanStats) -> String {
     let c = &s.centroid;
     let bits = |v: [f64; 3]| format!("{} {} {}", v[0].to_bits(), v[1].to_bits(), v[2].to_bits());
     let mut t = format!(
@@ -26,7 +26,7 @@ pub fn stats_text(s: &ScanStats) -> String {
 }
 
 /// Parses [`stats_text`]; None if anything is off (the task is then not done).
-pub fn parse_stats(text: &str) -> Option<ScanStats> {
+pub(crate) fn parse_stats(text: &str) -> Option<ScanStats> {
     let mut s = ScanStats::empty();
     let bits = |a: &str, b: &str, c: &str| -> Option<[f64; 3]> {
         Some([

@@ -45,12 +45,12 @@ const MAX_BLOCK: usize = 16 << 20;
 /// and 16 KiB for the rest of the reader; the frame and planes of a block being decoded are
 /// freed once it is. About 57 KiB for normals, H, K, k1, k2 and flags, 76 KiB for H, K and
 /// flags.
-pub fn reader_bytes(cols: &ColumnSet) -> usize {
+pub(super) fn reader_bytes(cols: &ColumnSet) -> usize {
     BLOCK_BYTES + 8 * BLOCK_BYTES.div_ceil(cols.result_size()) + (16 << 10)
 }
 
 /// Bytes of one record in memory: the global patch (u64) then the columns.
-pub fn record_size(cols: &ColumnSet) -> usize {
+pub(crate) fn record_size(cols: &ColumnSet) -> usize {
     8 + cols.result_size()
 }
 
@@ -109,7 +109,7 @@ impl HPrediction {
 }
 
 /// Writes a result file under its temporary name: records pushed in increasing id order.
-pub struct ResultWriter {
+pub(super) struct ResultWriter {
     path: PathBuf,
     tmp: PathBuf,
     w: BufWriter<File>,
@@ -129,7 +129,7 @@ pub struct ResultWriter {
 impl ResultWriter {
     /// Starts the file for `path` (under a temporary name) for `count` records of `cols`, with
     /// the patches stored or not, and `stats` in its header.
-    pub fn create(
+    pub(super) fn create(
         path: &Path,
         count: u64,
         cols: &ColumnSet,
@@ -168,7 +168,7 @@ impl ResultWriter {
 
     /// Adds the record of point `id` (greater than the last one): `record` is the patch (u64
     /// LE) then the columns, [`record_size`] bytes.
-    pub fn push(&mut self, id: u64, record: &[u8]) -> Result<()> {
+    pub(super) fn push(&mut self, id: u64, record: &[u8]) -> Result<()> {
         let (patch, columns) = record.split_at(8.min(record.len()));
         let gap = match self.prev {
             None => Some(id),
@@ -217,7 +217,7 @@ impl ResultWriter {
     }
 
     /// Writes the last block and flushes; returns the temporary name (the caller renames it).
-    pub fn finish(mut self) -> Result<PathBuf> {
+    pub(super) fn finish(mut self) -> Result<PathBuf> {
         self.flush_block()?;
         if self.written != self.count {
             return Err(Error::Internal(format!(
@@ -233,7 +233,7 @@ impl ResultWriter {
 }
 
 /// Reads one result file in id order, a block at a time.
-pub struct TileResults {
+pub(crate) struct TileResults {
     path: PathBuf,
     file: File,
     /// Records not yet returned.
@@ -255,7 +255,7 @@ pub struct TileResults {
 
 impl TileResults {
     /// Opens a result file written with the same column set and reads its header.
-    pub fn open(path: &Path, cols: &ColumnSet) -> Result<Self> {
+    pub(crate) fn open(path: &Path, cols: &ColumnSet) -> Result<Self> {
         let bad = |what: String| Error::damaged_work(path, &format!("result file {what}"));
         let mut file = File::open(path).map_err(|e| Error::read_work(path, e))?;
         let mut head = [0u8; HEAD];
@@ -295,7 +295,7 @@ impl TileResults {
     }
 
     /// Whether the file stores patches.
-    pub fn patched(&self) -> bool {
+    pub(crate) fn patched(&self) -> bool {
         self.patched
     }
 
@@ -348,7 +348,7 @@ impl TileResults {
 
     /// Reads the next record's id, with its patch (u64 LE, none if not stored) and column bytes
     /// in `record` ([`record_size`] bytes); None at the end.
-    pub fn next(&mut self, record: &mut Vec<u8>) -> Result<Option<u64>> {
+    pub(crate) fn next(&mut self, record: &mut Vec<u8>) -> Result<Option<u64>> {
         if self.remaining == 0 {
             return Ok(None);
         }
@@ -370,7 +370,7 @@ impl TileResults {
 
     /// Reads every record, checking that the file is whole: every block decodes with its
     /// checksum, the ids increase, and the file ends with the header's count.
-    pub fn verify(mut self) -> Result<()> {
+    pub(crate) fn verify(mut self) -> Result<()> {
         let mut rec = Vec::new();
         while self.next(&mut rec)?.is_some() {}
         let mut rest = [0u8; 1];

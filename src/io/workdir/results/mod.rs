@@ -24,9 +24,9 @@ use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::pack::Cursor;
 use file::ResultWriter;
-pub use file::{record_size, TileResults};
+pub(crate) use file::{record_size, TileResults};
 use sidecar::write_sidecar;
-pub use sidecar::{orientation_path, read_sidecar, TileSidecar};
+pub(crate) use sidecar::{orientation_path, read_sidecar, TileSidecar};
 
 /// The statistics block: for H, K and the principal curvatures, the largest magnitude (f64),
 /// the number of non-empty bins (u16) and each as its biased exponent (u16) and count (u64).
@@ -70,7 +70,7 @@ pub(super) fn parse_stats(b: &[u8]) -> Option<CurvatureStats> {
 /// Most result files merged at once; more are first partly merged into runs (which the work
 /// directory then holds beside the tile files). Lowered to what the open-file limit and the
 /// memory budget allow (see [`fan_in`]).
-pub const MAX_FAN_IN: usize = 8192;
+pub(crate) const MAX_FAN_IN: usize = 8192;
 
 /// How many result files one merge may open: [`MAX_FAN_IN`], or less when the process's
 /// open-file limit is low (the CLI raised its soft limit to the hard one at start): what the
@@ -79,7 +79,7 @@ pub const MAX_FAN_IN: usize = 8192;
 /// `memory_bytes` (the run's budget, free once the tiles are done) holds of readers of `cols`
 /// (`file::reader_bytes`: a block of rows and their ids); at least 2. A limit too low even
 /// for that makes the open fail with EMFILE, an error that says to raise `ulimit -n`.
-pub fn fan_in(memory_bytes: usize, cols: &ColumnSet) -> usize {
+pub(crate) fn fan_in(memory_bytes: usize, cols: &ColumnSet) -> usize {
     let by_memory = (memory_bytes / 4 / file::reader_bytes(cols)).clamp(2, MAX_FAN_IN);
     let Some(soft) = crate::io::limits::open_files_limit() else {
         return 64.min(by_memory);
@@ -90,7 +90,7 @@ pub fn fan_in(memory_bytes: usize, cols: &ColumnSet) -> usize {
 }
 
 /// The result file of a tile.
-pub fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
+pub(crate) fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
     crate::io::workdir::names::tile_result(dir, key)
 }
 
@@ -134,7 +134,7 @@ fn write_tile_tmp(
 /// written under temporary names, flushed to disk with one `syncfs` (one journal commit instead
 /// of one per file: thousands of small tiles would otherwise spend seconds in fsync), then
 /// renamed to their final names. Only a renamed file counts as a finished tile.
-pub struct Journal {
+pub(crate) struct Journal {
     dir: PathBuf,
     pending: Vec<(PathBuf, PathBuf)>,
     since: std::time::Instant,
@@ -142,7 +142,7 @@ pub struct Journal {
 
 impl Journal {
     /// A journal writing into `dir`.
-    pub fn new(dir: &Path) -> Self {
+    pub(crate) fn new(dir: &Path) -> Self {
         Journal {
             dir: dir.to_path_buf(),
             pending: Vec::new(),
@@ -151,7 +151,7 @@ impl Journal {
     }
 
     /// Adds a finished tile; commits the batch when it is large or old enough.
-    pub fn add(
+    pub(crate) fn add(
         &mut self,
         key: TileKey,
         tile_index: u32,
@@ -174,7 +174,7 @@ impl Journal {
     }
 
     /// Makes every pending tile durable and visible.
-    pub fn commit(&mut self) -> Result<()> {
+    pub(crate) fn commit(&mut self) -> Result<()> {
         if self.pending.is_empty() {
             return Ok(());
         }
@@ -194,7 +194,7 @@ impl Journal {
 /// Whether the result file of a tile is complete: it exists, its header matches the column
 /// set, its count is `expected`, and it is whole ([`TileResults::verify`]). A damaged file is
 /// not complete: its tile is computed again.
-pub fn is_complete(path: &Path, expected: u64, cols: &ColumnSet) -> bool {
+pub(crate) fn is_complete(path: &Path, expected: u64, cols: &ColumnSet) -> bool {
     match TileResults::open(path, cols) {
         Ok(r) => r.count == expected && r.verify().is_ok(),
         Err(_) => false,
@@ -203,7 +203,7 @@ pub fn is_complete(path: &Path, expected: u64, cols: &ColumnSet) -> bool {
 
 /// The curvature statistics of all the tiles whose result files are `files`: the sum of
 /// theirs, so the same whatever the tiling.
-pub fn scene_stats(files: &[PathBuf], cols: &ColumnSet) -> Result<CurvatureStats> {
+pub(crate) fn scene_stats(files: &[PathBuf], cols: &ColumnSet) -> Result<CurvatureStats> {
     let mut all = CurvatureStats::default();
     for f in files {
         all.merge(&TileResults::open(f, cols)?.stats);
@@ -212,7 +212,7 @@ pub fn scene_stats(files: &[PathBuf], cols: &ColumnSet) -> Result<CurvatureStats
 }
 
 /// A k-way merge of result files by point id.
-pub struct Merger {
+pub(crate) struct Merger {
     readers: Vec<TileResults>,
     heads: Vec<Vec<u8>>,
     heap: BinaryHeap<Reverse<(u64, usize)>>,
@@ -221,7 +221,7 @@ pub struct Merger {
 impl Merger {
     /// Opens a merge over `files`, at most [`fan_in`] open at once (for a budget of
     /// `memory_bytes`).
-    pub fn open(
+    pub(crate) fn open(
         dir: &Path,
         files: &[PathBuf],
         cols: &ColumnSet,
@@ -234,7 +234,7 @@ impl Merger {
     /// are more, the first ones are merged into a run file in `dir` (at most `fan_in` of them,
     /// and only as many as needed to bring the count down to `fan_in`, so that the least data
     /// is written twice), and the run takes their place at the end.
-    pub fn open_with_fan_in(
+    pub(crate) fn open_with_fan_in(
         dir: &Path,
         files: &[PathBuf],
         cols: &ColumnSet,
@@ -295,13 +295,13 @@ impl Merger {
     }
 
     /// The next record in id order: its id, with its column bytes copied to `out`.
-    pub fn next(&mut self, out: &mut Vec<u8>) -> Result<Option<u64>> {
+    pub(crate) fn next(&mut self, out: &mut Vec<u8>) -> Result<Option<u64>> {
         out.clear();
         self.append_next(out)
     }
 
     /// [`Merger::next`] appending the column bytes to `out` (no copy in between).
-    pub fn append_next(&mut self, out: &mut Vec<u8>) -> Result<Option<u64>> {
+    pub(crate) fn append_next(&mut self, out: &mut Vec<u8>) -> Result<Option<u64>> {
         // The top is replaced in place: one sift, which stops at once while the same file
         // holds the smallest ids (runs of consecutive points in one tile are the common case).
         let Some(mut top) = self.heap.peek_mut() else {

@@ -13,13 +13,13 @@ const ORIENT_MAGIC: &[u8; 8] = b"TCORI003";
 
 /// The orientation sidecar of a tile (`--orient propagate`): its patch anchors and the normals
 /// it shares with other tiles, for the cross-tile sign resolution.
-pub fn orientation_path(dir: &Path, key: TileKey) -> PathBuf {
+pub(crate) fn orientation_path(dir: &Path, key: TileKey) -> PathBuf {
     crate::io::workdir::names::tile_orientation(dir, key)
 }
 
 /// What a tile's passes contribute to the cross-tile orientation.
 #[derive(Debug, Clone, Default)]
-pub struct TileSidecar {
+pub(crate) struct TileSidecar {
     /// One anchor per patch (patches numbered within the tile).
     pub anchors: Vec<crate::core::orient::PatchAnchor>,
     /// Normals of points other passes also orient.
@@ -69,7 +69,7 @@ pub(super) fn write_sidecar(path: &Path, s: &TileSidecar) -> Result<PathBuf> {
 
 /// Reads a tile's orientation sidecar (`write_sidecar`); a damaged one is an error naming
 /// it.
-pub fn read_sidecar(path: &Path) -> Result<TileSidecar> {
+pub(crate) fn read_sidecar(path: &Path) -> Result<TileSidecar> {
     let bad = || Error::damaged_work(path, "orientation sidecar is damaged");
     let b = std::fs::read(path).map_err(|e| Error::read_work(path, e))?;
     let mut c = Cursor::new(&b);
