@@ -75,10 +75,19 @@ pub(crate) fn fit_allocator_to_address_space() {
     }
 }
 
+/// A cgroup's memory limit.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct MemoryLimit {
+    /// The limit in bytes.
+    pub(crate) bytes: u64,
+    /// The file that sets it.
+    pub(crate) file: std::path::PathBuf,
+}
+
 /// The memory limit of this process's cgroup in bytes and the file that sets it: the lowest
 /// `memory.max` (cgroup v2) or `memory.limit_in_bytes` (v1) from its cgroup up to the root of
 /// the mounted hierarchy; None when there is none (or no cgroup file system).
-pub(crate) fn cgroup_memory_limit() -> Option<(u64, std::path::PathBuf)> {
+pub(crate) fn cgroup_memory_limit() -> Option<MemoryLimit> {
     let cgroup = std::fs::read_to_string("/proc/self/cgroup").ok()?;
     let mountinfo = std::fs::read_to_string("/proc/self/mountinfo").ok()?;
     cgroup_limit(&cgroup, &mountinfo, &|p| std::fs::read_to_string(p).ok())
@@ -90,7 +99,7 @@ fn cgroup_limit(
     cgroup: &str,
     mountinfo: &str,
     read: &dyn Fn(&std::path::Path) -> Option<String>,
-) -> Option<(u64, std::path::PathBuf)> {
+) -> Option<MemoryLimit> {
     use std::path::PathBuf;
     // Mount points: (fstype is cgroup2, or cgroup with the memory controller) -> (root, point).
     let mut v2 = None;
@@ -117,7 +126,7 @@ fn cgroup_limit(
         }
     }
     // This process's path in each hierarchy: "0::/path" (v2), "N:...memory...:/path" (v1).
-    let mut lowest: Option<(u64, PathBuf)> = None;
+    let mut lowest: Option<MemoryLimit> = None;
     for line in cgroup.lines() {
         let mut parts = line.splitn(3, ':');
         let (Some(id), Some(ctrl), Some(path)) = (parts.next(), parts.next(), parts.next()) else {
@@ -140,8 +149,8 @@ fn cgroup_limit(
             let f = dir.join(file);
             // "max" (v2) or a page-rounded 2^63 (v1) mean no limit.
             if let Some(v) = read(&f).and_then(|t| t.trim().parse::<u64>().ok()) {
-                if v < 1 << 62 && lowest.as_ref().is_none_or(|(l, _)| v < *l) {
-                    lowest = Some((v, f));
+                if v < 1 << 62 && lowest.as_ref().is_none_or(|l| v < l.bytes) {
+                    lowest = Some(MemoryLimit { bytes: v, file: f });
                 }
             }
             if dir == *point || !dir.pop() || !dir.starts_with(point) {
@@ -203,10 +212,10 @@ mod tests {
         ]);
         assert_eq!(
             cgroup_limit("4:memory:/slurm/job1\n0::/\n", mountinfo, &v1),
-            Some((
-                1 << 30,
-                PathBuf::from("/sys/fs/cgroup/memory/slurm/job1/memory.limit_in_bytes")
-            ))
+            Some(MemoryLimit {
+                bytes: 1 << 30,
+                file: PathBuf::from("/sys/fs/cgroup/memory/slurm/job1/memory.limit_in_bytes")
+            })
         );
         // v2 alone (a container with its own namespace: the mount's root is the cgroup).
         let v2 = "50 40 0:30 / /sys/fs/cgroup rw - cgroup2 cgroup2 rw\n";
@@ -218,7 +227,7 @@ mod tests {
             ),
         ]);
         assert_eq!(
-            cgroup_limit("0::/user.slice/run.scope\n", v2, &files).map(|l| l.0),
+            cgroup_limit("0::/user.slice/run.scope\n", v2, &files).map(|l| l.bytes),
             Some(512 << 20)
         );
         assert_eq!(cgroup_limit("0::/\n", v2, &reader(&[])), None);

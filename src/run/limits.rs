@@ -62,7 +62,7 @@ pub(crate) fn fit_memory(
             reporter,
         )?;
     }
-    if let Some((limit, file)) = cgroup_memory_limit() {
+    if let Some(crate::io::limits::MemoryLimit { bytes: limit, file }) = cgroup_memory_limit() {
         let name = format!("the memory limit of this cgroup ({})", file.display());
         let besides = format!(
             "tilecurv takes {} MiB besides its budget",

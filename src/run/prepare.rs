@@ -265,7 +265,7 @@ pub(crate) fn check_output_columns(
     cols: &ColumnSet,
     ply_names: crate::io::ply::PlyNames,
 ) -> Result<Vec<String>> {
-    crate::run::rerun::check_ply_names(cfg, sources, outputs, (cols, ply_names))?;
+    crate::run::rerun::check_ply_names(cfg, sources, outputs, cols, ply_names)?;
     check_extra_bytes(cfg, sources, outputs, cols)
 }
 

@@ -153,7 +153,8 @@ pub(crate) fn check_ply_names(
     cfg: &RunParams,
     sources: &[Box<dyn PointSource>],
     outputs: &[PathBuf],
-    (cols, style): (&ColumnSet, PlyNames),
+    cols: &ColumnSet,
+    style: PlyNames,
 ) -> Result<()> {
     let columns = cols.columns();
     for (s, output) in sources.iter().zip(outputs) {
