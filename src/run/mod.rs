@@ -36,7 +36,7 @@ use std::time::Instant;
 use crate::config::{ExecOptions, RunOptions, RunParams};
 use crate::core::plan::{MemoryPlan, TilePlan, TileSpec};
 use crate::core::tasks::TaskLayout;
-use crate::error::{Error, Result};
+use crate::error::{Error, ExitClass, Result};
 use crate::io::workdir::{Resume, WorkDir};
 use crate::progress::Reporter;
 use crate::run::spec::RunSpec;
@@ -231,8 +231,33 @@ impl Run {
     }
 }
 
-/// Runs `tilecurv process`: every stage, in one process.
+/// Whether `e` refuses the run (a usage error or bad input, exit 2 or 3): such work can never
+/// be resumed (a fixed input has another fingerprint, and is discarded anyway), so a refused
+/// run leaves the folder as it was.
+fn refuses(e: &Error) -> bool {
+    matches!(e.exit_class(), ExitClass::Usage | ExitClass::BadInput)
+}
+
+/// Runs `tilecurv process`: every stage, in one process. A refused run ([`refuses`]) leaves no
+/// output, no temporary file, no work directory and no output directory it made; any other
+/// failure keeps the work for the same command to resume.
 pub fn process(
+    job: &Process,
+    opts: &ExecOptions,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<Summary> {
+    let made_dir = !job.output.exists();
+    let r = process_in(job, opts, reporter, cancel);
+    if r.as_ref().is_err_and(refuses) && made_dir && job.output.is_dir() {
+        // Empty once the work directory inside it is gone: remove_dir leaves anything else.
+        let _ = std::fs::remove_dir(&job.output);
+    }
+    r
+}
+
+/// [`process`] but for the output directory it made.
+fn process_in(
     job: &Process,
     opts: &ExecOptions,
     reporter: &dyn Reporter,
@@ -281,9 +306,10 @@ pub fn process(
     });
     match &s {
         Ok(_) => run.work.remove(),
-        // Every failure keeps the work (an interruption says so itself): the same command
-        // resumes from it once the cause is fixed, whether it was a full disk, a limit, or an
-        // input that a rerun finds different (its work is then discarded).
+        // A refusal leaves nothing; every other failure keeps the work (an interruption says
+        // so itself): the same command resumes from it once the cause is fixed, a full disk or
+        // a limit.
+        Err(e) if refuses(e) => run.work.remove(),
         Err(Error::Interrupted) => {}
         Err(_) => reporter.warn(&format!(
             "the finished work is kept in {}: the same command resumes from it (delete it to start over)",

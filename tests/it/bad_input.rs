@@ -243,3 +243,34 @@ fn malformed_off_counts_and_duplicated_ply_properties_are_refused() {
         &["header line 7", "property \"x\" twice"],
     );
 }
+
+/// A run of several inputs refused during the scan (exit 3: the second input's coordinates are
+/// not finite) leaves the folder as it was: no output directory it made, no work directory.
+#[test]
+fn a_refused_run_removes_the_output_directory_it_made() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let good = dir.path().join("a.las");
+    std::fs::write(&good, sample()).expect("write");
+    let mut b = sample();
+    set(&mut b, 131, &1e306f64.to_le_bytes());
+    set(&mut b, 155, &0f64.to_le_bytes());
+    let bad = dir.path().join("b.las");
+    std::fs::write(&bad, &b).expect("write");
+    let out = dir.path().join("out");
+    let r = tilecurv(&[
+        "process",
+        good.to_str().expect("utf-8"),
+        bad.to_str().expect("utf-8"),
+        "-o",
+        &format!("{}/", out.display()),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(3), "{err}");
+    assert!(err.contains("b.las") && err.contains("not finite"), "{err}");
+    let mut left: Vec<String> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["a.las", "b.las"], "{err}");
+}

@@ -8,7 +8,8 @@ use std::path::Path;
 use crate::common::{root, tilecurv, write_las};
 
 /// Runs `process` on `input` with `extra` options; returns (exit code, stderr), after checking
-/// that it did not panic or abort and that a failed run left no output.
+/// that it did not panic or abort, that a failed run left no output, and that a refused run
+/// (exit 2 or 3) left the folder as it was: no work directory, no temporary file.
 fn run(input: &Path, extra: &[&str]) -> (Option<i32>, String) {
     let output = input.with_extension("out.las");
     let mut args = vec![
@@ -26,6 +27,22 @@ fn run(input: &Path, extra: &[&str]) -> (Option<i32>, String) {
     assert!(code.is_some(), "{args:?} was killed by a signal: {err}");
     if code != Some(0) {
         assert!(!output.exists(), "{args:?} failed but left an output");
+    }
+    if matches!(code, Some(2 | 3)) {
+        let work = tilecurv::run::default_path(&output);
+        assert!(
+            !work.exists(),
+            "{args:?} was refused but left {}",
+            work.display()
+        );
+        let dir = input.parent().expect("a folder");
+        let temps: Vec<String> = std::fs::read_dir(dir)
+            .expect("list")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.contains(".tilecurv-") && n.ends_with(".tmp"))
+            .collect();
+        assert!(temps.is_empty(), "{args:?} was refused but left {temps:?}");
     }
     (code, err)
 }
