@@ -238,9 +238,9 @@ fn refuses(e: &Error) -> bool {
     matches!(e.exit_class(), ExitClass::Usage | ExitClass::BadInput)
 }
 
-/// Runs `tilecurv process`: every stage, in one process. A refused run (a usage error or bad input, exit 2 or 3) leaves no
-/// output, no temporary file, no work directory and no output directory it made; any other
-/// failure keeps the work for the same command to resume.
+/// Runs `tilecurv process`: every stage, in one process. A refused run (a usage error or bad
+/// input, exit 2 or 3) leaves no output, no temporary file, no work directory and no output
+/// directory it made; any other failure keeps the work for the same command to resume.
 pub fn process(
     job: &Process,
     opts: &ExecOptions,
