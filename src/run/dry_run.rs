@@ -68,7 +68,7 @@ fn estimate(run: &Run, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
             buckets: &scan.buckets,
             plan: &tplan,
             params: &params,
-            max_core_points: exec.memory.max_core_points,
+            memory: exec.memory,
         };
         let t1 = Instant::now();
         let t = job.compute(sample, exec, &exec.pool, &mut TileBuffers::default())?;

@@ -10,7 +10,7 @@ use rayon::ThreadPool;
 use crate::core::compute::{
     compute_tile, ComputeParams, PointResult, Shared, TileBuffers, TileOutcome,
 };
-use crate::core::plan::{TilePlan, TileSpec};
+use crate::core::plan::{MemoryPlan, TilePlan, TileSpec};
 use crate::core::tile::{split_parts, Part, TilePoints};
 use crate::error::{Error, Result};
 use crate::io::workdir::bucket::{load_tile, Buckets};
@@ -31,8 +31,9 @@ pub(crate) struct TileJob<'a> {
     pub plan: &'a TilePlan,
     /// What to compute per point.
     pub params: &'a ComputeParams<'a>,
-    /// Tiles with more core points are computed in quadtree parts.
-    pub max_core_points: usize,
+    /// How the budget is shared: a tile whose core and halo do not fit its share is computed
+    /// in quadtree parts ([`MemoryPlan::core_points_per_part`]).
+    pub memory: MemoryPlan,
 }
 
 /// One computed tile.
@@ -56,14 +57,14 @@ impl TileJob<'_> {
         bufs: &mut TileBuffers,
     ) -> Result<ComputedTile> {
         let whole = Part::whole(self.plan.grid.rect(spec.key));
-        let parts = if (spec.count as usize) <= self.max_core_points {
+        let size = self.plan.grid.size;
+        let per_part = self
+            .memory
+            .core_points_per_part(spec.halo, spec.count as f64 / (size * size));
+        let parts = if (spec.count as usize) <= per_part {
             vec![whole]
         } else {
-            split_parts(
-                self.buckets.core(spec.key)?.xyz(),
-                whole,
-                self.max_core_points,
-            )
+            split_parts(self.buckets.core(spec.key)?.xyz(), whole, per_part)
         };
         let mut gathered = Vec::new();
         let mut sidecar = TileSidecar::default();

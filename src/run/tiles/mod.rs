@@ -87,7 +87,7 @@ pub(crate) fn tiles(
         buckets: &scan.buckets,
         plan: &tplan,
         params: &params,
-        max_core_points: exec.memory.max_core_points,
+        memory: exec.memory,
     };
     let tally = match drive(&job, &todo, store.journal(), &spec.cols, exec) {
         Ok(v) => v,
