@@ -18,6 +18,7 @@ mod invariance;
 mod kit;
 mod kit_checks;
 mod layout;
+mod memory;
 mod order;
 mod orientation;
 mod outofcore;
