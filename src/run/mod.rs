@@ -222,10 +222,9 @@ impl Run {
     ) -> Result<Vec<(u64, &'p TileSpec)>> {
         let store = self.work.results()?;
         let propagate = self.spec.propagates();
-        Ok(tplan
-            .tiles
-            .iter()
-            .filter(|t| !store.tile_done(t, &self.spec.cols, propagate))
+        Ok(store
+            .missing(&tplan.tiles, &self.spec.cols, propagate)
+            .into_iter()
             .map(|t| (self.layout.task_of(t.key), t))
             .collect())
     }

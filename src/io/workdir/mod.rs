@@ -265,6 +265,19 @@ impl ResultStore {
             && results::is_complete(&names::tile_result(&self.dir, t.key), t.count, cols)
     }
 
+    /// The tiles of `tiles` that are not finished ([`ResultStore::tile_done`]), in order.
+    pub(crate) fn missing<'t>(
+        &self,
+        tiles: &'t [TileSpec],
+        cols: &ColumnSet,
+        propagate: bool,
+    ) -> Vec<&'t TileSpec> {
+        tiles
+            .iter()
+            .filter(|t| !self.tile_done(t, cols, propagate))
+            .collect()
+    }
+
     /// The journal that writes and commits finished tiles.
     pub(crate) fn journal(&self) -> results::Journal {
         results::Journal::new(&self.dir)
