@@ -16,7 +16,8 @@
 //! - [`io`]: the readers of point clouds ([`io::source`]) and what they report (LAS headers and
 //!   records, CRS units, `info`);
 //! - [`progress`] (the [`progress::Reporter`] a run reports through), [`error`], [`tools`] (the
-//!   generators of clouds with closed-form curvature) and [`main_with_args`] (the command line).
+//!   generators of clouds with closed-form curvature), [`main_with_args`] (the command line) and
+//!   [`info_json`] (what `info --json` prints).
 //!
 //! Everything else (the work directory's formats, the writers, the stages' insides) is
 //! `pub(crate)`: `unreachable_pub` keeps it so.
@@ -32,7 +33,7 @@ pub mod progress;
 pub mod run;
 pub mod tools;
 
-pub use cli::main_with_args;
+pub use cli::{info_json, main_with_args};
 
 // The library's unit tests use the test kit of tests/kit, which names the library `tilecurv`.
 #[cfg(test)]

@@ -10,7 +10,7 @@ fn main() {
         );
         std::process::exit(4);
     }
-    std::process::exit(tilecurv::main_with_args());
+    std::process::exit(tilecurv::main_with_args(std::env::args_os()));
 }
 
 /// The instruction-set extensions this build was compiled to use that the running CPU lacks:

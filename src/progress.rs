@@ -132,17 +132,24 @@ impl TermReporter {
     /// A reporter writing to stderr; `quiet` keeps only warnings. With `json`, one JSON line per
     /// progress step and per phase is appended to that file (`-`: standard output).
     pub fn new(quiet: bool, json: Option<&std::path::Path>) -> crate::error::Result<Self> {
-        let json: Option<Mutex<Box<dyn std::io::Write + Send>>> = match json {
-            Some(p) if p.as_os_str() == "-" => Some(Mutex::new(Box::new(std::io::stdout()))),
-            Some(p) => Some(Mutex::new(Box::new(
+        let json: Option<Box<dyn std::io::Write + Send>> = match json {
+            Some(p) if p.as_os_str() == "-" => Some(Box::new(std::io::stdout())),
+            Some(p) => Some(Box::new(
                 std::fs::OpenOptions::new()
                     .create(true)
                     .append(true)
                     .open(p)
                     .map_err(|e| crate::error::Error::write(p, e))?,
-            ))),
+            )),
             None => None,
         };
+        Ok(Self::with_json_writer(quiet, json))
+    }
+
+    /// [`TermReporter::new`] with the JSON lines written to `json` (the Python package hands
+    /// them to a callback).
+    pub fn with_json_writer(quiet: bool, json: Option<Box<dyn std::io::Write + Send>>) -> Self {
+        let json = json.map(Mutex::new);
         let tty = std::io::stderr().is_terminal() && !quiet;
         let bar = tty.then(|| {
             let b = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
@@ -154,14 +161,14 @@ impl TermReporter {
             );
             b
         });
-        Ok(TermReporter {
+        TermReporter {
             quiet,
             json,
             bar,
             done: AtomicU64::new(0),
             phase: Mutex::new(None),
             line_every: Duration::from_secs(10),
-        })
+        }
     }
 
     fn json_line(&self, event: &str, p: &Phase, done: u64) {
@@ -203,6 +210,26 @@ impl TermReporter {
             "{{\"event\":\"summary\",{},\"wall_s\":{seconds:.3}}}",
             body.join(",")
         ));
+    }
+
+    /// The `summary` event of a finished run `s`: its counts and outputs.
+    pub fn run_summary(&self, s: &crate::run::Summary) {
+        let outputs: Vec<String> = s
+            .outputs
+            .iter()
+            .map(|o| json_str(&o.to_string_lossy()))
+            .collect();
+        self.summary(
+            &[
+                ("points", s.points.to_string()),
+                ("undefined", s.undefined.to_string()),
+                ("tiles", s.tiles.to_string()),
+                ("tiles_resumed", s.tiles_resumed.to_string()),
+                ("retried", s.retried.to_string()),
+                ("outputs", format!("[{}]", outputs.join(","))),
+            ],
+            s.seconds,
+        );
     }
 
     fn line(&self, msg: &str) {

@@ -10,24 +10,34 @@ use crate::progress::out;
 
 /// `tilecurv info`: every file's info; the first unreadable file fails the command (exit 3).
 pub(super) fn info(a: InfoArgs) -> Result<i32, i32> {
+    if a.json {
+        out!("{}", info_json(&a.files).map_err(|e| fail(&e))?);
+        return Ok(exit::OK);
+    }
     let infos = a
         .files
         .iter()
         .map(|p| file_info(p))
         .collect::<crate::error::Result<Vec<_>>>()
         .map_err(|e| fail(&e))?;
-    if a.json {
-        let items: Vec<String> = infos.iter().map(json).collect();
-        out!("[{}]", items.join(",\n"));
-    } else {
-        for (i, f) in infos.iter().enumerate() {
-            if i > 0 {
-                out!();
-            }
-            print!("{}", text(f));
+    for (i, f) in infos.iter().enumerate() {
+        if i > 0 {
+            out!();
         }
+        print!("{}", text(f));
     }
     Ok(exit::OK)
+}
+
+/// What `tilecurv info --json FILE...` prints: a JSON array with one object per file (the first
+/// unreadable file is the error).
+pub fn info_json(files: &[std::path::PathBuf]) -> crate::error::Result<String> {
+    let infos = files
+        .iter()
+        .map(|p| file_info(p))
+        .collect::<crate::error::Result<Vec<_>>>()?;
+    let items: Vec<String> = infos.iter().map(json).collect();
+    Ok(format!("[{}]", items.join(",\n")))
 }
 
 /// The horizontal unit of `f`, or why it has none.

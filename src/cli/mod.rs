@@ -5,6 +5,8 @@ mod args;
 mod generate;
 mod info;
 
+pub use info::info_json;
+
 use crate::progress::say;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -136,9 +138,15 @@ fn fail(e: &Error) -> i32 {
     exit_code(e)
 }
 
-/// Parses the process arguments, runs the command, prints the outcome, and returns the exit code.
-pub fn main_with_args() -> i32 {
-    let cli = match Cli::try_parse() {
+/// Parses `args` (the program name first, as `std::env::args_os` gives them), runs the
+/// command, prints the outcome, and returns the exit code: the binary and the Python package's
+/// `tilecurv` command run this one parser.
+pub fn main_with_args<I, T>(args: I) -> i32
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
         Ok(c) => c,
         Err(e) => {
             let _ = e.print();
@@ -165,26 +173,6 @@ pub fn main_with_args() -> i32 {
     r.unwrap_or_else(|code| code)
 }
 
-/// The `summary` event of `--progress-json`: the run's counts and outputs.
-pub(crate) fn summary_event(reporter: &TermReporter, s: &crate::run::Summary) {
-    let outputs: Vec<String> = s
-        .outputs
-        .iter()
-        .map(|o| crate::progress::json_str(&o.to_string_lossy()))
-        .collect();
-    reporter.summary(
-        &[
-            ("points", s.points.to_string()),
-            ("undefined", s.undefined.to_string()),
-            ("tiles", s.tiles.to_string()),
-            ("tiles_resumed", s.tiles_resumed.to_string()),
-            ("retried", s.retried.to_string()),
-            ("outputs", format!("[{}]", outputs.join(","))),
-        ],
-        s.seconds,
-    );
-}
-
 /// `tilecurv process`.
 fn process(args: ProcessArgs) -> Result<i32, i32> {
     let quiet = args.quiet();
@@ -193,7 +181,7 @@ fn process(args: ProcessArgs) -> Result<i32, i32> {
     let reporter = reporter(quiet, exec.progress_json.as_deref())?;
     let s = crate::run::process(&job, &exec, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !job.dry_run {
-        summary_event(&reporter, &s);
+        reporter.run_summary(&s);
     }
     if !quiet && !job.dry_run {
         say!(

@@ -14,6 +14,19 @@ pub struct PointClass {
     pub withheld: bool,
 }
 
+/// The classification and withheld flag of a LAS point record of `point_format`: formats 0-5
+/// keep both in byte 15 (class in bits 0-4, withheld bit 7), formats 6-10 the class in byte 16
+/// and withheld as bit 2 of byte 15. None for a record too short.
+pub fn las_point_class(point_format: u8, rec: &[u8]) -> Option<PointClass> {
+    let (class, withheld) = if point_format < 6 {
+        let b = *rec.get(15)?;
+        (b & 0x1f, b & 0x80 != 0)
+    } else {
+        (*rec.get(16)?, rec.get(15)? & 0x04 != 0)
+    };
+    Some(PointClass { class, withheld })
+}
+
 /// The LAS noise classes skipped by default: 7 low point (noise), 18 high noise (LAS 1.4).
 pub const NOISE_CLASSES: [u8; 2] = [7, 18];
 

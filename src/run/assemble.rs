@@ -18,7 +18,7 @@ use crate::core::plan::TilePlan;
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns, Steps};
-use crate::io::columns::{ColumnSet, ColumnType, Group};
+use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::results::{record_size, scene_stats, Merger};
@@ -350,19 +350,30 @@ fn encode_piece(
         }
         let rec = &results.bytes[next * size..(next + 1) * size];
         next += 1;
-        // The record is the point's global patch (u64) then its columns.
-        let (patch, columns) = rec.split_at(8);
-        let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
-        let flip = (m.flips.zip(patch.parts()))
-            .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
-            .unwrap_or(false);
-        let result = layout.decode(columns);
+        let result = point_result(rec, &layout, m.stored, m.flips);
         undefined += (result.curvature.flags & flags::UNDEFINED != 0) as u64;
-        if flip {
-            m.cols.encode(&result.flipped(&m.stored.extra), out);
-        } else {
-            m.cols.encode(&result, out);
-        }
+        m.cols.encode(&result, out);
     }
     undefined
+}
+
+/// The result of one merged record `rec` (the point's global patch, a u64, then its columns
+/// as `layout` stores them), flipped where `flips` (`--orient propagate`, per tile of the
+/// plan) marks its patch: what an output holds for the point.
+pub(crate) fn point_result(
+    rec: &[u8],
+    layout: &ResultLayout,
+    stored: &ColumnSet,
+    flips: Option<&[Vec<bool>]>,
+) -> PointResult {
+    let (patch, columns) = rec.split_at(8);
+    let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
+    let flip = (flips.zip(patch.parts()))
+        .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
+        .unwrap_or(false);
+    let result = layout.decode(columns);
+    match flip {
+        true => result.flipped(&stored.extra),
+        false => result,
+    }
 }

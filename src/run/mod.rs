@@ -20,6 +20,7 @@ pub(crate) mod bucket;
 pub mod cluster;
 pub(crate) mod dry_run;
 pub(crate) mod limits;
+pub mod memory;
 pub(crate) mod orientation;
 pub(crate) mod prepare;
 pub(crate) mod rerun;

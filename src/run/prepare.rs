@@ -405,6 +405,20 @@ fn open_checked(
 ) -> Result<RunSpec> {
     let mut notes = Vec::new();
     let sources = open_sources(inputs, &cfg, &mut notes)?;
+    resolve(inputs, sources, notes, cfg, outputs, reporter)
+}
+
+/// Checks the open `sources` (of `inputs`, with the warnings `notes` their opening gave) and
+/// resolves the run with `cfg`: what [`open_inputs`] does once the files are open, and what a
+/// run over points in memory (`run::memory`) does with its source.
+pub(crate) fn resolve(
+    inputs: &[PathBuf],
+    sources: Vec<Box<dyn PointSource>>,
+    mut notes: Vec<String>,
+    cfg: RunParams,
+    outputs: Vec<PathBuf>,
+    reporter: &dyn Reporter,
+) -> Result<RunSpec> {
     let CommonUnit {
         symbol: unit_name,
         unit,

@@ -351,13 +351,7 @@ impl PointSource for LasSource {
     /// 15 (class in bits 0-4, withheld bit 7), formats 6-10 the class in byte 16 and withheld
     /// as bit 2 of byte 15.
     fn class_of(&self, rec: &[u8]) -> Option<crate::core::select::PointClass> {
-        let (class, withheld) = if self.header.point_format < 6 {
-            let b = *rec.get(15)?;
-            (b & 0x1f, b & 0x80 != 0)
-        } else {
-            (*rec.get(16)?, rec.get(15)? & 0x04 != 0)
-        };
-        Some(crate::core::select::PointClass { class, withheld })
+        crate::core::select::las_point_class(self.header.point_format, rec)
     }
 
     fn integer_coordinates(&self) -> Option<Quantisation> {

@@ -9,6 +9,7 @@ pub mod binary;
 pub mod bytes;
 pub mod faces;
 pub mod las;
+pub mod memory;
 pub mod mesh;
 pub mod pcd;
 pub mod ply;
