@@ -211,10 +211,7 @@ fn check_classes(cfg: &RunParams, sources: &[Box<dyn PointSource>]) -> Result<()
     if !cfg.select.needs_classes() {
         return Ok(());
     }
-    match sources
-        .iter()
-        .find(|s| !matches!(s.layout(), SourceLayout::Las(_)))
-    {
+    match sources.iter().find(|s| !s.has_classes()) {
         Some(s) => Err(Error::Usage(format!(
             "{}: {} has no LAS classes or withheld flags, so --classes, --skip-classes and --skip-withheld cannot select its points; drop them or convert the file to LAS with a classification",
             s.path().display(),

@@ -208,6 +208,10 @@ impl PointSource for MemorySource {
         las_point_class(self.point_format?, rec)
     }
 
+    fn has_classes(&self) -> bool {
+        self.point_format.is_some()
+    }
+
     fn describe(&self) -> String {
         match self.point_format {
             Some(f) => format!("LAS point format {f} records in memory"),

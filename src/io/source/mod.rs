@@ -72,6 +72,11 @@ pub trait PointSource: Send + Sync {
     fn class_of(&self, _rec: &[u8]) -> Option<crate::core::select::PointClass> {
         None
     }
+    /// Whether the records carry LAS classes and withheld flags ([`PointSource::class_of`]
+    /// gives them): LAS records do.
+    fn has_classes(&self) -> bool {
+        matches!(self.layout(), SourceLayout::Las(_))
+    }
     /// A short description of the format for the log, e.g. "LAS 1.4 format 6 (LAZ)".
     fn describe(&self) -> String;
     /// How the raw records are laid out: LAS records with the file's header, VLRs, EVLRs and
