@@ -9,6 +9,7 @@ use std::fs::File;
 use std::io::{Cursor, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
+use crate::core::grid::AxisGrid;
 use crate::error::{Error, Result};
 use crate::io::crs::{horizontal_unit, UnitSource};
 use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk, ChunkAt};
@@ -38,6 +39,8 @@ pub struct LasSource {
     laz: Option<laz::LazVlr>,
     /// The checked LAZ chunk table (empty for LAS).
     chunks: Vec<Chunk>,
+    /// How x, y and z come from the stored integers (offset-independent, [`AxisGrid`]).
+    grid: [AxisGrid; 3],
 }
 
 impl LasSource {
@@ -92,7 +95,9 @@ impl LasSource {
                 "the file contains no points; there is nothing to compute",
             ));
         }
+        let grid = [0, 1, 2].map(|a| AxisGrid::new(header.scale[a], header.offset[a], 1.0));
         Ok(LasSource {
+            grid,
             path: path.to_path_buf(),
             map,
             header,
@@ -159,13 +164,8 @@ impl LasSource {
 
     /// The coordinates of a raw record (stored or trimmed: the point format's fields stay).
     fn xyz(&self, rec: &[u8]) -> [f64; 3] {
-        let h = &self.header;
-        let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as f64;
-        [
-            c(0) * h.scale[0] + h.offset[0],
-            c(4) * h.scale[1] + h.offset[1],
-            c(8) * h.scale[2] + h.offset[2],
-        ]
+        let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as i64;
+        [0, 1, 2].map(|a| self.grid[a].value(c(4 * a)))
     }
 }
 
