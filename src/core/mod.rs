@@ -5,6 +5,7 @@
 pub mod compute;
 pub mod estimate;
 pub mod geometry;
+pub mod grid;
 pub mod neighbors;
 pub mod normals;
 pub mod orient;

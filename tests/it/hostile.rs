@@ -309,6 +309,40 @@ fn a_zeroed_laz_chunk_is_an_error_naming_the_chunk() {
     }
 }
 
+/// A chunk of 0xFF bytes makes the laz crate's GPS-time decoder recurse once per symbol with
+/// nothing to stop it: the depth guard of the LAZ reader turns it into an error naming the
+/// chunk (before, the process died of a stack overflow, exit 134). Whole chunk, and the chunk
+/// after its first point (stored raw), in the first and in the last chunk.
+#[test]
+fn a_laz_chunk_of_0xff_bytes_is_an_error_not_a_stack_overflow() {
+    let Some((base, table)) = autzen_laz() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let start = u32::from_le_bytes(base[96..100].try_into().expect("4 bytes")) as usize;
+    // Format 3: 34 bytes of first point, stored raw, then the arithmetic-coded stream.
+    let last = table - 20_000;
+    for (name, at, len, chunk) in [
+        ("ff_whole.laz", start + 8, 20_000, "chunk 0 of 3"),
+        (
+            "ff_after_first.laz",
+            start + 8 + 34,
+            200_000,
+            "chunk 0 of 3",
+        ),
+        ("ff_last.laz", last, 20_000, "chunk 2 of 3"),
+    ] {
+        let mut b = base.clone();
+        b[at..at + len].fill(0xff);
+        let (code, err) = run_bytes(dir.path(), name, &b, &[]);
+        assert_eq!(code, Some(3), "{name}: {err}");
+        assert!(
+            err.contains(name) && err.contains(chunk) && err.contains("byte offset"),
+            "{name}: expected {chunk:?} and a byte offset in: {err}"
+        );
+    }
+}
+
 /// Every input the fuzz targets found (tests/fuzz_findings, named `<target>-<hash>.<ext>`) is
 /// a clean error or a success of the binary, never a panic or an abort.
 #[test]

@@ -17,6 +17,8 @@ pub struct Chunk {
     pub first_point: u64,
     /// Byte offset of its compressed data in the file.
     pub offset: u64,
+    /// Length of its compressed data.
+    pub bytes: u64,
 }
 
 fn u32_at(b: &[u8], o: usize) -> u32 {
@@ -113,6 +115,7 @@ pub fn read_chunk_table(
         chunks.push(Chunk {
             first_point,
             offset,
+            bytes: e.byte_count,
         });
         offset += e.byte_count;
         first_point = first_point.saturating_add(points);

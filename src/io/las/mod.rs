@@ -4,6 +4,7 @@
 //! which use it.
 
 pub mod chunks;
+pub(crate) mod decode;
 pub mod extra_bytes;
 pub mod fields;
 pub mod header;

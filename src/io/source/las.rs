@@ -6,12 +6,13 @@
 //! reader of the source sees the trimmed records, header and descriptors only.
 
 use std::fs::File;
-use std::io::{Cursor, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
+use crate::core::grid::AxisGrid;
 use crate::error::{Error, Result};
 use crate::io::crs::{horizontal_unit, UnitSource};
 use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk, ChunkAt};
+use crate::io::las::decode::{ChunkDecoder, ChunkJob};
 use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
 use crate::io::las::header::{LasHeader, Quantisation, POINT_FORMAT_SIZES};
 use crate::io::las::parts::LasParts;
@@ -38,6 +39,8 @@ pub struct LasSource {
     laz: Option<laz::LazVlr>,
     /// The checked LAZ chunk table (empty for LAS).
     chunks: Vec<Chunk>,
+    /// How x, y and z come from the stored integers (offset-independent, [`AxisGrid`]).
+    grid: [AxisGrid; 3],
 }
 
 impl LasSource {
@@ -92,7 +95,9 @@ impl LasSource {
                 "the file contains no points; there is nothing to compute",
             ));
         }
+        let grid = [0, 1, 2].map(|a| AxisGrid::new(header.scale[a], header.offset[a], 1.0));
         Ok(LasSource {
+            grid,
             path: path.to_path_buf(),
             map,
             header,
@@ -159,17 +164,105 @@ impl LasSource {
 
     /// The coordinates of a raw record (stored or trimmed: the point format's fields stay).
     fn xyz(&self, rec: &[u8]) -> [f64; 3] {
-        let h = &self.header;
-        let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as f64;
-        [
-            c(0) * h.scale[0] + h.offset[0],
-            c(4) * h.scale[1] + h.offset[1],
-            c(8) * h.scale[2] + h.offset[2],
-        ]
+        let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as i64;
+        [0, 1, 2].map(|a| self.grid[a].value(c(4 * a)))
     }
 }
 
+/// Chunks declaring more points than this (LASzip writes 50,000) are decoded piece by piece
+/// rather than into one buffer.
+const STREAMED_CHUNK: usize = 1 << 20;
+
 impl LasSource {
+    /// Decodes the LAZ chunks in file order, whole chunks of about `chunk_points` points at a
+    /// time (in parallel, [`ChunkDecoder`]), and hands each batch to `f`. A chunk declaring
+    /// more than [`STREAMED_CHUNK`] points is decoded alone, piece by piece.
+    fn for_each_laz_chunk(
+        &self,
+        vlr: &laz::LazVlr,
+        chunk_points: usize,
+        f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+    ) -> Result<()> {
+        let rl = vlr.items_size() as usize;
+        let n = self.header.point_count;
+        let dec = ChunkDecoder::new(rayon::current_num_threads())
+            .map_err(|e| Error::Resource(format!("cannot start the LAZ decoding threads: {e}")))?;
+        let want = chunk_points.max(1);
+        let live = self.chunks.partition_point(|c| c.first_point < n);
+        let (mut released, mut buf, mut i) = (0usize, Vec::new(), 0usize);
+        while i < live {
+            let first = self.chunks[i].first_point;
+            if self.chunk_points(i) > STREAMED_CHUNK.max(want) {
+                let bad = |e| self.chunk_error(i, e);
+                let mut piece = |k: usize, recs: &[u8]| {
+                    self.check_decoded(first + k as u64, recs)?;
+                    f(first + k as u64, recs)
+                };
+                let bytes = self.chunk_bytes(i);
+                dec.stream(vlr, bytes, self.chunk_points(i), want, &bad, &mut piece)?;
+                released = self.release(released, self.chunk_end(i));
+                i += 1;
+                continue;
+            }
+            let (mut j, mut points) = (i, 0usize);
+            while j < live && (j == i || points < want) && self.chunk_points(j) <= STREAMED_CHUNK {
+                points += self.chunk_points(j);
+                j += 1;
+            }
+            buf.resize(points * rl, 0);
+            let mut jobs = Vec::with_capacity(j - i);
+            let mut rest = &mut buf[..];
+            for c in i..j {
+                let (out, tail) = rest.split_at_mut(self.chunk_points(c) * rl);
+                let bytes = self.chunk_bytes(c);
+                jobs.push(ChunkJob {
+                    index: c,
+                    bytes,
+                    out,
+                });
+                rest = tail;
+            }
+            dec.decode(vlr, jobs)
+                .map_err(|(c, e)| self.chunk_error(c, e))?;
+            self.check_decoded(first, &buf)?;
+            f(first, &buf)?;
+            released = self.release(released, self.chunk_end(j - 1));
+            i = j;
+        }
+        Ok(())
+    }
+
+    /// The points of LAZ chunk `c` (the last one's up to the header's count).
+    fn chunk_points(&self, c: usize) -> usize {
+        let n = self.header.point_count;
+        let end = self
+            .chunks
+            .get(c + 1)
+            .map_or(n, |next| next.first_point.min(n));
+        end.saturating_sub(self.chunks[c].first_point) as usize
+    }
+
+    /// The compressed bytes of LAZ chunk `c` (within the file: the table was checked).
+    fn chunk_bytes(&self, c: usize) -> &[u8] {
+        let ch = self.chunks[c];
+        &self.map[ch.offset as usize..self.chunk_end(c)]
+    }
+
+    /// The byte offset just past LAZ chunk `c`.
+    fn chunk_end(&self, c: usize) -> usize {
+        let ch = self.chunks[c];
+        (ch.offset + ch.bytes) as usize
+    }
+
+    /// The error of LAZ chunk `c` failing to decode with `e`.
+    fn chunk_error(&self, c: usize, e: std::io::Error) -> Error {
+        let ch = self.chunks[c];
+        let end = ch.first_point + self.chunk_points(c) as u64;
+        Error::bad_input(&self.path, Some(ch.offset), format!(
+            "LAZ chunk {c} of {} (points {}..{end}, {} bytes from the byte offset given) cannot be decoded: {e}; the chunk is corrupt or the file is truncated (the header says {} points)",
+            self.chunks.len(), ch.first_point, ch.bytes, self.header.point_count))
+    }
+
     /// Refuses decoded LAZ records far outside the header's bounds (by more than the bounds'
     /// largest extent): a corrupt chunk decodes into garbage spread over the whole coordinate
     /// range, which would plan millions of tiles. The error names the chunk and its offset.
@@ -407,48 +500,7 @@ impl PointSource for LasSource {
                 }
                 Ok(())
             }
-            Some(vlr) => {
-                // Decode whole LAZ chunks at a time so the parallel decompressor has work for
-                // every thread; variable-size chunks fall back to the requested size.
-                let laz_chunk = if vlr.uses_variable_size_chunks() {
-                    50_000
-                } else {
-                    vlr.chunk_size().max(1) as usize
-                };
-                // A chunk size from the file far beyond any writer's (LASzip's is 50,000) would
-                // size the buffer from the file: then the caller's chunk size decides.
-                let per_call = if laz_chunk <= 1 << 20 {
-                    chunk_points.max(1).div_ceil(laz_chunk) * laz_chunk
-                } else {
-                    chunk_points.max(1)
-                };
-                let mut cursor = Cursor::new(&self.map[..]);
-                cursor
-                    .seek(SeekFrom::Start(start as u64))
-                    .map_err(|e| Error::read_input(&self.path, e))?;
-                let mut dec = laz::ParLasZipDecompressor::new(cursor, vlr.clone())
-                    .map_err(|e| Error::bad_input(&self.path, Some(start as u64), format!("cannot start LAZ decompression: {e}; the file may be truncated or not a valid LAZ file")))?;
-                let mut buf = vec![0u8; per_call.min(n as usize) * rl];
-                let mut first = 0u64;
-                while first < n {
-                    let m = (n - first).min(per_call as u64) as usize;
-                    let out = &mut buf[..m * rl];
-                    dec.decompress_many(out).map_err(|e| {
-                        let ChunkAt { index: c, chunk } =
-                            chunk_of(&self.chunks, first).unwrap_or_default();
-                        let last =
-                            chunk_of(&self.chunks, first + m as u64 - 1).map_or(c, |l| l.index);
-                        Error::bad_input(&self.path, Some(chunk.offset), format!(
-                            "LAZ decompression failed in points {first}..{} (chunks {c} to {last}, from the byte offset given): {e}; the file is truncated or corrupt (the header says {n} points)", first + m as u64))
-                    })?;
-                    self.check_decoded(first, out)?;
-                    f(first, out)?;
-                    let pos = dec.get_mut().position() as usize;
-                    released = self.release(released, pos);
-                    first += m as u64;
-                }
-                Ok(())
-            }
+            Some(vlr) => self.for_each_laz_chunk(vlr, chunk_points, &mut f),
         }
     }
 

@@ -62,8 +62,9 @@ pub trait PointSource: Send + Sync {
     /// Decodes one raw record.
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
     /// The scale and offset of x, y and z when [`PointSource::decode`] gives every coordinate
-    /// as `integer * scale + offset` (LAS records), None otherwise: the buckets then store the
-    /// integers (the f64 bits they give back are checked when a bucket is written).
+    /// as the [`crate::core::grid::AxisGrid`] value of a stored integer (LAS records), None
+    /// otherwise: the buckets then store the integers (the f64 bits they give back are checked
+    /// when a bucket is written).
     fn integer_coordinates(&self) -> Option<Quantisation> {
         None
     }

@@ -14,6 +14,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use crate::core::grid::AxisGrid;
 use crate::core::plan::TileKey;
 use crate::core::point::{Points, SourcePoint};
 use crate::error::{Error, Result};
@@ -21,39 +22,7 @@ use crate::io::pack::{get_planes, put_planes, put_varint, unzigzag, zigzag, Curs
 use crate::io::workdir::names::bucket_file;
 
 /// The first bytes of every decoded frame: the bucket format and its version.
-const MAGIC: &[u8; 4] = b"TCB2";
-
-/// How an input's coordinate on one axis was decoded from an integer `q`:
-/// `(q * scale + offset) * post`, `post` being the z factor of the input's vertical unit (1 for
-/// x and y).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct AxisGrid {
-    /// The file's scale.
-    pub scale: f64,
-    /// The file's offset.
-    pub offset: f64,
-    /// The factor applied after (the z unit's).
-    pub post: f64,
-}
-
-impl AxisGrid {
-    /// The value of integer `q`.
-    fn value(&self, q: i64) -> f64 {
-        (q as f64 * self.scale + self.offset) * self.post
-    }
-
-    /// The integer whose value is exactly `v` (bit for bit), if there is one.
-    fn integer(&self, v: f64) -> Option<i64> {
-        let q = ((v / self.post - self.offset) / self.scale).round();
-        if !q.is_finite() || q.abs() >= (1u64 << 53) as f64 {
-            return None;
-        }
-        let q = q as i64;
-        [q, q - 1, q + 1]
-            .into_iter()
-            .find(|&c| self.value(c).to_bits() == v.to_bits())
-    }
-}
+const MAGIC: &[u8; 4] = b"TCB3";
 
 /// The inputs of a scan by id range, with the grids their coordinates decode from.
 #[derive(Debug, Clone, Default)]
@@ -96,7 +65,7 @@ fn put_column(out: &mut Vec<u8>, values: &[f64], grid: Option<AxisGrid>) {
             let span = q.iter().map(|&v| v.abs_diff(base)).max().unwrap_or(0);
             let width = (8 - span.leading_zeros() as usize / 8).min(8);
             out.push(INTEGERS);
-            for f in [g.scale, g.offset, g.post] {
+            for f in [g.scale(), g.offset(), g.post()] {
                 out.extend_from_slice(&f.to_le_bytes());
             }
             out.extend_from_slice(&base.to_le_bytes());
@@ -131,11 +100,7 @@ fn get_column(c: &mut Cursor<'_>, n: usize) -> Option<Vec<f64>> {
     let tag = c.u8()?;
     let (width, grid, base) = match tag {
         INTEGERS => {
-            let g = AxisGrid {
-                scale: c.f64()?,
-                offset: c.f64()?,
-                post: c.f64()?,
-            };
+            let g = AxisGrid::new(c.f64()?, c.f64()?, c.f64()?);
             let base = c.u64()? as i64;
             (c.u8()? as usize, Some(g), base)
         }

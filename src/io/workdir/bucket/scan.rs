@@ -10,9 +10,10 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use super::frames::{spill, AxisGrid, Grids};
+use super::frames::{spill, Grids};
 use super::stats::stats_text;
 use super::{Bucketed, Buckets, TaskDir, DONE};
+use crate::core::grid::AxisGrid;
 use crate::core::plan::{computable, MemoryPlan, ScanStats, TileGrid, TileKey, MAX_COORDINATE};
 use crate::core::point::{Points, SourcePoint};
 use crate::core::select::ClassFilter;
@@ -267,10 +268,9 @@ fn grids_of(inputs: &[ScanInput<'_>]) -> Grids {
     let mut grids = Grids::default();
     for input in inputs {
         let axes = input.source.integer_coordinates().map(|q| {
-            [0, 1, 2].map(|a| AxisGrid {
-                scale: q.scale[a],
-                offset: q.offset[a],
-                post: if a == 2 { input.z_scale } else { 1.0 },
+            [0, 1, 2].map(|a| {
+                let post = if a == 2 { input.z_scale } else { 1.0 };
+                AxisGrid::new(q.scale[a], q.offset[a], post)
             })
         });
         grids.push(input.first_id, axes);
