@@ -13,8 +13,9 @@ if ! [ -x "$venv/bin/python3" ]; then
     apt-get install -y -q --no-install-recommends python3-venv >/dev/null && python3 -m venv "$venv"
   }
 fi
+# maturin builds the Python package's wheel, pytest runs its tests (python/tests).
 "$venv/bin/python3" -m pip install --quiet --disable-pip-version-check \
-  'laspy[lazrs]==2.7.0' 'numpy<3' 'copclib==2.6.3'
+  'laspy[lazrs]==2.7.0' 'numpy<3' 'copclib==2.6.3' 'maturin==1.16.0' 'pytest==9.2.0'
 export PATH="$PWD/$venv/bin:$PATH"
 # Each step says its name when it fails, so that a red run says which step broke.
 step() {
@@ -26,7 +27,7 @@ step() {
   }
 }
 step fmt cargo fmt --all -- --check
-step clippy cargo clippy --release --all-targets --locked -- -D warnings
+step clippy cargo clippy --release --all-targets --locked --workspace -- -D warnings
 # The API docs build without a warning (broken links, missing docs of public items).
 step docs env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --locked --quiet
 step tests cargo test --release --locked
@@ -38,6 +39,15 @@ bin=$target_dir/release/tilecurv
   echo "scripts/test.sh: no binary at $bin after the tests built it" >&2
   exit 1
 }
+# The Python package: its wheel built from the release build above (the engine crate is
+# reused; the binding crate and the link are new), installed into the test venv, and its tests
+# against the binary (bit-identity, bytes, events, messages, the console script).
+rm -rf "$target_dir/wheels"
+step wheel "$venv/bin/maturin" build --release --locked --quiet -m python/Cargo.toml \
+  -o "$target_dir/wheels" -i "$venv/bin/python3"
+step wheel-install "$venv/bin/python3" -m pip install --quiet --disable-pip-version-check \
+  --force-reinstall --no-deps "$target_dir"/wheels/tilecurv-*.whl
+step pytest env TILECURV_BIN="$bin" "$venv/bin/python3" -m pytest -q -rs -p no:cacheprovider python/tests
 # The cluster test: a throwaway single-node Slurm (slurmctld, slurmd and munge from Debian's
 # packages, installed when missing; needs root), a two-file job through scripts/slurm/submit.sh,
 # byte-identical to `process`, then a lost task resubmitted. Never skipped under CI=true.

@@ -229,3 +229,22 @@ def test_columns_that_do_not_fit_raise_instead_of_aborting():
         tilecurv.curvature(huge)
     del huge
     m.close()
+
+
+def test_offsets_by_whole_steps_give_the_same_bits(window, tmp_path):
+    """The same points stored with offsets that differ by whole steps (another writer's
+    choice) give the same values bit for bit: laspy's integers go through the LAS reader's
+    grid (core::grid), not a formula of their own."""
+    las = window(3000).las
+    moved = laspy.LasData(laspy.LasHeader(point_format=las.header.point_format.id, version="1.2"))
+    moved.header.scales = las.header.scales
+    moved.header.offsets = las.header.offsets + np.array([-1234.56, 987.0, 3.21])
+    moved.header.vlrs.extend(las.header.vlrs)
+    for dim in ("X", "Y", "Z"):
+        step = las.header.scales["XYZ".index(dim)]
+        shift = (moved.header.offsets - las.header.offsets)["XYZ".index(dim)] / step
+        moved[dim] = np.asarray(las[dim], dtype=np.int64) - int(round(shift))
+    assert not np.array_equal(np.asarray(moved.X), np.asarray(las.X))
+    a = tilecurv.curvature(las, columns=ALL)
+    b = tilecurv.curvature(moved, columns=ALL)
+    assert_bit_identical(b, a, "moved offsets")

@@ -10,6 +10,7 @@
 use std::ops::Deref;
 use std::path::{Path, PathBuf};
 
+use crate::core::grid::AxisGrid;
 use crate::core::point::SourcePoint;
 use crate::core::select::{las_point_class, PointClass};
 use crate::error::{Error, Result};
@@ -45,6 +46,8 @@ pub struct MemorySource {
     records: Records,
     record_length: usize,
     coordinates: Coordinates,
+    /// How LAS integers become coordinates (`Coordinates::Las`): the LAS reader's grid.
+    axes: [AxisGrid; 3],
     normals: Option<Vec<f64>>,
     point_format: Option<u8>,
     vlrs: Vec<Vlr>,
@@ -80,11 +83,18 @@ impl MemorySource {
                 records.len()
             ));
         }
+        let axes = match coordinates {
+            Coordinates::Las { grid, .. } => {
+                [0, 1, 2].map(|a| AxisGrid::new(grid.scale[a], grid.offset[a], 1.0))
+            }
+            Coordinates::F64(_) => [AxisGrid::new(1.0, 0.0, 1.0); 3],
+        };
         Ok(MemorySource {
             name,
             records,
             record_length,
             coordinates,
+            axes,
             normals: None,
             point_format: None,
             vlrs: Vec::new(),
@@ -187,8 +197,9 @@ impl PointSource for MemorySource {
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
         let xyz = match self.coordinates {
             Coordinates::F64(at) => at.map(|a| Self::f64_at(rec, a)),
-            Coordinates::Las { at, grid } => [0, 1, 2]
-                .map(|a| TEMP_AXIS_GRID(grid.scale[a], grid.offset[a], Self::i32_at(rec, at[a]))),
+            Coordinates::Las { at, .. } => {
+                [0, 1, 2].map(|a| self.axes[a].value(Self::i32_at(rec, at[a])))
+            }
         };
         let normal = self.normals.as_ref().and_then(|n| {
             let i = 3 * id as usize;
@@ -312,10 +323,4 @@ mod tests {
             })
         );
     }
-}
-
-// TEMPORARY until core::grid lands from main: replaced by AxisGrid::value at the merge.
-#[allow(non_snake_case)]
-fn TEMP_AXIS_GRID(s: f64, o: f64, q: i64) -> f64 {
-    q as f64 * s + o
 }
