@@ -238,3 +238,36 @@ def test_offsets_by_whole_steps_give_the_same_bits(window, tmp_path):
     a = tilecurv.curvature(las, columns=ALL)
     b = tilecurv.curvature(moved, columns=ALL)
     assert_bit_identical(b, a, "moved offsets")
+
+
+def test_file_normals_of_a_lasdata_are_used_as_the_file_route_uses_them(cli, tmp_path):
+    """A LAS file with NormalX/Y/Z (a sphere's outward normals as f64 extra dimensions): the
+    LasData's normals are the file's, as process uses them (flag 32, same bits)."""
+    rng = np.random.default_rng(11)
+    v = rng.normal(size=(3000, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    las = laspy.LasData(laspy.LasHeader(point_format=0, version="1.4"))
+    las.header.scales = [1e-4] * 3
+    las.header.offsets = [0.0] * 3
+    las.x, las.y, las.z = (5 * v).T
+    las.add_extra_dims([laspy.ExtraBytesParams(n, type=np.float64) for n in ("NormalX", "NormalY", "NormalZ")])
+    las.NormalX, las.NormalY, las.NormalZ = v.T
+    path = tmp_path / "sphere.las"
+    las.write(path)
+    got = tilecurv.curvature(laspy.read(path), columns="H,K,k1,k2,flags")
+    assert np.all(got["CurvatureFlags"] & 32)
+    want = cli_columns(cli, tmp_path, path, ["--columns", "H,K,k1,k2,flags"], list(got))
+    assert_bit_identical(got, want, "file normals")
+
+
+def test_a_tilecurv_output_is_computed_as_a_rerun_on_it(cli, tmp_path, window):
+    """A tilecurv output's own NormalX/Y/Z are its output, not file normals: the LasData of an
+    output gives what process gives on that output (a re-run), PCA normals."""
+    out = tmp_path / "first.las"
+    from conftest import run_cli
+
+    run_cli(cli, "process", window(3000).path, "-o", out, "--quiet", "--columns", "normals,H,flags")
+    got = tilecurv.curvature(laspy.read(out), columns="normals,H,K,flags", estimator="jet")
+    assert not np.any(got["CurvatureFlags"] & 32)
+    want = cli_columns(cli, tmp_path, out, ["--columns", "normals,H,K,flags", "--estimator", "jet"], list(got))
+    assert_bit_identical(got, want, "re-run")

@@ -145,13 +145,29 @@ def _las_input(las: Any, ignore_normals: bool):
     vlrs = [(str(v.user_id), int(v.record_id), bytes(v.record_data_bytes())) for v in records]
     names = set(las.point_format.dimension_names)
     normals = None
-    if not ignore_normals and {"NormalX", "NormalY", "NormalZ"} <= names:
+    own = _previous_runs_normals([data for user, rid, data in vlrs if (user, rid) == ("tilecurv", 1)])
+    if not ignore_normals and not own and {"NormalX", "NormalY", "NormalZ"} <= names:
         normals = np.stack(
             [np.asarray(las[n], dtype=np.float64) for n in ("NormalX", "NormalY", "NormalZ")],
             axis=1,
         )
     spec = ("las", at, scale, offset)
     return arr, spec, (int(las.header.point_format.id), vlrs), normals
+
+
+def _previous_runs_normals(records: List[bytes]) -> bool:
+    """Whether NormalX/Y/Z are a previous tilecurv run's output (its newest `process`
+    provenance record lists them, or lists no columns and says its normals were not the
+    file's): those are recomputed, as a re-run on the file does, not used as file normals."""
+    texts = [r.rstrip(b"\0").decode("utf-8", "replace") for r in records]
+    runs = [t for t in texts if t.startswith("tilecurv ") and "\ninputs=" in t]
+    if not runs:
+        return False
+    lines = runs[-1].splitlines()
+    listed = [l.split("=", 1)[0][len("column."):] for l in lines if l.startswith("column.")]
+    if listed:
+        return "NormalX" in listed
+    return "normals=file" not in lines
 
 
 def _array_input(points: Any):

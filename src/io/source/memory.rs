@@ -77,7 +77,7 @@ impl MemorySource {
         if records.is_empty() {
             return usage("no points: there is nothing to compute".into());
         }
-        if records.len() % record_length != 0 {
+        if !records.len().is_multiple_of(record_length) {
             return usage(format!(
                 "{} bytes are not a whole number of {record_length}-byte records",
                 records.len()
