@@ -212,26 +212,6 @@ impl TermReporter {
         ));
     }
 
-    /// The `summary` event of a finished run `s`: its counts and outputs.
-    pub fn run_summary(&self, s: &crate::run::Summary) {
-        let outputs: Vec<String> = s
-            .outputs
-            .iter()
-            .map(|o| json_str(&o.to_string_lossy()))
-            .collect();
-        self.summary(
-            &[
-                ("points", s.points.to_string()),
-                ("undefined", s.undefined.to_string()),
-                ("tiles", s.tiles.to_string()),
-                ("tiles_resumed", s.tiles_resumed.to_string()),
-                ("retried", s.retried.to_string()),
-                ("outputs", format!("[{}]", outputs.join(","))),
-            ],
-            s.seconds,
-        );
-    }
-
     fn line(&self, msg: &str) {
         match &self.bar {
             Some(b) => b.println(msg),

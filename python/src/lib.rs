@@ -337,7 +337,7 @@ fn process(
         let reporter = TermReporter::with_json_writer(quiet, Some(Box::new(lines)));
         let s = tilecurv::run::process(&job, &exec, &reporter, cancel)?;
         if !job.dry_run {
-            reporter.run_summary(&s);
+            reporter.summary(&s.json_fields(), s.seconds);
         }
         Ok(s)
     })?;

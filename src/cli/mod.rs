@@ -181,7 +181,7 @@ fn process(args: ProcessArgs) -> Result<i32, i32> {
     let reporter = reporter(quiet, exec.progress_json.as_deref())?;
     let s = crate::run::process(&job, &exec, &reporter, &CANCEL).map_err(|e| fail(&e))?;
     if !job.dry_run {
-        reporter.run_summary(&s);
+        reporter.summary(&s.json_fields(), s.seconds);
     }
     if !quiet && !job.dry_run {
         say!(

@@ -79,7 +79,7 @@ pub(super) fn assemble(a: AssembleArgs) -> Result<i32, i32> {
     let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
     let s =
         cluster::assemble(&a.work, &a.output, &opts, &reporter, &CANCEL).map_err(|e| fail(&e))?;
-    reporter.run_summary(&s);
+    reporter.summary(&s.json_fields(), s.seconds);
     if !a.exec.quiet() {
         say!(
             "done: {} points of {} tiles in {:.1} s, {} undefined ({:.2}%) -> {} (the work directory {} is kept; remove it when done)",

@@ -62,6 +62,24 @@ pub struct Summary {
     pub outputs: Vec<PathBuf>,
 }
 
+impl Summary {
+    /// The members of the `summary` event of `--progress-json` (JSON values, encoded), for
+    /// [`crate::progress::TermReporter::summary`] with [`Summary::seconds`].
+    pub fn json_fields(&self) -> Vec<(&'static str, String)> {
+        let outputs: Vec<String> = (self.outputs.iter())
+            .map(|o| crate::progress::json_str(&o.to_string_lossy()))
+            .collect();
+        vec![
+            ("points", self.points.to_string()),
+            ("undefined", self.undefined.to_string()),
+            ("tiles", self.tiles.to_string()),
+            ("tiles_resumed", self.tiles_resumed.to_string()),
+            ("retried", self.retried.to_string()),
+            ("outputs", format!("[{}]", outputs.join(","))),
+        ]
+    }
+}
+
 /// How the stages execute: none of this changes the output.
 pub(crate) struct Exec<'a> {
     /// The worker threads.
