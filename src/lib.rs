@@ -17,7 +17,8 @@
 //!   records, CRS units, `info`);
 //! - [`progress`] (the [`progress::Reporter`] a run reports through), [`error`], [`tools`] (the
 //!   generators of clouds with closed-form curvature), [`main_with_args`] (the command line) and
-//!   [`info_json`] (what `info --json` prints).
+//!   [`info_json`] (what `info --json` prints), and [`missing_cpu_features`] (the processor
+//!   check the binary and the Python package make before anything else).
 //!
 //! Everything else (the work directory's formats, the writers, the stages' insides) is
 //! `pub(crate)`: `unreachable_pub` keeps it so.
@@ -27,6 +28,7 @@
 mod cli;
 pub mod config;
 pub mod core;
+mod cpu;
 pub mod error;
 pub mod io;
 pub mod progress;
@@ -34,6 +36,7 @@ pub mod run;
 pub mod tools;
 
 pub use cli::{info_json, main_with_args};
+pub use cpu::missing_cpu_features;
 
 // The library's unit tests use the test kit of tests/kit, which names the library `tilecurv`.
 #[cfg(test)]

@@ -365,29 +365,11 @@ fn main(py: Python<'_>, argv: Vec<OsString>) -> i32 {
     py.detach(|| tilecurv::main_with_args(argv))
 }
 
-/// The instruction-set extensions this build uses that the processor lacks (the binary checks
-/// the same before it runs anything): importing on such a processor raises ImportError
-/// instead of a crash at the first AVX2 instruction.
-fn missing_cpu_features() -> Vec<&'static str> {
-    #[allow(unused_mut)]
-    let mut missing = Vec::new();
-    #[cfg(target_arch = "x86_64")]
-    {
-        macro_rules! check {
-            ($($f:tt),*) => {$(
-                if cfg!(target_feature = $f) && !std::arch::is_x86_feature_detected!($f) {
-                    missing.push($f);
-                }
-            )*};
-        }
-        check!("avx", "avx2", "fma", "bmi1", "bmi2", "lzcnt", "movbe", "f16c");
-    }
-    missing
-}
-
 #[pymodule]
 fn _tilecurv(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    let missing = missing_cpu_features();
+    // The binary's check: an ImportError that says what to do instead of a crash at the
+    // first AVX2 instruction.
+    let missing = tilecurv::missing_cpu_features();
     if !missing.is_empty() {
         return Err(pyo3::exceptions::PyImportError::new_err(format!(
             "this processor lacks {}, which this build of tilecurv uses (built for x86-64-v3); build it for any x86-64 processor with RUSTFLAGS=\"-C target-cpu=x86-64\" pip install python/",

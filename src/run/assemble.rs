@@ -5,7 +5,7 @@
 //! run shares one encoding); with `--orient propagate` the cross-tile signs are solved first
 //! too (run::orientation).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crossbeam_channel::{bounded, Receiver, Sender};
@@ -22,6 +22,7 @@ use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::results::{record_size, scene_stats, Merger};
+use crate::io::workdir::ResultStore;
 use crate::progress::Reporter;
 use crate::run::bucket::chunk_points;
 use crate::run::orientation::resolve_orientation;
@@ -32,12 +33,11 @@ use crate::run::{Exec, Run};
 /// results, whichever run computed them; points the class filter left out are not counted).
 pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> Result<u64> {
     let spec = &run.spec;
-    let store = run.work.results()?;
-    let files = store.files(&tiles.tiles);
-    let flips = match spec.propagates() {
-        true => Some(resolve_orientation(store.dir(), tiles, exec.reporter)?),
-        false => None,
-    };
+    let Finished {
+        store,
+        files,
+        flips,
+    } = finished(run, tiles, exec.reporter)?;
     let steps = Steps::from_stats(&scene_stats(&files, &spec.cols)?);
     let curvature = [Group::H, Group::K, Group::K1, Group::K2];
     if spec.params.column_type == ColumnType::Scaled
@@ -78,6 +78,32 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
     }
     exec.reporter.finish_phase();
     Ok(undefined)
+}
+
+/// The finished tiles' results of a run: the result store, the files to merge and, with
+/// `--orient propagate`, the patches to write flipped, per tile of the plan.
+pub(crate) struct Finished {
+    /// The result store.
+    pub store: ResultStore,
+    /// The tiles' result files.
+    pub files: Vec<PathBuf>,
+    /// The cross-tile signs (`run::orientation`), with `--orient propagate`.
+    pub flips: Option<Vec<Vec<bool>>>,
+}
+
+/// The results of the tiles of `tiles` in `run`'s work directory, their orientation resolved.
+pub(crate) fn finished(run: &Run, tiles: &TilePlan, reporter: &dyn Reporter) -> Result<Finished> {
+    let store = run.work.results()?;
+    let files = store.files(&tiles.tiles);
+    let flips = match run.spec.propagates() {
+        true => Some(resolve_orientation(store.dir(), tiles, reporter)?),
+        false => None,
+    };
+    Ok(Finished {
+        store,
+        files,
+        flips,
+    })
 }
 
 /// What one output's merge reads: its input, the results' layout and the output's columns.

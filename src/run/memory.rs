@@ -24,8 +24,7 @@ use crate::io::source::memory::MemorySource;
 use crate::io::source::PointSource;
 use crate::io::workdir::results::{record_size, Merger};
 use crate::progress::Reporter;
-use crate::run::assemble::point_result;
-use crate::run::orientation::resolve_orientation;
+use crate::run::assemble::{finished, point_result, Finished};
 use crate::run::{bucket, prepare, tiles, Exec, Run};
 
 /// One column's values, one per point in the source's order.
@@ -144,12 +143,11 @@ fn collect(
     mut out: Vec<Column>,
 ) -> Result<Vec<Column>> {
     let spec = &run.spec;
-    let store = run.work.results()?;
-    let files = store.files(&tiles.tiles);
-    let flips = match spec.propagates() {
-        true => Some(resolve_orientation(store.dir(), tiles, exec.reporter)?),
-        false => None,
-    };
+    let Finished {
+        store,
+        files,
+        flips,
+    } = finished(run, tiles, exec.reporter)?;
     let mut merger = Merger::open(store.dir(), &files, &spec.cols, exec.memory.budget_bytes)?;
     let cols = spec.cols.columns();
     let layout = spec.cols.layout();
