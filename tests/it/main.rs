@@ -19,6 +19,7 @@ mod kit;
 mod kit_checks;
 mod layout;
 mod memory;
+mod offsets;
 mod order;
 mod orientation;
 mod outofcore;
