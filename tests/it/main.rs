@@ -7,6 +7,7 @@ mod closed_form;
 mod cluster;
 mod common;
 mod compact;
+mod damaged;
 mod faults;
 mod features;
 mod formats;
