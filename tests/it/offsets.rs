@@ -5,7 +5,6 @@
 //! (`scripts/regrid.py`), an independent writer. Before `core::grid`, a shift by whole steps
 //! changed every point's H in its last bits on the shipped sample.
 
-use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
 
