@@ -338,12 +338,7 @@ fn group_results(
         let id = first_id + j as u64;
         match merger.append_next(&mut out.bytes)? {
             Some(rid) if rid == id => {}
-            Some(rid) => {
-                return Err(Error::Internal(format!(
-                    "result for point {rid} where point {id} was expected"
-                )))
-            }
-            None => return Err(Error::Internal(format!("no result for point {id}"))),
+            found => return Err(merger.mismatch(id, found)),
         }
     }
     Ok(())

@@ -41,9 +41,20 @@ pub(crate) fn fit_memory(
     // (the LAZ compressor's), the tile drivers (one per thread, at least 2), the rest.
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
     let threads = exec.threads as u64;
+    // LAZ inputs are decoded on threads whose stacks bound the codec's recursion
+    // (`io/las/decode.rs`), present during the scan only.
+    let laz = spec.sources.iter().any(
+        |s| matches!(s.layout(), crate::io::source::SourceLayout::Las(p) if p.header.compressed),
+    );
+    let decoding = if laz {
+        threads * crate::io::las::decode::DECODE_STACK as u64
+    } else {
+        0
+    };
     let own = PROGRAM_BYTES
         + 2 * threads * super::WORKER_STACK as u64
-        + (cores + threads.max(2) + 2) * STACK_BYTES;
+        + (cores + threads.max(2) + 2) * STACK_BYTES
+        + decoding;
     let mut budget = exec.memory_bytes;
     if let Some(limit) = address_space_limit() {
         let besides = format!(

@@ -5,9 +5,9 @@
 //! corrupt chunk holds: past the thread's stack the process aborts ("stack overflow"), which
 //! no error handling can catch. The decoder reads its input one byte at a time as its
 //! arithmetic coder renormalises, so the reader is where the depth can be watched:
-//! [`Guarded`] compares the stack pointer at every read with the one the decoding started at
-//! on that thread and fails the read (an error that unwinds the recursion through its `?`s)
-//! once the decoder is [`TRIP`] bytes deeper.
+//! [`Guarded`] compares the stack pointer at every read with the one where the reader was made
+//! and fails the read (an error that unwinds the recursion through its `?`s) once the decoder
+//! is [`TRIP`] bytes deeper.
 //!
 //! Why this holds for any input: between two reads the coder decodes at most
 //! [`MAX_SYMBOLS_BETWEEN_READS`] symbols (each shrinks its interval, and a read comes when the
@@ -19,7 +19,6 @@
 //! return address), so the bound has a margin of 12. Stacks are address space, touched only as
 //! deep as a decode goes.
 
-use std::cell::Cell;
 use std::io::{self, Read, Seek, SeekFrom};
 
 use laz::record::{
@@ -50,8 +49,8 @@ pub(crate) const MAX_FRAME: usize = 1024;
 /// 16 MiB for everything else.
 pub(crate) const DECODE_STACK: usize = TRIP + MAX_SYMBOLS_BETWEEN_READS * MAX_FRAME + (16 << 20);
 
-/// The address of a local of a new frame: where the stack is now.
-#[inline(never)]
+/// The address of a local of the caller's frame: where the stack is now.
+#[inline(always)]
 fn stack_address() -> usize {
     let here = 0u8;
     std::hint::black_box(&here) as *const u8 as usize
@@ -73,45 +72,65 @@ impl std::fmt::Display for TooDeep {
 
 impl std::error::Error for TooDeep {}
 
-thread_local! {
-    /// Where this thread's stack stood when [`guarded`] started the decoding running on it.
-    static BASE: Cell<usize> = const { Cell::new(0) };
-}
-
-/// Runs `f` (a decoding) with the depth its reads see counted from here.
-fn guarded<T>(f: impl FnOnce() -> T) -> T {
-    let before = BASE.with(|b| b.replace(stack_address()));
-    let out = f();
-    BASE.with(|b| b.set(before));
-    out
-}
-
 /// One chunk's bytes, read by a decoder whose stack depth is checked at every read against
-/// where [`guarded`] started it on the reading thread.
+/// where the reader was made: the decoding must run on the thread that made it.
 pub(crate) struct Guarded<'a> {
     data: &'a [u8],
     pos: usize,
+    base: usize,
 }
 
 impl<'a> Guarded<'a> {
-    /// A reader of `data`.
+    /// A reader of `data`, its depth counted from the caller's frame.
+    #[inline(always)]
     pub(crate) fn new(data: &'a [u8]) -> Self {
-        Self { data, pos: 0 }
+        Self {
+            data,
+            pos: 0,
+            base: stack_address(),
+        }
+    }
+}
+
+impl Guarded<'_> {
+    /// Fails once the stack is [`TRIP`] deeper than where the reader was made. The stack grows
+    /// down on every target Rust's std supports threads on with guard pages.
+    #[inline(always)]
+    fn check_depth(&self) -> io::Result<()> {
+        if self.base.saturating_sub(stack_address()) > TRIP {
+            return Err(io::Error::other(TooDeep));
+        }
+        Ok(())
     }
 }
 
 impl Read for Guarded<'_> {
+    #[inline]
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        // The stack grows down on every target Rust's std supports threads on with guard pages.
-        let base = BASE.with(Cell::get);
-        if base != 0 && base.saturating_sub(stack_address()) > TRIP {
-            return Err(io::Error::other(TooDeep));
-        }
+        self.check_depth()?;
         let rest = &self.data[self.pos.min(self.data.len())..];
         let n = rest.len().min(buf.len());
         buf[..n].copy_from_slice(&rest[..n]);
         self.pos += n;
         Ok(n)
+    }
+
+    /// The decoder reads one byte at a time as it renormalises: the common case is a single
+    /// bounds check.
+    #[inline]
+    fn read_exact(&mut self, buf: &mut [u8]) -> io::Result<()> {
+        self.check_depth()?;
+        match self.data.get(self.pos..self.pos.saturating_add(buf.len())) {
+            Some(src) => {
+                buf.copy_from_slice(src);
+                self.pos += buf.len();
+                Ok(())
+            }
+            None => {
+                self.pos = self.data.len();
+                Err(io::Error::from(io::ErrorKind::UnexpectedEof))
+            }
+        }
     }
 }
 
@@ -136,7 +155,7 @@ impl Seek for Guarded<'_> {
 
 /// Decodes one chunk's `bytes` into `out` (whole records of the layout `vlr`).
 fn decode_chunk(vlr: &LazVlr, bytes: &[u8], out: &mut [u8]) -> io::Result<()> {
-    guarded(|| decompressor(vlr, Guarded::new(bytes))?.decompress_many(out))
+    decompressor(vlr, Guarded::new(bytes))?.decompress_many(out)
 }
 
 /// The record decompressor of the layout `vlr` over `reader`.
@@ -216,17 +235,20 @@ impl ChunkDecoder {
         let rl = vlr.items_size() as usize;
         let per = per.clamp(1, records.max(1));
         let mut buf = vec![0u8; per * rl];
-        let mut dec = self
-            .pool
-            .install(|| guarded(|| decompressor(vlr, Guarded::new(bytes))))
+        // One thread: the reader's depth is counted on the thread that made it.
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .stack_size(DECODE_STACK)
+            .build()
+            .map_err(|e| bad(io::Error::other(e)))?;
+        let mut dec = one
+            .install(|| decompressor(vlr, Guarded::new(bytes)))
             .map_err(bad)?;
         let mut done = 0;
         while done < records {
             let m = (records - done).min(per);
             let out = &mut buf[..m * rl];
-            self.pool
-                .install(|| guarded(|| dec.decompress_many(out)))
-                .map_err(bad)?;
+            one.install(|| dec.decompress_many(out)).map_err(bad)?;
             f(done, out)?;
             done += m;
         }
@@ -253,6 +275,7 @@ mod tests {
     /// A reader's read fails once the stack is [`TRIP`] deeper than where the decoding started.
     #[test]
     fn a_read_past_the_trip_depth_fails() {
+        #[inline(never)]
         fn deep(n: usize, r: &mut Guarded<'_>) -> io::Result<u8> {
             let pad = std::hint::black_box([0u8; 4096]);
             if n == 0 {
@@ -266,7 +289,7 @@ mod tests {
         let run = |levels: usize| {
             std::thread::Builder::new()
                 .stack_size(64 << 20)
-                .spawn(move || guarded(|| deep(levels, &mut Guarded::new(&data))))
+                .spawn(move || deep(levels, &mut Guarded::new(&data)))
                 .expect("thread")
                 .join()
                 .expect("join")

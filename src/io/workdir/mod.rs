@@ -27,7 +27,7 @@ use names::{BUCKETS, LOCK, MANIFEST, RESULTS, TASKS};
 /// manifest and its fingerprint: work left by a tilecurv that wrote other formats is discarded
 /// by `process` and refused by the cluster stages, never misread. Each file also starts with
 /// its own magic and version.
-pub(crate) const FORMAT_VERSION: u32 = 3;
+pub(crate) const FORMAT_VERSION: u32 = 4;
 
 /// What was found in the work directory when a run started.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -254,6 +254,11 @@ pub(crate) struct TileResults {
 }
 
 impl TileResults {
+    /// The file read.
+    pub(crate) fn path(&self) -> &Path {
+        &self.path
+    }
+
     /// Opens a result file written with the same column set and reads its header.
     pub(crate) fn open(path: &Path, cols: &ColumnSet) -> Result<Self> {
         let bad = |what: String| Error::damaged_work(path, &format!("result file {what}"));

@@ -216,6 +216,10 @@ pub(crate) struct Merger {
     readers: Vec<TileResults>,
     heads: Vec<Vec<u8>>,
     heap: BinaryHeap<Reverse<(u64, usize)>>,
+    /// The result directory, named when the files do not hold what the run needs.
+    dir: PathBuf,
+    /// The last id returned: each comes once, in increasing order, unless the files are damaged.
+    last: Option<u64>,
 }
 
 impl Merger {
@@ -247,7 +251,7 @@ impl Merger {
             let take = (files.len() - fan_in + 1).min(fan_in);
             let group: Vec<PathBuf> = files.drain(..take).collect();
             let run = crate::io::workdir::names::merge_run(dir, runs.len());
-            let mut m = Merger::open_direct(&group, cols)?;
+            let mut m = Merger::open_direct(dir, &group, cols)?;
             // Counts come from the files' headers: a sum past u64 is damage.
             let count = m
                 .readers
@@ -272,10 +276,10 @@ impl Merger {
             runs.insert(run.clone());
             files.push_back(run);
         }
-        Merger::open_direct(files.make_contiguous(), cols)
+        Merger::open_direct(dir, files.make_contiguous(), cols)
     }
 
-    fn open_direct(files: &[PathBuf], cols: &ColumnSet) -> Result<Self> {
+    fn open_direct(dir: &Path, files: &[PathBuf], cols: &ColumnSet) -> Result<Self> {
         let mut readers = files
             .iter()
             .map(|p| TileResults::open(p, cols))
@@ -291,6 +295,8 @@ impl Merger {
             readers,
             heads,
             heap,
+            dir: dir.to_path_buf(),
+            last: None,
         })
     }
 
@@ -298,6 +304,17 @@ impl Merger {
     pub(crate) fn next(&mut self, out: &mut Vec<u8>) -> Result<Option<u64>> {
         out.clear();
         self.append_next(out)
+    }
+
+    /// The error for results that do not match the points: `found` (None: no more results)
+    /// where point `expected` was due. The files were checked as they were read, so they are
+    /// whole; a tile's file missing or another run's in its place leaves points without one.
+    pub(crate) fn mismatch(&self, expected: u64, found: Option<u64>) -> Error {
+        let what = match found {
+            Some(id) => format!("the result files hold point {id} where point {expected} is due"),
+            None => format!("the result files hold no result for point {expected}"),
+        };
+        Error::damaged_work(&self.dir, &what)
     }
 
     /// [`Merger::next`] appending the column bytes to `out` (no copy in between).
@@ -308,6 +325,13 @@ impl Merger {
             return Ok(None);
         };
         let Reverse((id, i)) = *top;
+        if self.last.is_some_and(|l| l >= id) {
+            return Err(Error::damaged_work(
+                self.readers[i].path(),
+                &format!("point {id} has results in two result files"),
+            ));
+        }
+        self.last = Some(id);
         out.extend_from_slice(&self.heads[i]);
         match self.readers[i].next(&mut self.heads[i])? {
             Some(next) => *top = Reverse((next, i)),
@@ -324,6 +348,50 @@ mod tests {
     use super::*;
     use crate::core::estimate::Curvature;
     use crate::io::columns::ColumnChoice;
+
+    /// Two whole result files that share a point (one copied over another tile's of the same
+    /// size): the merge stops with damaged work naming a file, not with a record twice.
+    #[test]
+    fn a_point_in_two_result_files_is_damaged_work() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let cols = ColumnSet {
+            choice: ColumnChoice::parse("H,flags").expect("valid"),
+            extra: Vec::new(),
+            unit: "m".into(),
+            wide: true,
+        };
+        let result = |id: u64| PointResult {
+            id,
+            normal: [0.0, 0.0, 1.0],
+            curvature: Curvature::undefined(0),
+            extra: [f64::NAN; crate::core::estimate::MAX_EXTRA],
+            patch: crate::core::compute::NO_PATCH,
+            scale: 0,
+            scale_flags: 0,
+        };
+        let mut journal = Journal::new(dir.path());
+        for (t, ids) in [(0i64, [0u64, 2, 4]), (1, [1, 2, 5])] {
+            let rs: Vec<PointResult> = ids.iter().map(|&i| result(i)).collect();
+            journal
+                .add((t, 0), t as u32, &rs, None, &cols)
+                .expect("write");
+        }
+        journal.commit().expect("commit");
+        let files = [tile_path(dir.path(), (0, 0)), tile_path(dir.path(), (1, 0))];
+        let mut m = Merger::open_with_fan_in(dir.path(), &files, &cols, 8).expect("merge");
+        let mut rec = Vec::new();
+        assert_eq!(m.next(&mut rec).expect("0"), Some(0));
+        assert_eq!(m.next(&mut rec).expect("1"), Some(1));
+        assert_eq!(m.next(&mut rec).expect("2"), Some(2));
+        let e = m.next(&mut rec).expect_err("point 2 again").to_string();
+        assert!(
+            e.contains("point 2 has results in two result files")
+                && e.contains("tile_")
+                && e.contains("delete the work directory"),
+            "{e}"
+        );
+        assert_eq!(e, e.trim());
+    }
 
     #[test]
     fn merge_with_runs_returns_every_id_once_in_order() {
