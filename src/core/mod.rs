@@ -18,4 +18,5 @@ pub mod scale;
 pub mod select;
 pub mod surface;
 pub mod tasks;
+pub mod terrain;
 pub mod tile;
