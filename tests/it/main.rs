@@ -29,4 +29,5 @@ mod rerun;
 mod sample;
 mod sampled;
 mod shapes;
+mod terrain;
 mod units;
