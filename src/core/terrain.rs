@@ -82,7 +82,7 @@ impl TerrainValues {
         } else {
             (normal, *c)
         };
-        let sin_s = n[0].hypot(n[1]);
+        let sin_s = (n[0] * n[0] + n[1] * n[1]).sqrt();
         let slope_deg = sin_s.atan2(n[2]).to_degrees();
         let flat = slope_deg < FLAT_SLOPE_DEG;
         let mut t = TerrainValues {
