@@ -70,20 +70,8 @@ pub enum Group {
     Scale,
     /// CurvatureFlags.
     Flags,
-    /// ProfileCurvature (with TerrainFlags, as every terrain group).
-    Profile,
-    /// TangentialCurvature.
-    Tangential,
-    /// PlanCurvature.
-    Plan,
-    /// ShapeIndex.
-    ShapeIndex,
-    /// Curvedness.
-    Curvedness,
-    /// Slope.
-    Slope,
-    /// Aspect.
-    Aspect,
+    /// One terrain column (never [`TerrainValue::Flags`], which comes with any of them).
+    Terrain(TerrainValue),
 }
 
 /// The word `--columns` takes for every terrain group at once.
@@ -102,25 +90,19 @@ impl Group {
         Group::Features,
         Group::Scale,
         Group::Flags,
-        Group::Profile,
-        Group::Tangential,
-        Group::Plan,
-        Group::ShapeIndex,
-        Group::Curvedness,
-        Group::Slope,
-        Group::Aspect,
+        Group::Terrain(TerrainValue::Profile),
+        Group::Terrain(TerrainValue::Tangential),
+        Group::Terrain(TerrainValue::Plan),
+        Group::Terrain(TerrainValue::ShapeIndex),
+        Group::Terrain(TerrainValue::Curvedness),
+        Group::Terrain(TerrainValue::Slope),
+        Group::Terrain(TerrainValue::Aspect),
     ];
 
-    /// The terrain groups (`--columns terrain`), algorithms.md 10.
-    pub const TERRAIN: [Group; 7] = [
-        Group::Profile,
-        Group::Tangential,
-        Group::Plan,
-        Group::ShapeIndex,
-        Group::Curvedness,
-        Group::Slope,
-        Group::Aspect,
-    ];
+    /// The terrain groups (`--columns terrain`, algorithms.md 10): the tail of [`Group::ALL`].
+    pub fn terrain() -> impl Iterator<Item = Group> {
+        Group::ALL.into_iter().skip(9)
+    }
 
     /// The name `--columns` gives it.
     pub fn name(self) -> &'static str {
@@ -134,18 +116,17 @@ impl Group {
             Group::Features => "features",
             Group::Scale => "scale",
             Group::Flags => "flags",
-            Group::Profile => "profile",
-            Group::Tangential => "tangential",
-            Group::Plan => "plan",
-            Group::ShapeIndex => "shape_index",
-            Group::Curvedness => "curvedness",
-            Group::Slope => "slope",
-            Group::Aspect => "aspect",
+            Group::Terrain(t) => t.word(),
         }
     }
 
+    /// Its bit in a [`ColumnChoice`]; none for a group outside [`Group::ALL`] (the terrain
+    /// flags, which no `--columns` name chooses).
     fn bit(self) -> u32 {
-        1 << Group::ALL.iter().position(|&g| g == self).unwrap_or(0)
+        Group::ALL
+            .iter()
+            .position(|&g| g == self)
+            .map_or(0, |i| 1 << i)
     }
 }
 
@@ -190,7 +171,7 @@ impl ColumnChoice {
 
     /// Whether any terrain group is chosen (then TerrainFlags is written too).
     pub fn has_terrain(self) -> bool {
-        Group::TERRAIN.into_iter().any(|g| self.has(g))
+        Group::terrain().any(|g| self.has(g))
     }
 
     /// This choice without the column holding `v`: its group, or every terrain group for
@@ -198,7 +179,7 @@ impl ColumnChoice {
     pub fn without_value(self, v: Value) -> Self {
         match v {
             Value::Terrain(TerrainValue::Flags) => {
-                Group::TERRAIN.into_iter().fold(self, ColumnChoice::without)
+                Group::terrain().fold(self, ColumnChoice::without)
             }
             v => self.without(v.group()),
         }
@@ -224,7 +205,7 @@ impl ColumnChoice {
                 ));
             }
             if word.eq_ignore_ascii_case(TERRAIN_WORD) {
-                c = Group::TERRAIN.into_iter().fold(c, ColumnChoice::with);
+                c = Group::terrain().fold(c, ColumnChoice::with);
                 continue;
             }
             let g = Group::ALL
@@ -309,7 +290,7 @@ impl Value {
             Value::Extra(_) => Group::Features,
             Value::ScaleK | Value::ScaleFlags => Group::Scale,
             Value::Flags => Group::Flags,
-            Value::Terrain(t) => t.group().unwrap_or(Group::Slope),
+            Value::Terrain(t) => Group::Terrain(t),
         }
     }
 

@@ -41,7 +41,21 @@ impl TerrainValue {
 
     /// The group whose column holds it (None for the flags, written with any terrain group).
     pub fn group(self) -> Option<Group> {
-        Group::TERRAIN.get(self as usize).copied()
+        (self != TerrainValue::Flags).then_some(Group::Terrain(self))
+    }
+
+    /// The name `--columns` gives its group.
+    pub(super) fn word(self) -> &'static str {
+        match self {
+            TerrainValue::Profile => "profile",
+            TerrainValue::Tangential => "tangential",
+            TerrainValue::Plan => "plan",
+            TerrainValue::ShapeIndex => "shape_index",
+            TerrainValue::Curvedness => "curvedness",
+            TerrainValue::Slope => "slope",
+            TerrainValue::Aspect => "aspect",
+            TerrainValue::Flags => "terrain_flags",
+        }
     }
 
     /// The column's name, description (with the unit symbol `u`) and value.
