@@ -90,6 +90,14 @@ pub(super) struct TerrainArgs {
     /// east of it). The truth columns stay those of the noise-free surface at the point's x, y.
     #[arg(long, default_value = "0", value_parser = Noise::parse)]
     pub noise: Noise,
+
+    /// Also write the true terrain values (f64, from the surface's derivatives p, q, r, s, t by
+    /// Florinsky's formulas, docs/algorithms.md 10): TrueProfileCurvature,
+    /// TrueTangentialCurvature, TruePlanCurvature (1/m), TrueShapeIndex, TrueCurvedness (1/m),
+    /// TrueSlope, TrueAspect (degrees); NaN where undefined (slope under 0.1 degree: profile,
+    /// tangential, plan, aspect). 56 more bytes a point.
+    #[arg(long)]
+    pub terrain_truth: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -121,6 +129,7 @@ fn terrain(args: TerrainArgs) -> Result<i32, i32> {
         density_per_m2: args.density,
         seed: args.common.seed,
         noise: args.noise,
+        terrain_truth: args.terrain_truth,
     };
     let s = generate_terrain(&opts, &args.common.output, &CANCEL).map_err(|e| fail(&e))?;
     if !args.common.quiet {

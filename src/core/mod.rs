@@ -19,4 +19,5 @@ pub mod scale;
 pub mod select;
 pub mod surface;
 pub mod tasks;
+pub mod terrain;
 pub mod tile;

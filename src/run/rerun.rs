@@ -111,7 +111,7 @@ fn clash(cfg: &RunParams, source: &dyn PointSource, what: &str, column: &Column)
     } else {
         "the input has no provenance record of a tilecurv run that wrote it, so it is not a tilecurv column to replace"
     };
-    let without = cfg.columns.without(column.value.group()).to_string();
+    let without = cfg.columns.without_value(column.value).to_string();
     let todo = if without.is_empty() {
         "rename the input's dimension (the new column is the only one asked for)".to_string()
     } else {

@@ -70,6 +70,7 @@ impl RunSpec {
             extra: self.cols.extra.len(),
             propagate: self.propagates().then_some(stats.centroid()),
             ladder: self.params.ladder,
+            terrain: self.cols.choice.has_terrain(),
         }
     }
 

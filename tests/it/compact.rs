@@ -217,11 +217,11 @@ fn an_unknown_column_is_a_usage_error() {
     saddle_with_duplicates(&input);
     let output = dir.path().join("o.laz");
     let run = |extra: &[&str]| crate::common::run_process(&input, &output, extra);
-    let out = run(&["--columns", "H,curvedness"]);
+    let out = run(&["--columns", "H,torsion"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("curvedness")
+        err.contains("torsion")
             && err.contains("normals, H, K, k1, k2, directions, features, scale, flags"),
         "{err}"
     );

@@ -31,4 +31,5 @@ mod rerun;
 mod sample;
 mod sampled;
 mod shapes;
+mod terrain;
 mod units;

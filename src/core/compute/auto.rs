@@ -92,6 +92,7 @@ pub(super) fn compute_auto(
                 patch: NO_PATCH,
                 scale: ladder.k(choice.rung) as u16,
                 scale_flags: choice.flags,
+                terrain: p.terrain_of(normals[choice.rung][i], &curvature),
             }
         })
         .collect_into_vec(&mut done);

@@ -12,6 +12,7 @@ use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::{orient, pca_normal, Orientation};
 use crate::core::plan::Rect;
 use crate::core::scale::Ladder;
+use crate::core::terrain::{terrain_flags, TerrainValues};
 use crate::core::tile::TilePoints;
 
 mod auto;
@@ -47,6 +48,23 @@ pub struct ComputeParams<'e> {
     /// `-k auto`: the ladder of scales chosen from per point (`auto`); `k` is then its top
     /// rung. None for one fixed `k`.
     pub ladder: Option<Ladder>,
+    /// Whether to compute the terrain values ([`TerrainValues`]) of each point.
+    pub terrain: bool,
+}
+
+/// The flags of the terrain values of a result that has none (not asked for, or not computed):
+/// no normal, no curvature.
+pub const NO_TERRAIN: u8 = terrain_flags::NO_NORMAL | terrain_flags::NO_CURVATURE;
+
+impl ComputeParams<'_> {
+    /// The terrain values of a point with `normal` and `curvature` when they are asked for;
+    /// undefined otherwise (a cost of about 1% of a point's, paid only then).
+    fn terrain_of(&self, normal: Option<V3>, curvature: &Curvature) -> TerrainValues {
+        match (self.terrain, normal) {
+            (true, Some(n)) => TerrainValues::of(n, curvature),
+            _ => TerrainValues::undefined(NO_TERRAIN),
+        }
+    }
 }
 
 /// Which loaded points of a pass another pass also orients (for the cross-tile votes of
@@ -92,6 +110,9 @@ pub struct PointResult {
     pub scale: u16,
     /// With `-k auto`: the choice's [`scale_flags`](crate::core::scale::scale_flags).
     pub scale_flags: u8,
+    /// The terrain values (with [`ComputeParams::terrain`]; undefined otherwise). They do not
+    /// depend on the normal's orientation, so [`PointResult::flipped`] keeps them.
+    pub terrain: TerrainValues,
 }
 
 impl PointResult {
@@ -106,6 +127,7 @@ impl PointResult {
             patch: NO_PATCH,
             scale: 0,
             scale_flags: 0,
+            terrain: TerrainValues::undefined(NO_TERRAIN),
         }
     }
 
@@ -277,6 +299,7 @@ fn estimate_points(
                     },
                     scale: 0,
                     scale_flags: 0,
+                    terrain: p.terrain_of(normals[i], &curvature),
                 }
             },
         )

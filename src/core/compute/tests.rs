@@ -18,6 +18,7 @@ fn params(
         extra: 0,
         propagate: None,
         ladder,
+        terrain: false,
     }
 }
 

@@ -6,9 +6,13 @@
 //! f64).
 
 pub(crate) mod output;
+mod terrain;
+
+pub(crate) use terrain::TerrainValue;
 
 use crate::core::compute::{PointResult, NO_PATCH};
 use crate::core::estimate::{Curvature, EstimatorKind, EstimatorParams, ExtraColumn, MAX_EXTRA};
+use crate::core::terrain::TerrainValues;
 
 /// Name of the quality-flag column.
 pub(crate) const FLAGS_NAME: &str = "CurvatureFlags";
@@ -66,11 +70,17 @@ pub enum Group {
     Scale,
     /// CurvatureFlags.
     Flags,
+    /// One terrain column (never [`TerrainValue::Flags`], which comes with any of them).
+    Terrain(TerrainValue),
 }
 
+/// The word `--columns` takes for every terrain group at once.
+pub(crate) const TERRAIN_WORD: &str = "terrain";
+
 impl Group {
-    /// Every group, in record order.
-    pub const ALL: [Group; 9] = [
+    /// Every group, in record order. The terrain groups come after the flags, so that an output
+    /// without them has the bytes it had before they existed.
+    pub const ALL: [Group; 16] = [
         Group::Normals,
         Group::H,
         Group::K,
@@ -80,7 +90,19 @@ impl Group {
         Group::Features,
         Group::Scale,
         Group::Flags,
+        Group::Terrain(TerrainValue::Profile),
+        Group::Terrain(TerrainValue::Tangential),
+        Group::Terrain(TerrainValue::Plan),
+        Group::Terrain(TerrainValue::ShapeIndex),
+        Group::Terrain(TerrainValue::Curvedness),
+        Group::Terrain(TerrainValue::Slope),
+        Group::Terrain(TerrainValue::Aspect),
     ];
+
+    /// The terrain groups (`--columns terrain`, algorithms.md 10): the tail of [`Group::ALL`].
+    pub fn terrain() -> impl Iterator<Item = Group> {
+        Group::ALL.into_iter().skip(9)
+    }
 
     /// The name `--columns` gives it.
     pub fn name(self) -> &'static str {
@@ -94,18 +116,24 @@ impl Group {
             Group::Features => "features",
             Group::Scale => "scale",
             Group::Flags => "flags",
+            Group::Terrain(t) => t.word(),
         }
     }
 
-    fn bit(self) -> u16 {
-        1 << Group::ALL.iter().position(|&g| g == self).unwrap_or(0)
+    /// Its bit in a [`ColumnChoice`]; none for a group outside [`Group::ALL`] (the terrain
+    /// flags, which no `--columns` name chooses).
+    fn bit(self) -> u32 {
+        Group::ALL
+            .iter()
+            .position(|&g| g == self)
+            .map_or(0, |i| 1 << i)
     }
 }
 
 /// The groups of columns a run writes (`--columns`), always in the record order of
 /// [`Group::ALL`] whatever the order they were named in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ColumnChoice(u16);
+pub struct ColumnChoice(u32);
 
 impl Default for ColumnChoice {
     /// H, K, flags: the columns whose LAZ output stays within 2x its LAZ input on forest TLS
@@ -141,6 +169,22 @@ impl ColumnChoice {
         ColumnChoice(self.0 & !g.bit())
     }
 
+    /// Whether any terrain group is chosen (then TerrainFlags is written too).
+    pub fn has_terrain(self) -> bool {
+        Group::terrain().any(|g| self.has(g))
+    }
+
+    /// This choice without the column holding `v`: its group, or every terrain group for
+    /// TerrainFlags (written with any of them).
+    pub fn without_value(self, v: Value) -> Self {
+        match v {
+            Value::Terrain(TerrainValue::Flags) => {
+                Group::terrain().fold(self, ColumnChoice::without)
+            }
+            v => self.without(v.group()),
+        }
+    }
+
     /// Parses a comma-separated list of group names (any case: the lower-case names are all
     /// different); an unknown or missing name is an error that lists the valid ones.
     pub fn parse(list: &str) -> Result<Self, String> {
@@ -148,6 +192,7 @@ impl ColumnChoice {
             Group::ALL
                 .iter()
                 .map(|g| g.name())
+                .chain([TERRAIN_WORD])
                 .collect::<Vec<_>>()
                 .join(", ")
         };
@@ -158,6 +203,10 @@ impl ColumnChoice {
                     "{list:?} has an empty column name: give a comma-separated list of {}",
                     valid()
                 ));
+            }
+            if word.eq_ignore_ascii_case(TERRAIN_WORD) {
+                c = Group::terrain().fold(c, ColumnChoice::with);
+                continue;
             }
             let g = Group::ALL
                 .into_iter()
@@ -205,6 +254,8 @@ pub enum Value {
     ScaleFlags,
     /// The quality flags.
     Flags,
+    /// A terrain value (algorithms.md 10).
+    Terrain(TerrainValue),
 }
 
 impl Value {
@@ -223,6 +274,7 @@ impl Value {
             Value::ScaleK => r.scale as f64,
             Value::ScaleFlags => r.scale_flags as f64,
             Value::Flags => c.flags as f64,
+            Value::Terrain(t) => t.get(&r.terrain),
         }
     }
 
@@ -238,10 +290,11 @@ impl Value {
             Value::Extra(_) => Group::Features,
             Value::ScaleK | Value::ScaleFlags => Group::Scale,
             Value::Flags => Group::Flags,
+            Value::Terrain(t) => Group::Terrain(t),
         }
     }
 
-    fn set(self, r: &mut PointResult, v: f64) {
+    pub(super) fn set(self, r: &mut PointResult, v: f64) {
         let c = &mut r.curvature;
         match self {
             Value::Normal(i) => r.normal[i] = v,
@@ -255,6 +308,7 @@ impl Value {
             Value::ScaleK => r.scale = v as u16,
             Value::ScaleFlags => r.scale_flags = v as u8,
             Value::Flags => c.flags = v as u8,
+            Value::Terrain(t) => t.set(&mut r.terrain, v),
         }
     }
 }
@@ -383,7 +437,20 @@ impl ColumnSet {
                 Value::Flags,
             );
         }
+        for t in self.terrain() {
+            let (name, description) = t.column(u);
+            push(name, description, Value::Terrain(t));
+        }
         v
+    }
+
+    /// The terrain values written, in record order: those of the chosen terrain groups, then
+    /// the flags when any is chosen.
+    fn terrain(&self) -> impl Iterator<Item = TerrainValue> + '_ {
+        let any = self.choice.has_terrain();
+        TerrainValue::ALL
+            .into_iter()
+            .filter(move |t| t.group().map_or(any, |g| self.choice.has(g)))
     }
 
     /// The values a result file stores (as f64, the flags byte after them): those of the
@@ -405,6 +472,7 @@ impl ColumnSet {
             .chain((0..self.extra.len().min(MAX_EXTRA)).map(Value::Extra))
             .chain(on(Group::Scale).then_some(Value::ScaleK))
             .chain(on(Group::Scale).then_some(Value::ScaleFlags))
+            .chain(self.terrain().map(Value::Terrain))
     }
 
     /// Bytes per stored value: 8 for f64, 4 for f32 ([`ColumnSet::wide`]).
@@ -432,13 +500,7 @@ impl ColumnSet {
     /// Appends the stored values of one point to `out` (f64 or f32 little-endian, then the
     /// flags).
     pub fn encode_result(&self, r: &PointResult, out: &mut Vec<u8>) {
-        for v in self.stored() {
-            match self.wide {
-                true => out.extend_from_slice(&v.get(r).to_le_bytes()),
-                false => out.extend_from_slice(&(v.get(r) as f32).to_le_bytes()),
-            }
-        }
-        out.push(r.curvature.flags);
+        self.layout().encode(r, out)
     }
 
     /// The order and width of the stored values, for decoding records
@@ -459,8 +521,8 @@ impl ColumnSet {
 }
 
 /// The most values [`ColumnSet::stored`] lists: the normal (3), H, K, k1, k2, the two
-/// directions (6), the extra values, the scale and its flags.
-const MAX_STORED: usize = 3 + 4 + 6 + MAX_EXTRA + 2;
+/// directions (6), the extra values, the scale and its flags, the terrain values and flags.
+const MAX_STORED: usize = 3 + 4 + 6 + MAX_EXTRA + 2 + TerrainValue::ALL.len();
 
 /// The values of a result record in their order and their width ([`ColumnSet::layout`]):
 /// found once rather than per record (the chain of optional groups was half the cost of a
@@ -473,6 +535,19 @@ pub struct ResultLayout {
 }
 
 impl ResultLayout {
+    /// Appends the stored values of one point to `out`, as [`ColumnSet::encode_result`] does
+    /// (a caller encoding many points makes the layout once: walking the chain of optional
+    /// groups for every value of every point cost 5% of a run with the terrain columns).
+    pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
+        for v in &self.values[..self.len] {
+            match self.width {
+                8 => out.extend_from_slice(&v.get(r).to_le_bytes()),
+                _ => out.extend_from_slice(&(v.get(r) as f32).to_le_bytes()),
+            }
+        }
+        out.push(r.curvature.flags);
+    }
+
     /// Decodes one point's stored values (as [`ColumnSet::encode_result`] wrote them) into a
     /// result with id 0 and no patch; values not stored are NaN (directions zero).
     pub fn decode(&self, rec: &[u8]) -> PointResult {
@@ -484,6 +559,7 @@ impl ResultLayout {
             patch: NO_PATCH,
             scale: 0,
             scale_flags: 0,
+            terrain: TerrainValues::undefined(crate::core::compute::NO_TERRAIN),
         };
         let (mut at, w) = (0, self.width);
         for v in &self.values[..self.len] {

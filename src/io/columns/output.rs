@@ -19,7 +19,7 @@
 
 use crate::core::compute::PointResult;
 use crate::core::quantize::CurvatureStats;
-use crate::io::columns::{Column, ColumnSet, ColumnType, Value};
+use crate::io::columns::{Column, ColumnSet, ColumnType, TerrainValue, Value};
 use crate::io::las::extra_bytes::{NewColumn, ScalarType};
 
 /// The steps of the scaled curvature columns of a run.
@@ -109,6 +109,7 @@ impl OutputColumns {
     pub fn new(set: &ColumnSet, encoding: Encoding) -> Self {
         let storage = |c: &Column| match (c.value, encoding) {
             (Value::Flags | Value::ScaleFlags, _) => Storage::Unsigned(ScalarType::U8),
+            (Value::Terrain(TerrainValue::Flags), _) => Storage::Unsigned(ScalarType::U8),
             (Value::ScaleK, _) => Storage::Unsigned(ScalarType::U16),
             (_, Encoding::F32) => Storage::Float(ScalarType::F32),
             (_, Encoding::F64) => Storage::Float(ScalarType::F64),
@@ -116,6 +117,21 @@ impl OutputColumns {
                 Value::H => Storage::Scaled(ScalarType::I32, s.h),
                 Value::K => Storage::Scaled(ScalarType::I32, s.k),
                 Value::K1 | Value::K2 => Storage::Scaled(ScalarType::I32, s.principal),
+                // Normal curvatures and curvedness lie within max(|k1|, |k2|): k1's step suits
+                // them. Plan curvature is tangential / sin(slope), up to 573 times larger at the
+                // flat threshold, the one value that may reach the i32's clamp.
+                Value::Terrain(
+                    TerrainValue::Profile
+                    | TerrainValue::Tangential
+                    | TerrainValue::Plan
+                    | TerrainValue::Curvedness,
+                ) => Storage::Scaled(ScalarType::I32, s.principal),
+                Value::Terrain(TerrainValue::Slope) => {
+                    Storage::Scaled(ScalarType::I16, 90.0 / i16::MAX as f64)
+                }
+                Value::Terrain(TerrainValue::Aspect) => {
+                    Storage::Scaled(ScalarType::I16, 360.0 / i16::MAX as f64)
+                }
                 Value::Extra(i) => {
                     let bound = set.extra.get(i).map(|e| e.bound).unwrap_or(1.0);
                     Storage::Scaled(ScalarType::I16, bound / i16::MAX as f64)
@@ -213,6 +229,7 @@ mod tests {
     use super::*;
     use crate::core::estimate::Curvature;
     use crate::core::quantize::pow2;
+    use crate::core::terrain::TerrainValues;
     use crate::io::columns::tests::vcm_columns;
     use crate::io::columns::{ColumnChoice, Group};
 
@@ -239,6 +256,82 @@ mod tests {
             patch: crate::core::compute::NO_PATCH,
             scale: 160,
             scale_flags: 1,
+            terrain: TerrainValues {
+                profile: 0.25,
+                tangential: -0.1,
+                plan: f64::NAN,
+                shape_index: 0.5,
+                curvedness: 0.3,
+                slope_deg: 36.87,
+                aspect_deg: 359.99,
+                flags: 2,
+            },
+        }
+    }
+
+    /// The terrain columns: after the flags, curvatures i32 at k1's step, the shape index,
+    /// slope and aspect i16 at 1/32767, 90/32767 and 360/32767, TerrainFlags u8; they go
+    /// through a result file's record unchanged.
+    #[test]
+    fn terrain_columns_are_stored_as_documented() {
+        let set = ColumnSet {
+            choice: ColumnChoice::parse("H,flags,terrain").expect("valid"),
+            extra: Vec::new(),
+            unit: "m".into(),
+            wide: false,
+        };
+        let out = OutputColumns::new(&set, Encoding::Scaled(STEPS));
+        let d = out.descriptors();
+        let names: Vec<&str> = d.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "H",
+                "CurvatureFlags",
+                "ProfileCurvature",
+                "TangentialCurvature",
+                "PlanCurvature",
+                "ShapeIndex",
+                "Curvedness",
+                "Slope",
+                "Aspect",
+                "TerrainFlags"
+            ]
+        );
+        assert!(d.iter().all(|c| c.description.len() <= 32));
+        let scale = |i: usize| (d[i].ty, d[i].scaling.map(|s| s.0));
+        for i in [2, 3, 4, 6] {
+            assert_eq!(scale(i), (ScalarType::I32, Some(STEPS.principal)));
+        }
+        assert_eq!(scale(5), (ScalarType::I16, Some(1.0 / 32767.0)));
+        assert_eq!(scale(7), (ScalarType::I16, Some(90.0 / 32767.0)));
+        assert_eq!(scale(8), (ScalarType::I16, Some(360.0 / 32767.0)));
+        assert_eq!(scale(9), (ScalarType::U8, None));
+        // Through a result file's record (f32) and back.
+        let mut stored = Vec::new();
+        set.encode_result(&result(0.3), &mut stored);
+        let back = set.layout().decode(&stored);
+        assert_eq!(back.terrain.flags, 2);
+        assert_eq!(back.terrain.slope_deg, 36.87f32 as f64);
+        assert!(back.terrain.plan.is_nan());
+        let mut rec = Vec::new();
+        out.encode(&back, &mut rec);
+        let parsed = crate::io::las::extra_bytes::parse(
+            &d.iter()
+                .flat_map(crate::io::las::extra_bytes::encode)
+                .collect::<Vec<u8>>(),
+        )
+        .expect("descriptors");
+        let read = |i: usize| parsed[i].read(&rec).expect("value");
+        let want = [0.25, -0.1, f64::NAN, 0.5, 0.3, 36.87, 359.99, 2.0];
+        for (i, w) in (2..10).zip(want) {
+            let step = d[i].scaling.map_or(0.0, |s| s.0);
+            let v = read(i);
+            assert!(
+                (v.is_nan() && w.is_nan()) || (v - w).abs() <= step / 2.0 + 1e-6,
+                "{}: {v} against {w}",
+                d[i].name
+            );
         }
     }
 

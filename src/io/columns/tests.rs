@@ -27,12 +27,20 @@ fn column_lists_parse_in_record_order() {
         ColumnChoice::parse(&ColumnChoice::default().to_string()),
         Ok(ColumnChoice::default())
     );
-    let e = ColumnChoice::parse("H,curvedness").expect_err("unknown");
+    let e = ColumnChoice::parse("H,torsion").expect_err("unknown");
     assert!(
-        e.contains("\"curvedness\"")
-            && e.contains("normals, H, K, k1, k2, directions, features, scale, flags"),
+        e.contains("\"torsion\"")
+            && e.contains("normals, H, K, k1, k2, directions, features, scale, flags, profile, tangential, plan, shape_index, curvedness, slope, aspect, terrain"),
         "{e}"
     );
+    // `terrain` is every terrain group; it reads back as their names.
+    let t = ColumnChoice::parse("Terrain,H").expect("valid");
+    assert_eq!(
+        t.to_string(),
+        "H,profile,tangential,plan,shape_index,curvedness,slope,aspect"
+    );
+    assert!(t.has_terrain() && !ColumnChoice::default().has_terrain());
+    assert_eq!(ColumnChoice::parse(&t.to_string()), Ok(t));
     assert!(ColumnChoice::parse("").is_err() && ColumnChoice::parse("H,").is_err());
 }
 
@@ -105,6 +113,7 @@ fn flipping_decoded_results_is_exact() {
         patch: NO_PATCH,
         scale: 0,
         scale_flags: 0,
+        terrain: crate::core::terrain::TerrainValues::undefined(crate::core::compute::NO_TERRAIN),
     };
     let mut rec = Vec::new();
     cols.encode_result(&r, &mut rec);

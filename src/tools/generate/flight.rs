@@ -11,7 +11,8 @@ use crate::core::rng::Rng;
 use crate::core::surface::HeightField;
 
 use super::terrain::Terrain;
-use super::{Record, TerrainOptions, SCALE_M};
+use super::truth::terrain_truth;
+use super::{Record, TerrainOptions, MAX_TRUTH, SCALE_M};
 
 /// Largest width of a flight strip in metres (the square is cut into equal strips).
 const STRIP_WIDTH_M: f64 = 250.0;
@@ -157,6 +158,12 @@ pub(super) fn generate_row(
         let q = [qx as i32, qy as i32, qz as i32];
         bounds.add(q);
         let t = jet.curvature();
+        let mut truth = [f64::NAN; MAX_TRUTH];
+        truth[..4].copy_from_slice(&[t.h, t.k, t.k1, t.k2]);
+        if opts.terrain_truth {
+            truth[4..].copy_from_slice(&terrain_truth(&jet));
+        }
+        let columns = if opts.terrain_truth { MAX_TRUTH } else { 4 };
         let nz = jet.normal()[2];
         let scan_angle = ((x - centre) / FLYING_HEIGHT_M).atan().to_degrees().round() as i8;
         let gps = strip as f64 * STRIP_INTERVAL_S
@@ -178,7 +185,7 @@ pub(super) fn generate_row(
             scan_angle,
             source: (strip + 1) as u16,
             gps,
-            truth: [t.h, t.k, t.k1, t.k2],
+            truth: &truth[..columns],
         }
         .encode(out);
     }

@@ -20,17 +20,19 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::io::las::extra_bytes::{encode, NewColumn, ScalarType};
 use crate::io::las::header::{NewHeader, POINT_FORMAT_SIZES};
 use crate::io::las::vlr::Vlr;
 use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
 
 use flight::{generate_row, FlightPlan, IntBounds};
 use terrain::Terrain;
+use truth::truth_descriptors;
+pub use truth::{MAX_TRUTH, TERRAIN_TRUTH_COLUMNS};
 
 mod flight;
 pub mod shape;
 pub mod terrain;
+mod truth;
 
 pub use shape::{generate_shape, Shape, ShapeOptions, ShapeSummary};
 
@@ -48,8 +50,14 @@ pub const POINT_FORMAT: u8 = 1;
 /// Names of the truth columns, in record order.
 pub const TRUTH_COLUMNS: [&str; 4] = ["TrueH", "TrueK", "Truek1", "Truek2"];
 
-/// Bytes per output record: point format 1 plus the four f64 truth columns.
+/// Bytes per output record: point format 1 plus the four f64 truth columns (without
+/// `--terrain-truth`, whose columns add 8 bytes each: [`record_length`]).
 pub const RECORD_LENGTH: usize = POINT_FORMAT_SIZES[POINT_FORMAT as usize] as usize + 32;
+
+/// Bytes per record of a file with `truth` f64 truth columns.
+pub const fn record_length(truth: usize) -> usize {
+    POINT_FORMAT_SIZES[POINT_FORMAT as usize] as usize + 8 * truth
+}
 
 /// What `generate terrain` is asked for.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,6 +71,8 @@ pub struct TerrainOptions {
     /// Gaussian noise added to z (the truth columns are those of the noise-free surface at
     /// the point's x, y).
     pub noise: Noise,
+    /// Also write the terrain truth columns ([`TERRAIN_TRUTH_COLUMNS`], `--terrain-truth`).
+    pub terrain_truth: bool,
 }
 
 /// The standard deviation of the noise added to z, in metres: one value, or one for the west
@@ -207,32 +217,16 @@ fn geotiff_keys(epsg: u16) -> Vec<u8> {
     w.iter().flat_map(|v| v.to_le_bytes()).collect()
 }
 
-/// The extra-bytes descriptors of the truth columns.
-fn truth_descriptors() -> Vec<u8> {
-    let descriptions = [
-        "true mean curvature (1/m)",
-        "true Gaussian curvature (1/m^2)",
-        "true min principal curv. (1/m)",
-        "true max principal curv. (1/m)",
-    ];
-    TRUTH_COLUMNS
-        .iter()
-        .zip(descriptions)
-        .flat_map(|(name, description)| {
-            encode(&NewColumn::plain(*name, ScalarType::F64, description))
-        })
-        .collect()
-}
-
 /// The text of the provenance VLR: the options and the units of the truth columns.
 fn provenance(opts: &TerrainOptions) -> String {
     format!(
-        "tilecurv {} generate terrain\npoints={}\ndensity={}\nseed={}\nnoise={}\nunits=metres; TrueH, Truek1, Truek2 in 1/m, TrueK in 1/m^2; upward normal, positive on hilltops\n",
+        "tilecurv {} generate terrain\npoints={}\ndensity={}\nseed={}\nnoise={}\nterrain_truth={}\nunits=metres; TrueH, Truek1, Truek2 in 1/m, TrueK in 1/m^2; upward normal, positive on hilltops\n",
         env!("CARGO_PKG_VERSION"),
         opts.points,
         opts.density_per_m2,
         opts.seed,
-        opts.noise
+        opts.noise,
+        opts.terrain_truth
     )
 }
 
@@ -253,6 +247,7 @@ pub fn generate_terrain(
         offset: OFFSETS_M,
         points: opts.points,
         provenance: provenance(opts),
+        terrain_truth: opts.terrain_truth,
     };
     let side_m = opts.side_m();
     let terrain = Terrain::new(side_m, opts.seed);
@@ -288,9 +283,19 @@ struct FileLayout<'a> {
     points: u64,
     /// The provenance VLR's text.
     provenance: String,
+    /// Whether the records carry the terrain truth columns after the four curvature ones.
+    terrain_truth: bool,
 }
 
 impl FileLayout<'_> {
+    /// The number of f64 truth columns of a record.
+    fn truth_columns(&self) -> usize {
+        match self.terrain_truth {
+            true => MAX_TRUTH,
+            false => TRUTH_COLUMNS.len(),
+        }
+    }
+
     /// Creates `output`, lets `fill` write every record and return their integer bounds, then
     /// sets the header's bounds and renames the file into place; on any error the temporary
     /// file is removed and nothing appears.
@@ -300,6 +305,7 @@ impl FileLayout<'_> {
         fill: impl FnOnce(&mut LasFileWriter) -> Result<IntBounds>,
     ) -> Result<IntBounds> {
         let software = format!("tilecurv {} generate", env!("CARGO_PKG_VERSION"));
+        let record_length = record_length(self.truth_columns()) as u16;
         let geotiff = [Vlr::new(
             "LASF_Projection",
             34735,
@@ -314,7 +320,7 @@ impl FileLayout<'_> {
             system: self.system,
             software: &software,
             point_format: POINT_FORMAT,
-            record_length: RECORD_LENGTH as u16,
+            record_length,
             points: self.points,
             scale: [self.scale; 3],
             offset: self.offset,
@@ -324,10 +330,10 @@ impl FileLayout<'_> {
         let spec = LasFileSpec {
             origin: None,
             header: HeaderStart::New(header),
-            record_length: RECORD_LENGTH as u16,
+            record_length,
             vlrs: &geotiff,
             evlrs: &[],
-            extra_bytes: truth_descriptors(),
+            extra_bytes: truth_descriptors(self.terrain_truth),
             provenance: &self.provenance,
         };
         let mut writer = LasFileWriter::create(output, spec)?;
@@ -348,10 +354,10 @@ impl FileLayout<'_> {
     }
 }
 
-/// One generated record: point format 1 followed by the four f64 truth columns
-/// ([`RECORD_LENGTH`] bytes).
+/// One generated record: point format 1 followed by the f64 truth columns
+/// ([`record_length`] bytes).
 #[derive(Debug, Clone, Copy)]
-struct Record {
+struct Record<'a> {
     /// Integer coordinates (the header's scale and offset).
     xyz: [i32; 3],
     /// Intensity.
@@ -366,11 +372,11 @@ struct Record {
     source: u16,
     /// GPS time in seconds.
     gps: f64,
-    /// TrueH, TrueK, Truek1, Truek2.
-    truth: [f64; 4],
+    /// TrueH, TrueK, Truek1, Truek2, then with `--terrain-truth` [`TERRAIN_TRUTH_COLUMNS`].
+    truth: &'a [f64],
 }
 
-impl Record {
+impl Record<'_> {
     /// Appends the record's bytes to `out`.
     fn encode(&self, out: &mut Vec<u8>) {
         for v in self.xyz {
@@ -383,7 +389,7 @@ impl Record {
         out.push(0); // user data
         out.extend_from_slice(&self.source.to_le_bytes());
         out.extend_from_slice(&self.gps.to_le_bytes());
-        for v in self.truth {
+        for v in self.truth.iter() {
             out.extend_from_slice(&v.to_le_bytes());
         }
     }
@@ -410,7 +416,7 @@ fn write_rows(
             .into_par_iter()
             .map(|row| {
                 let n = (plan.first_point(row + 1) - plan.first_point(row)) as usize;
-                let mut buf = Vec::with_capacity(n * RECORD_LENGTH);
+                let mut buf = Vec::with_capacity(n * record_length(MAX_TRUTH));
                 let b = generate_row(terrain, plan, opts, row, &mut buf);
                 (buf, b)
             })
@@ -448,6 +454,7 @@ mod tests {
             density_per_m2: 10.0,
             seed: 3,
             noise,
+            terrain_truth: false,
         };
         let out = dir.path().join("half.las");
         generate_terrain(&opts, &out, &AtomicBool::new(false)).expect("generates");
@@ -487,6 +494,7 @@ mod tests {
             density_per_m2: 2.0,
             seed: 9,
             noise: Noise::NONE,
+            terrain_truth: false,
         };
         let cancel = AtomicBool::new(false);
         for name in ["t.las", "t.laz"] {

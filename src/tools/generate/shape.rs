@@ -147,6 +147,7 @@ pub fn generate_shape(
         offset: [0.0; 3],
         points: opts.points,
         provenance: provenance(opts),
+        terrain_truth: false,
     };
     let bounds = layout.write(output, |writer| {
         let mut samples = opts.shape.sampler(opts.seed);
@@ -172,7 +173,7 @@ pub fn generate_shape(
                     scan_angle: 0,
                     source: 1,
                     gps: (written + buf.len() as u64 / RECORD_LENGTH as u64) as f64 * 1e-5,
-                    truth: opts.shape.truth(p),
+                    truth: &opts.shape.truth(p),
                 }
                 .encode(&mut buf);
             }

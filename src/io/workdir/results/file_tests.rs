@@ -180,6 +180,9 @@ fn the_h_prediction_is_exact_and_pays() {
                     patch: NO_PATCH,
                     scale: 0,
                     scale_flags: 0,
+                    terrain: crate::core::terrain::TerrainValues::undefined(
+                        crate::core::compute::NO_TERRAIN,
+                    ),
                 }
             })
             .collect();

@@ -115,10 +115,11 @@ fn write_tile_tmp(
     let size = record_size(cols);
     let mut records = Vec::with_capacity(results.len() * size);
     let mut stats = CurvatureStats::default();
+    let layout = cols.layout();
     for r in results {
         stats.add(&r.curvature);
         records.extend_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
-        cols.encode_result(r, &mut records);
+        layout.encode(r, &mut records);
     }
     let patched = results.iter().any(|r| r.patch != NO_PATCH);
     let count = results.len() as u64;
@@ -419,6 +420,9 @@ mod tests {
                     patch: crate::core::compute::NO_PATCH,
                     scale: 0,
                     scale_flags: 0,
+                    terrain: crate::core::terrain::TerrainValues::undefined(
+                        crate::core::compute::NO_TERRAIN,
+                    ),
                 })
                 .collect();
             journal

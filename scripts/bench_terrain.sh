@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# The cost of the terrain columns (and of rasters, once `process --raster` exists), as CPU-time
+# ratios against a baseline run interleaved with them on the same input, so that a machine
+# shared with other work shifts both alike.
+#
+# usage: scripts/bench_terrain.sh [SIZE] [ROUNDS]     (default: 2M points, 5 rounds)
+#
+# Each round runs, in turn on a warm page cache:
+#   base:    tilecurv process IN -o OUT.las -k $K --threads $THREADS --columns H,K,flags
+#   terrain: the same with --columns H,K,flags,terrain
+# and prints the CPU time (user + system, /usr/bin/time) of each and their ratio; then the
+# median ratio over the rounds. Environment: TILECURV_BENCH_DIR (default /tmp/tilecurv-bench),
+# K (30), THREADS (2), SEED (1), TILECURV (a binary; default: cargo build --release).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BENCH_DIR=${TILECURV_BENCH_DIR:-/tmp/tilecurv-bench}
+SIZE=${1:-2M}
+ROUNDS=${2:-5}
+K=${K:-30}
+THREADS=${THREADS:-2}
+SEED=${SEED:-1}
+command -v /usr/bin/time >/dev/null || { echo "bench_terrain.sh: /usr/bin/time is required (apt-get install time)" >&2; exit 2; }
+if [ -z "${TILECURV:-}" ]; then
+    cargo build --release --locked --quiet
+    TILECURV=${CARGO_TARGET_DIR:-$PWD/target}/release/tilecurv
+fi
+mkdir -p "$BENCH_DIR"
+in="$BENCH_DIR/terrain_${SIZE}_seed${SEED}.las"
+[ -f "$in" ] || "$TILECURV" generate terrain -q -o "$in" --points "$SIZE" --seed "$SEED"
+cpu_s() { awk -F': ' '/User time|System time/ { s += $2 } END { printf "%.2f", s }' "$1"; }
+declare -A variants=(
+    [base]="--columns H,K,flags"
+    [terrain]="--columns H,K,flags,terrain"
+)
+order=(base terrain)
+ratios=()
+printf '%-6s %10s %10s %8s\n' round "base (s)" "terrain (s)" ratio
+for r in $(seq 1 "$ROUNDS"); do
+    declare -A cpu=()
+    for v in "${order[@]}"; do
+        cat "$in" >/dev/null
+        out="$BENCH_DIR/bench_terrain_$v.las"
+        # shellcheck disable=SC2086
+        /usr/bin/time -v -o "$BENCH_DIR/time_$v.txt" "$TILECURV" process "$in" -o "$out" -q \
+            -k "$K" --threads "$THREADS" ${variants[$v]}
+        cpu[$v]=$(cpu_s "$BENCH_DIR/time_$v.txt")
+        rm -f "$out"
+    done
+    ratio=$(awk -v a="${cpu[terrain]}" -v b="${cpu[base]}" 'BEGIN { printf "%.3f", a / b }')
+    ratios+=("$ratio")
+    printf '%-6s %10s %10s %8s\n' "$r" "${cpu[base]}" "${cpu[terrain]}" "$ratio"
+done
+median=$(printf '%s\n' "${ratios[@]}" | sort -n | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }')
+echo "input: $in ($SIZE points), -k $K, --threads $THREADS; median CPU ratio terrain/base over $ROUNDS rounds: $median"
