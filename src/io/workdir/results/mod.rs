@@ -369,6 +369,9 @@ mod tests {
             patch: crate::core::compute::NO_PATCH,
             scale: 0,
             scale_flags: 0,
+            terrain: crate::core::terrain::TerrainValues::undefined(
+                crate::core::compute::NO_TERRAIN,
+            ),
         };
         let mut journal = Journal::new(dir.path());
         for (t, ids) in [(0i64, [0u64, 2, 4]), (1, [1, 2, 5])] {
