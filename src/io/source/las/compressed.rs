@@ -12,7 +12,7 @@ const STREAMED_CHUNK: usize = 1 << 20;
 impl LasSource {
     /// Decodes the LAZ chunks in file order, whole chunks of about `chunk_points` points at a
     /// time (in parallel, [`ChunkDecoder`]), and hands each batch to `f`. A chunk declaring
-    /// more than [`STREAMED_CHUNK`] points is decoded alone, piece by piece.
+    /// more than [`STREAMED_CHUNK`] points (or the batch size, if larger) is decoded alone, piece by piece.
     pub(super) fn for_each_laz_chunk(
         &self,
         vlr: &laz::LazVlr,
@@ -24,11 +24,13 @@ impl LasSource {
         let dec = ChunkDecoder::new(rayon::current_num_threads())
             .map_err(|e| Error::Resource(format!("cannot start the LAZ decoding threads: {e}")))?;
         let want = chunk_points.max(1);
+        // One limit for both tests below: a chunk the batch loop would not take is streamed.
+        let cap = STREAMED_CHUNK.max(want);
         let live = self.chunks.partition_point(|c| c.first_point < n);
         let (mut released, mut buf, mut i) = (0usize, Vec::new(), 0usize);
         while i < live {
             let first = self.chunks[i].first_point;
-            if self.chunk_points(i) > STREAMED_CHUNK.max(want) {
+            if self.chunk_points(i) > cap {
                 let bad = |e| self.chunk_error(i, e);
                 let mut piece = |k: usize, recs: &[u8]| {
                     self.check_decoded(first + k as u64, recs)?;
@@ -41,7 +43,7 @@ impl LasSource {
                 continue;
             }
             let (mut j, mut points) = (i, 0usize);
-            while j < live && (j == i || points < want) && self.chunk_points(j) <= STREAMED_CHUNK {
+            while j < live && (j == i || points < want) && self.chunk_points(j) <= cap {
                 points += self.chunk_points(j);
                 j += 1;
             }
