@@ -130,15 +130,8 @@ impl PointSource for BinarySource {
         chunk_points: usize,
         f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
     ) -> Result<()> {
-        let rl = self.record_length;
-        let mut first = 0u64;
-        while first < self.count {
-            let m = (self.count - first).min(chunk_points.max(1) as u64) as usize;
-            let a = self.start + first as usize * rl;
-            f(first, &self.map[a..a + m * rl])?;
-            first += m as u64;
-        }
-        Ok(())
+        let records = &self.map[self.start..self.start + self.count as usize * self.record_length];
+        super::for_each_record_chunk(records, self.record_length, chunk_points, f)
     }
 
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {

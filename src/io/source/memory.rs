@@ -187,11 +187,7 @@ impl PointSource for MemorySource {
         chunk_points: usize,
         f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
     ) -> Result<()> {
-        let step = chunk_points.max(1) * self.record_length;
-        for (i, chunk) in self.records.chunks(step).enumerate() {
-            f((i * chunk_points.max(1)) as u64, chunk)?;
-        }
-        Ok(())
+        super::for_each_record_chunk(&self.records, self.record_length, chunk_points, f)
     }
 
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {

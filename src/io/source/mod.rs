@@ -296,6 +296,22 @@ pub fn usable_normal(n: [f64; 3]) -> Option<[f64; 3]> {
     (n.iter().all(|c| c.is_finite()) && n != [0.0; 3]).then_some(n)
 }
 
+/// Hands `records` (whole records of `record_length` bytes) to `f` about `chunk_points` at a
+/// time, with the index of each slice's first record: the streaming of every source whose
+/// records lie in memory as they are.
+pub(crate) fn for_each_record_chunk(
+    records: &[u8],
+    record_length: usize,
+    chunk_points: usize,
+    f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+) -> Result<()> {
+    let per = chunk_points.max(1);
+    for (i, chunk) in records.chunks(per * record_length.max(1)).enumerate() {
+        f((i * per) as u64, chunk)?;
+    }
+    Ok(())
+}
+
 /// Memory-maps an input file read-only.
 pub fn map_file(path: &Path) -> Result<InputBytes> {
     let io = |e| Error::read_input(path, e);
