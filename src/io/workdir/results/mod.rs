@@ -350,21 +350,25 @@ mod tests {
     use crate::core::estimate::Curvature;
     use crate::io::columns::ColumnChoice;
 
-    /// Two whole result files that share a point (one copied over another tile's of the same
-    /// size): the merge stops with damaged work naming a file, not with a record twice.
-    #[test]
-    fn a_point_in_two_result_files_is_damaged_work() {
-        let dir = tempfile::tempdir().expect("temp dir");
-        let cols = ColumnSet {
-            choice: ColumnChoice::parse("H,flags").expect("valid"),
+    /// The column set `choice`, in f64.
+    fn columns(choice: &str) -> ColumnSet {
+        ColumnSet {
+            choice: ColumnChoice::parse(choice).expect("valid"),
             extra: Vec::new(),
             unit: "m".into(),
             wide: true,
-        };
-        let result = |id: u64| PointResult {
+        }
+    }
+
+    /// Point `id`'s result: an upward normal, H = `h`, everything else undefined.
+    fn result(id: u64, h: f64) -> PointResult {
+        PointResult {
             id,
             normal: [0.0, 0.0, 1.0],
-            curvature: Curvature::undefined(0),
+            curvature: Curvature {
+                h,
+                ..Curvature::undefined(0)
+            },
             extra: [f64::NAN; crate::core::estimate::MAX_EXTRA],
             patch: crate::core::compute::NO_PATCH,
             scale: 0,
@@ -372,10 +376,18 @@ mod tests {
             terrain: crate::core::terrain::TerrainValues::undefined(
                 crate::core::compute::NO_TERRAIN,
             ),
-        };
+        }
+    }
+
+    /// Two whole result files that share a point (one copied over another tile's of the same
+    /// size): the merge stops with damaged work naming a file, not with a record twice.
+    #[test]
+    fn a_point_in_two_result_files_is_damaged_work() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let cols = columns("H,flags");
         let mut journal = Journal::new(dir.path());
         for (t, ids) in [(0i64, [0u64, 2, 4]), (1, [1, 2, 5])] {
-            let rs: Vec<PointResult> = ids.iter().map(|&i| result(i)).collect();
+            let rs: Vec<PointResult> = ids.iter().map(|&i| result(i, f64::NAN)).collect();
             journal
                 .add((t, 0), t as u32, &rs, None, &cols)
                 .expect("write");
@@ -400,33 +412,14 @@ mod tests {
     #[test]
     fn merge_with_runs_returns_every_id_once_in_order() {
         let dir = tempfile::tempdir().expect("temp dir");
-        let cols = ColumnSet {
-            choice: ColumnChoice::parse("normals,H,K,k1,k2,flags").expect("valid"),
-            extra: Vec::new(),
-            unit: "m".into(),
-            wide: true,
-        };
+        let cols = columns("normals,H,K,k1,k2,flags");
         // 150 tiles, ids interleaved across tiles, merged 8 at a time (so runs are made, and
         // runs of runs).
         let mut files = Vec::new();
         let mut journal = Journal::new(dir.path());
         for t in 0..150u64 {
             let rs: Vec<PointResult> = (0..7u64)
-                .map(|j| PointResult {
-                    id: j * 150 + t,
-                    normal: [0.0, 0.0, 1.0],
-                    curvature: Curvature {
-                        h: (j * 150 + t) as f64,
-                        ..Curvature::undefined(0)
-                    },
-                    extra: [f64::NAN; crate::core::estimate::MAX_EXTRA],
-                    patch: crate::core::compute::NO_PATCH,
-                    scale: 0,
-                    scale_flags: 0,
-                    terrain: crate::core::terrain::TerrainValues::undefined(
-                        crate::core::compute::NO_TERRAIN,
-                    ),
-                })
+                .map(|j| result(j * 150 + t, (j * 150 + t) as f64))
                 .collect();
             journal
                 .add((t as i64, 0), t as u32, &rs, None, &cols)
