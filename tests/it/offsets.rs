@@ -8,7 +8,9 @@
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::{column_bytes, laspy_available, process, records, root, shared, under_ci};
+use crate::common::{
+    column_bytes, laspy_available, process, records, root, shared, under_ci, COLUMNS,
+};
 
 /// Writes `input`'s points to `output` with offsets moved by `steps` and the options `more` of
 /// `scripts/regrid.py`. False (a loud skip) when laspy is missing outside CI.
@@ -67,16 +69,6 @@ fn keyed(path: &Path, names: &[&str]) -> Vec<([i64; 3], Vec<u8>)> {
 
 /// Processes `original` and each copy with `args`, and names the copies whose points differ.
 fn compare(dir: &Path, original: &Path, copies: &[&Path], args: &[&str]) -> Vec<String> {
-    let names = [
-        "NormalX",
-        "NormalY",
-        "NormalZ",
-        "H",
-        "K",
-        "k1",
-        "k2",
-        "CurvatureFlags",
-    ];
     let out = |p: &Path| {
         dir.join(format!(
             "{}_out.las",
@@ -84,11 +76,11 @@ fn compare(dir: &Path, original: &Path, copies: &[&Path], args: &[&str]) -> Vec<
         ))
     };
     process(original, &out(original), args);
-    let want = keyed(&out(original), &names);
+    let want = keyed(&out(original), &COLUMNS);
     let mut report = Vec::new();
     for copy in copies {
         process(copy, &out(copy), args);
-        let got = keyed(&out(copy), &names);
+        let got = keyed(&out(copy), &COLUMNS);
         assert_eq!(got.len(), want.len(), "{}: point count", copy.display());
         let keys_differ = got.iter().zip(&want).filter(|(a, b)| a.0 != b.0).count();
         assert_eq!(keys_differ, 0, "{}: not the same points", copy.display());

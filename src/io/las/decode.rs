@@ -269,6 +269,9 @@ mod tests {
             steps += 1;
         }
         assert_eq!(steps, MAX_SYMBOLS_BETWEEN_READS);
+        // The continuous bound, ln(2^8) / -ln(1 - 2^-15): the floor only adds steps, a few.
+        let continuous = 256f64.ln() / -(1.0 - 2f64.powi(-15)).ln();
+        assert!(steps as f64 >= continuous && (steps as f64) < continuous * 1.001);
         assert!(DECODE_STACK - TRIP >= steps * MAX_FRAME);
     }
 
