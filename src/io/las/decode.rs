@@ -31,7 +31,7 @@ use crate::error::{Error, Result};
 
 /// Stack depth past the chunk's start at which a read fails: legitimate decoding stays within
 /// a few kilobytes.
-pub(crate) const TRIP: usize = 16 << 20;
+const TRIP: usize = 16 << 20;
 
 /// The most symbols the arithmetic decoder decodes without reading a byte. Its interval length
 /// `L` is at most 2^32 - 1 after a read and a read comes once it is below 2^24. Decoding a
@@ -40,10 +40,10 @@ pub(crate) const TRIP: usize = 16 << 20;
 /// (`L >> 15` times their quantised share). Iterating `L -= L >> 15` from 2^32 - 1 to below
 /// 2^24 takes 181,734 steps (a test runs it; ln(2^8) / -ln(1 - 2^-15) = 181,702 without the
 /// floor).
-pub(crate) const MAX_SYMBOLS_BETWEEN_READS: usize = 181_734;
+const MAX_SYMBOLS_BETWEEN_READS: usize = 181_734;
 
 /// The largest frame of the recursive decoder this bound allows for.
-pub(crate) const MAX_FRAME: usize = 1024;
+const MAX_FRAME: usize = 1024;
 
 /// Stack of the decoding threads: [`TRIP`], the frames that can come between two reads, and
 /// 16 MiB for everything else.
@@ -58,7 +58,7 @@ fn stack_address() -> usize {
 
 /// Why a read failed: the decoder went [`TRIP`] deeper than the chunk started.
 #[derive(Debug)]
-pub(crate) struct TooDeep;
+struct TooDeep;
 
 impl std::fmt::Display for TooDeep {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -74,7 +74,7 @@ impl std::error::Error for TooDeep {}
 
 /// One chunk's bytes, read by a decoder whose stack depth is checked at every read against
 /// where the reader was made: the decoding must run on the thread that made it.
-pub(crate) struct Guarded<'a> {
+struct Guarded<'a> {
     data: &'a [u8],
     pos: usize,
     base: usize,
@@ -83,7 +83,7 @@ pub(crate) struct Guarded<'a> {
 impl<'a> Guarded<'a> {
     /// A reader of `data`, its depth counted from the caller's frame.
     #[inline(always)]
-    pub(crate) fn new(data: &'a [u8]) -> Self {
+    fn new(data: &'a [u8]) -> Self {
         Self {
             data,
             pos: 0,
