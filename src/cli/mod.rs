@@ -4,6 +4,7 @@
 mod args;
 mod generate;
 mod info;
+mod raster;
 
 pub use info::info_json;
 
@@ -73,6 +74,10 @@ enum Command {
     /// provenance of an output. Reads headers only (other formats are scanned for bounds).
     #[command(after_help = EXIT_HELP)]
     Info(InfoArgs),
+    /// Rasters of point columns: one GeoTIFF per column (mean of the cell's points by default)
+    /// and a point count, aligned to multiples of the cell size, in the input's CRS.
+    #[command(after_help = EXIT_HELP)]
+    Raster(raster::RasterArgs),
     /// Cluster stage 1: check the inputs, write the work directory's manifest and task layout,
     /// and print `bucket tasks: B` and `tasks: N` (the last line). Then run `bucket`, `run-tile`
     /// for every task index, and `assemble` (scripts/slurm/submit.sh chains them on Slurm).
@@ -164,6 +169,7 @@ where
         Command::Generate(args) => generate::generate(args),
         Command::Process(args) => process(args),
         Command::Info(a) => info::info(a),
+        Command::Raster(a) => raster::run(a),
         Command::Plan(a) => stages::plan(a),
         Command::Bucket(a) => stages::bucket(a),
         Command::RunTile(a) => stages::run_tile(a),

@@ -13,6 +13,7 @@ pub mod plan;
 pub mod point;
 pub mod quantize;
 pub mod radix;
+pub mod raster;
 pub mod rng;
 pub mod sampling;
 pub mod scale;

@@ -1,0 +1,268 @@
+//! Rasters of point columns: the cell grid and what a cell's value is. Pure: the binning that
+//! brings a cell's points together (an external sort by cell key) and the GeoTIFF writing are
+//! in `io::raster`.
+//!
+//! Cells are aligned to whole multiples of the cell size in CRS coordinates: the cell holding
+//! `(x, y)` is `(floor(x / cell), floor(y / cell))`, so the rasters of adjacent surveys at one
+//! cell size line up cell for cell. A point exactly on a cell edge belongs to the cell east or
+//! north of it. A cell's value depends only on the values of its points, never on their order
+//! (the values are sorted before they are reduced), so it inherits every invariance of the
+//! columns.
+
+use std::fmt;
+
+/// Cell indices are kept within +-2^31 of 0 so that a row and a column fit 32 bits of a key.
+const INDEX_BIAS: i64 = 1 << 31;
+
+/// The cell of one point: its column (west to east) and row (south to north) index on the
+/// grid of multiples of the cell size.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cell {
+    /// `floor(x / cell)`.
+    pub ix: i64,
+    /// `floor(y / cell)`.
+    pub iy: i64,
+}
+
+impl Cell {
+    /// The cell of `(x, y)` at cell size `cell`; None when the coordinate is not finite or lies
+    /// more than 2^31 cells from 0 (a 1 cm cell reaches 21,000 km).
+    pub fn of(x: f64, y: f64, cell: f64) -> Option<Cell> {
+        let (fx, fy) = ((x / cell).floor(), (y / cell).floor());
+        let ok = |v: f64| v.is_finite() && v.abs() < INDEX_BIAS as f64;
+        (ok(fx) && ok(fy)).then_some(Cell {
+            ix: fx as i64,
+            iy: fy as i64,
+        })
+    }
+
+    /// The key that orders cells as a north-up raster is written: rows from north to south,
+    /// within a row from west to east.
+    pub fn key(self) -> u64 {
+        let row = (INDEX_BIAS - 1 - self.iy) as u64;
+        let col = (self.ix + INDEX_BIAS) as u64;
+        (row << 32) | col
+    }
+
+    /// The cell of a [`Cell::key`].
+    pub fn from_key(key: u64) -> Cell {
+        Cell {
+            ix: (key & 0xffff_ffff) as i64 - INDEX_BIAS,
+            iy: INDEX_BIAS - 1 - (key >> 32) as i64,
+        }
+    }
+}
+
+/// The extent of a raster: the cells from `west` to `east` and `south` to `north`, inclusive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellGrid {
+    /// Cell size in CRS units.
+    pub cell: f64,
+    /// Column index of the westernmost cells.
+    pub west: i64,
+    /// Row index of the northernmost cells.
+    pub north: i64,
+    /// Cells per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+}
+
+impl CellGrid {
+    /// The grid covering the cells `lo` (south-west) to `hi` (north-east); None when it would
+    /// have more than 2^31 - 1 cells on a side (what a TIFF holds).
+    pub fn covering(cell: f64, lo: Cell, hi: Cell) -> Option<CellGrid> {
+        let width = u32::try_from(hi.ix - lo.ix + 1).ok()?;
+        let height = u32::try_from(hi.iy - lo.iy + 1).ok()?;
+        (width <= i32::MAX as u32 && height <= i32::MAX as u32).then_some(CellGrid {
+            cell,
+            west: lo.ix,
+            north: hi.iy,
+            width,
+            height,
+        })
+    }
+
+    /// The CRS coordinates of the grid's north-west corner (a GeoTIFF's tie point with
+    /// PixelIsArea).
+    pub fn corner(&self) -> (f64, f64) {
+        (
+            self.west as f64 * self.cell,
+            (self.north + 1) as f64 * self.cell,
+        )
+    }
+
+    /// The raster row and column of `c` (row 0 north), if it is on the grid.
+    pub fn position(&self, c: Cell) -> Option<(u32, u32)> {
+        let row = u32::try_from(self.north - c.iy).ok()?;
+        let col = u32::try_from(c.ix - self.west).ok()?;
+        (row < self.height && col < self.width).then_some((row, col))
+    }
+}
+
+/// How a cell's value is formed from the values of its points (`--stat`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Stat {
+    /// The mean of the defined values (the default).
+    #[default]
+    Mean,
+    /// The median: the middle value, or the mean of the two middle ones.
+    Median,
+    /// The smallest value.
+    Min,
+    /// The largest value.
+    Max,
+    /// The number of defined values.
+    Count,
+}
+
+impl Stat {
+    /// Every statistic, as `--stat` lists them.
+    pub const ALL: [Stat; 5] = [Stat::Mean, Stat::Median, Stat::Min, Stat::Max, Stat::Count];
+
+    /// The name `--stat` gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stat::Mean => "mean",
+            Stat::Median => "median",
+            Stat::Min => "min",
+            Stat::Max => "max",
+            Stat::Count => "count",
+        }
+    }
+
+    /// The statistic named `name`.
+    pub fn from_name(name: &str) -> Option<Stat> {
+        Stat::ALL.into_iter().find(|s| s.name() == name)
+    }
+
+    /// The cell value of `values` (one cell's values of one column, NaN for undefined ones),
+    /// NaN when none is defined. `circular` takes the values as angles in degrees (aspect):
+    /// the mean is the direction of the mean unit vector, in [0, 360), and the median, min and
+    /// max are those of the plain values. The values are sorted first (NaN last), so the result
+    /// does not depend on their order.
+    pub fn reduce(self, values: &mut [f32], circular: bool) -> f32 {
+        values.sort_unstable_by(|a, b| a.total_cmp(b));
+        let n = values.iter().take_while(|v| !v.is_nan()).count();
+        let v = &values[..n];
+        match self {
+            Stat::Count => n as f32,
+            _ if n == 0 => f32::NAN,
+            Stat::Mean if circular => circular_mean(v),
+            Stat::Mean => (v.iter().map(|&x| x as f64).sum::<f64>() / n as f64) as f32,
+            Stat::Median if n % 2 == 1 => v[n / 2],
+            Stat::Median => ((v[n / 2 - 1] as f64 + v[n / 2] as f64) / 2.0) as f32,
+            Stat::Min => v[0],
+            Stat::Max => v[n - 1],
+        }
+    }
+}
+
+impl fmt::Display for Stat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The direction of the mean unit vector of `degrees`, in [0, 360); NaN when they cancel
+/// (the mean vector shorter than 1e-9).
+fn circular_mean(degrees: &[f32]) -> f32 {
+    let (s, c) = degrees.iter().fold((0.0, 0.0), |(s, c), &d| {
+        let r = (d as f64).to_radians();
+        (s + r.sin(), c + r.cos())
+    });
+    if s.hypot(c) < 1e-9 * degrees.len() as f64 {
+        return f32::NAN;
+    }
+    (s.atan2(c).to_degrees().rem_euclid(360.0) as f32).min(f32::from_bits(360f32.to_bits() - 1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Cells are multiples of the cell size: the edges belong to the cell east and north.
+    #[test]
+    fn cells_are_aligned_to_multiples_of_the_cell_size() {
+        assert_eq!(Cell::of(0.0, 0.0, 0.5), Some(Cell { ix: 0, iy: 0 }));
+        assert_eq!(Cell::of(-0.1, 0.49, 0.5), Some(Cell { ix: -1, iy: 0 }));
+        assert_eq!(
+            Cell::of(500_000.5, 4_100_000.25, 0.5),
+            Some(Cell {
+                ix: 1_000_001,
+                iy: 8_200_000
+            })
+        );
+        assert_eq!(Cell::of(f64::NAN, 0.0, 1.0), None);
+        assert_eq!(Cell::of(1e300, 0.0, 1.0), None);
+    }
+
+    /// Keys order cells north to south, then west to east, and give the cell back.
+    #[test]
+    fn keys_order_cells_as_a_north_up_raster_and_round_trip() {
+        let cells = [(-3, 5), (7, 5), (-3, 4), (0, 4), (9, -2)];
+        let keys: Vec<u64> = cells
+            .iter()
+            .map(|&(ix, iy)| Cell { ix, iy }.key())
+            .collect();
+        assert!(keys.windows(2).all(|w| w[0] < w[1]));
+        for (&(ix, iy), &k) in cells.iter().zip(&keys) {
+            assert_eq!(Cell::from_key(k), Cell { ix, iy });
+        }
+        let far = Cell {
+            ix: -(1 << 31) + 1,
+            iy: (1 << 31) - 1,
+        };
+        assert_eq!(Cell::from_key(far.key()), far);
+    }
+
+    /// The grid's corner and positions follow from its cells.
+    #[test]
+    fn the_grid_places_cells_north_up() {
+        let g = CellGrid::covering(2.0, Cell { ix: 10, iy: -5 }, Cell { ix: 12, iy: -3 });
+        let g = g.expect("small grid");
+        assert_eq!((g.width, g.height), (3, 3));
+        assert_eq!(g.corner(), (20.0, -4.0));
+        assert_eq!(g.position(Cell { ix: 10, iy: -3 }), Some((0, 0)));
+        assert_eq!(g.position(Cell { ix: 12, iy: -5 }), Some((2, 2)));
+        assert_eq!(g.position(Cell { ix: 13, iy: -5 }), None);
+    }
+
+    /// Each statistic on a known set, undefined values left out, whatever the order.
+    #[test]
+    fn statistics_leave_out_undefined_values_and_ignore_order() {
+        let base = [3.0f32, f32::NAN, 1.0, 2.0, 10.0];
+        let expect = [
+            (Stat::Mean, 4.0),
+            (Stat::Median, 2.5),
+            (Stat::Min, 1.0),
+            (Stat::Max, 10.0),
+            (Stat::Count, 4.0),
+        ];
+        for (stat, want) in expect {
+            for rot in 0..base.len() {
+                let mut v = base;
+                v.rotate_left(rot);
+                assert_eq!(stat.reduce(&mut v, false), want, "{stat} rotation {rot}");
+            }
+        }
+        let mut odd = [5.0f32, 1.0, 3.0];
+        assert_eq!(Stat::Median.reduce(&mut odd, false), 3.0);
+        let mut none = [f32::NAN; 3];
+        assert!(Stat::Mean.reduce(&mut none, false).is_nan());
+        assert_eq!(Stat::Count.reduce(&mut none, false), 0.0);
+    }
+
+    /// The circular mean of aspects across north is north, not south.
+    #[test]
+    fn the_mean_of_aspects_is_circular() {
+        let mut v = [350.0f32, 10.0];
+        let m = Stat::Mean.reduce(&mut v, true);
+        assert!(m < 1e-3 || m > 359.999, "{m}");
+        let mut v = [80.0f32, 100.0, 90.0];
+        assert!((Stat::Mean.reduce(&mut v, true) - 90.0).abs() < 1e-4);
+        let mut v = [0.0f32, 180.0];
+        assert!(Stat::Mean.reduce(&mut v, true).is_nan());
+        assert_eq!(Stat::Mean.reduce(&mut [350.0f32, 10.0], false), 180.0);
+    }
+}

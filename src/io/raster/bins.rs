@@ -1,0 +1,390 @@
+//! Bringing each cell's points together out of core: an external sort of (cell key, values)
+//! records. Records are kept in memory up to a budget; past it they are sorted by key and
+//! written as a run file, and the runs are merged back in key order, so a cell's values arrive
+//! together and the cells arrive in the order a north-up raster is written
+//! ([`crate::core::raster::Cell::key`]). Memory is the budget plus a read buffer per run,
+//! whatever the number of points or cells. The run files are temporary: they live in a
+//! directory the caller names and are removed when the bins are dropped.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use crate::core::radix::sort_by_key;
+use crate::error::{Error, Result};
+
+/// Runs merged at once; past it, runs are first merged into longer runs. Each open run holds
+/// one read buffer ([`READ_BUFFER`]).
+const MAX_FAN_IN: usize = 256;
+
+/// Bytes of each run's read buffer and of the run writer's buffer.
+const READ_BUFFER: usize = 256 << 10;
+
+/// Records of `columns` f32 values per point, binned by cell key.
+pub(crate) struct Bins {
+    dir: PathBuf,
+    columns: usize,
+    /// Per record in memory: its key and its index in `values`.
+    keys: Vec<(u64, u32)>,
+    values: Vec<f32>,
+    /// Records kept in memory before a run is written.
+    capacity: usize,
+    runs: Vec<PathBuf>,
+    /// Run files written so far (their names are numbered).
+    written: usize,
+    /// Whether `dir` was made by these bins (and is removed with them).
+    made_dir: bool,
+}
+
+/// Bytes a record takes in memory (key, index, values) and in a run file (key, values).
+fn record_bytes(columns: usize) -> usize {
+    16 + 4 * columns
+}
+
+impl Bins {
+    /// Bins for records of `columns` values, keeping at most `budget` bytes of them in memory;
+    /// run files go to `dir` (made when the first run is written).
+    pub(crate) fn new(dir: &Path, columns: usize, budget: u64) -> Bins {
+        let capacity = (budget as usize / record_bytes(columns)).clamp(1 << 12, u32::MAX as usize);
+        Bins {
+            dir: dir.to_path_buf(),
+            columns,
+            keys: Vec::new(),
+            values: Vec::new(),
+            capacity,
+            runs: Vec::new(),
+            written: 0,
+            made_dir: false,
+        }
+    }
+
+    /// Adds one point's record: its cell key and one value per column (NaN for undefined).
+    pub(crate) fn push(&mut self, key: u64, values: &[f32]) -> Result<()> {
+        debug_assert_eq!(values.len(), self.columns);
+        self.keys.push((key, self.keys.len() as u32));
+        self.values.extend_from_slice(values);
+        if self.keys.len() >= self.capacity {
+            self.spill()?;
+        }
+        Ok(())
+    }
+
+    /// Sorts the records in memory by key (stably: [`sort_by_key`]).
+    fn sort(&mut self) {
+        let mut spare = Vec::new();
+        sort_by_key(&mut self.keys, &mut spare);
+    }
+
+    /// The path of the next run file.
+    fn run_path(&mut self) -> PathBuf {
+        self.written += 1;
+        self.dir.join(format!("run{}.bin", self.written))
+    }
+
+    /// Writes the records in memory as a sorted run file.
+    fn spill(&mut self) -> Result<()> {
+        if self.keys.is_empty() {
+            return Ok(());
+        }
+        if !self.made_dir {
+            std::fs::create_dir_all(&self.dir).map_err(|e| Error::write(&self.dir, e))?;
+            self.made_dir = true;
+        }
+        self.sort();
+        let path = self.run_path();
+        let mut w = RunWriter::create(&path)?;
+        let n = self.columns;
+        for &(key, i) in &self.keys {
+            let i = i as usize * n;
+            w.put(key, &self.values[i..i + n])?;
+        }
+        w.finish()?;
+        self.runs.push(path);
+        self.keys.clear();
+        self.values.clear();
+        Ok(())
+    }
+
+    /// The records in key order: from memory when they never outgrew it, else merged from the
+    /// run files (past [`MAX_FAN_IN`] runs, merged into longer runs first).
+    pub(crate) fn into_cells(mut self) -> Result<Cells> {
+        if self.runs.is_empty() {
+            self.sort();
+            let source = Source::Memory {
+                keys: std::mem::take(&mut self.keys),
+                values: std::mem::take(&mut self.values),
+                next: 0,
+            };
+            return Ok(Cells::new(self, source));
+        }
+        self.spill()?;
+        while self.runs.len() > MAX_FAN_IN {
+            let group: Vec<PathBuf> = self.runs.drain(..MAX_FAN_IN).collect();
+            let path = self.run_path();
+            let mut merged = Merge::open(&group, self.columns)?;
+            let mut w = RunWriter::create(&path)?;
+            let mut values = vec![0.0; self.columns];
+            while let Some(key) = merged.next_record(&mut values)? {
+                w.put(key, &values)?;
+            }
+            w.finish()?;
+            drop(merged);
+            for p in &group {
+                let _ = std::fs::remove_file(p);
+            }
+            self.runs.push(path);
+        }
+        let merge = Merge::open(&self.runs, self.columns)?;
+        Ok(Cells::new(self, Source::Runs(merge)))
+    }
+}
+
+impl Drop for Bins {
+    fn drop(&mut self) {
+        for p in &self.runs {
+            let _ = std::fs::remove_file(p);
+        }
+        if self.made_dir {
+            let _ = std::fs::remove_dir(&self.dir);
+        }
+    }
+}
+
+/// Writes one run file.
+struct RunWriter {
+    path: PathBuf,
+    w: BufWriter<File>,
+}
+
+impl RunWriter {
+    fn create(path: &Path) -> Result<RunWriter> {
+        let f = File::create(path).map_err(|e| Error::write(path, e))?;
+        Ok(RunWriter {
+            path: path.to_path_buf(),
+            w: BufWriter::with_capacity(READ_BUFFER, f),
+        })
+    }
+
+    fn put(&mut self, key: u64, values: &[f32]) -> Result<()> {
+        let mut rec = [0u8; 8];
+        rec.copy_from_slice(&key.to_le_bytes());
+        self.w
+            .write_all(&rec)
+            .map_err(|e| Error::write(&self.path, e))?;
+        for v in values {
+            self.w
+                .write_all(&v.to_le_bytes())
+                .map_err(|e| Error::write(&self.path, e))?;
+        }
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<()> {
+        self.w.flush().map_err(|e| Error::write(&self.path, e))
+    }
+}
+
+/// One run file being read back.
+struct RunReader {
+    path: PathBuf,
+    r: BufReader<File>,
+    rec: Vec<u8>,
+}
+
+impl RunReader {
+    /// The next record's key, its values in `values`; None at the end.
+    fn next(&mut self, values: &mut [f32]) -> Result<Option<u64>> {
+        match self.r.read_exact(&mut self.rec) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(None),
+            Err(e) => return Err(Error::write(&self.path, e)),
+        }
+        let (key, rest) = self.rec.split_at(8);
+        for (v, b) in values.iter_mut().zip(rest.chunks_exact(4)) {
+            *v = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        }
+        Ok(Some(u64::from_le_bytes(key.try_into().unwrap_or([0; 8]))))
+    }
+}
+
+/// A k-way merge of sorted run files. Equal keys come run by run in the order of the runs,
+/// which does not matter: a cell's values are sorted before they are reduced.
+struct Merge {
+    runs: Vec<RunReader>,
+    /// Per run, its current record's values.
+    heads: Vec<Vec<f32>>,
+    heap: BinaryHeap<Reverse<(u64, usize)>>,
+}
+
+impl Merge {
+    fn open(paths: &[PathBuf], columns: usize) -> Result<Merge> {
+        let mut m = Merge {
+            runs: Vec::with_capacity(paths.len()),
+            heads: vec![vec![0.0; columns]; paths.len()],
+            heap: BinaryHeap::with_capacity(paths.len()),
+        };
+        for (i, p) in paths.iter().enumerate() {
+            let f = File::open(p).map_err(|e| Error::write(p, e))?;
+            m.runs.push(RunReader {
+                path: p.clone(),
+                r: BufReader::with_capacity(READ_BUFFER, f),
+                rec: vec![0; 8 + 4 * columns],
+            });
+            if let Some(k) = m.runs[i].next(&mut m.heads[i])? {
+                m.heap.push(Reverse((k, i)));
+            }
+        }
+        Ok(m)
+    }
+
+    /// The next record in key order into `values`; None at the end.
+    fn next_record(&mut self, values: &mut [f32]) -> Result<Option<u64>> {
+        let Some(Reverse((key, i))) = self.heap.pop() else {
+            return Ok(None);
+        };
+        values.copy_from_slice(&self.heads[i]);
+        if let Some(k) = self.runs[i].next(&mut self.heads[i])? {
+            self.heap.push(Reverse((k, i)));
+        }
+        Ok(Some(key))
+    }
+}
+
+/// Where the sorted records come from.
+enum Source {
+    Memory {
+        keys: Vec<(u64, u32)>,
+        values: Vec<f32>,
+        next: usize,
+    },
+    Runs(Merge),
+}
+
+impl Source {
+    fn next_record(&mut self, columns: usize, out: &mut [f32]) -> Result<Option<u64>> {
+        match self {
+            Source::Memory { keys, values, next } => {
+                let Some(&(key, i)) = keys.get(*next) else {
+                    return Ok(None);
+                };
+                *next += 1;
+                let i = i as usize * columns;
+                out.copy_from_slice(&values[i..i + columns]);
+                Ok(Some(key))
+            }
+            Source::Runs(m) => m.next_record(out),
+        }
+    }
+}
+
+/// The cells in key order, each with its points' values per column.
+pub(crate) struct Cells {
+    /// Kept so that the run files live until the cells are read.
+    bins: Bins,
+    source: Source,
+    /// The record read past the last cell: the first of the next one.
+    pending: Option<u64>,
+    pending_values: Vec<f32>,
+    started: bool,
+}
+
+impl Cells {
+    fn new(bins: Bins, source: Source) -> Cells {
+        let columns = bins.columns;
+        Cells {
+            bins,
+            source,
+            pending: None,
+            pending_values: vec![0.0; columns],
+            started: false,
+        }
+    }
+
+    /// The next cell's key, its values column by column in `out` (cleared first: `out[c]`
+    /// holds column `c`'s values of the cell's points); None after the last cell.
+    pub(crate) fn next_cell(&mut self, out: &mut [Vec<f32>]) -> Result<Option<u64>> {
+        let n = self.bins.columns;
+        if !self.started {
+            self.started = true;
+            self.pending = self.source.next_record(n, &mut self.pending_values)?;
+        }
+        let Some(key) = self.pending else {
+            return Ok(None);
+        };
+        out.iter_mut().for_each(Vec::clear);
+        loop {
+            for (o, &v) in out.iter_mut().zip(&self.pending_values) {
+                o.push(v);
+            }
+            self.pending = self.source.next_record(n, &mut self.pending_values)?;
+            if self.pending != Some(key) {
+                return Ok(Some(key));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every record of a cell arrives with it and the cells arrive in key order, whether the
+    /// records stayed in memory or went through runs (and through a merge into longer runs).
+    #[test]
+    fn cells_come_back_whole_and_in_key_order_through_runs() {
+        let tmp = tempfile::tempdir().expect("temp dir");
+        let n = 40_000u64;
+        // Keys in a scrambled order; cell k holds the points i with i % 997 == k.
+        let record = |i: u64| ((i * 7919) % n, [i as f32, -(i as f32)]);
+        for (budget, runs) in [(1u64 << 30, false), (4096 * 24, true)] {
+            let dir = tmp.path().join(format!("b{budget}"));
+            let mut bins = Bins::new(&dir, 2, budget);
+            for i in 0..n {
+                let (p, v) = record(i);
+                bins.push(p % 997, &v).expect("push");
+            }
+            assert_eq!(!bins.runs.is_empty(), runs);
+            let mut cells = bins.into_cells().expect("cells");
+            let mut out = vec![Vec::new(), Vec::new()];
+            let (mut last, mut seen) = (None, 0);
+            while let Some(key) = cells.next_cell(&mut out).expect("cell") {
+                assert!(last < Some(key), "keys in order");
+                last = Some(key);
+                let mut got: Vec<f32> = out[0].clone();
+                got.sort_by(f32::total_cmp);
+                let want: Vec<f32> = (0..n)
+                    .filter(|&i| record(i).0 % 997 == key)
+                    .map(|i| i as f32)
+                    .collect();
+                assert_eq!(got, want, "cell {key}");
+                assert!(out[0].iter().zip(&out[1]).all(|(a, b)| *a == -*b));
+                seen += out[0].len();
+            }
+            assert_eq!((seen as u64, last), (n, Some(996)));
+            drop(cells);
+            assert!(!dir.exists(), "run files removed");
+        }
+    }
+
+    /// Past the fan-in the runs are merged into longer ones first; nothing is lost.
+    #[test]
+    fn many_runs_are_merged_in_passes() {
+        let tmp = tempfile::tempdir().expect("temp dir");
+        let dir = tmp.path().join("runs");
+        let mut bins = Bins::new(&dir, 1, 0);
+        let n = (MAX_FAN_IN as u64 + 40) * 4096;
+        for i in 0..n {
+            bins.push(n - 1 - i, &[i as f32]).expect("push");
+        }
+        let mut cells = bins.into_cells().expect("cells");
+        let mut out = vec![Vec::new()];
+        let mut k = 0;
+        while let Some(key) = cells.next_cell(&mut out).expect("cell") {
+            assert_eq!((key, out[0].as_slice()), (k, &[(n - 1 - k) as f32][..]));
+            k += 1;
+        }
+        assert_eq!(k, n);
+    }
+}

@@ -1,0 +1,377 @@
+//! The CRS of a raster as GeoTIFF keys, from the CRS of the LAS input. GeoTIFF keys in the
+//! input are copied as they are (with the raster type set to PixelIsArea, which the raster's
+//! tie point assumes); a WKT becomes the EPSG codes it names (the horizontal CRS's, and the
+//! vertical CRS's of a compound one). What cannot be expressed is said in
+//! [`RasterCrs::warning`]: a WKT without EPSG codes, or no CRS at all.
+
+use crate::io::las::vlr::Vlr;
+
+/// GTModelTypeGeoKey, GTRasterTypeGeoKey, GeographicTypeGeoKey, ProjectedCSTypeGeoKey,
+/// VerticalCSTypeGeoKey.
+const MODEL_TYPE: u16 = 1024;
+const RASTER_TYPE: u16 = 1025;
+const GEOGRAPHIC: u16 = 2048;
+const PROJECTED: u16 = 3072;
+const VERTICAL: u16 = 4096;
+
+/// RasterPixelIsArea: a cell's value covers the cell, and the tie point is its corner.
+const PIXEL_IS_AREA: u16 = 1;
+
+/// A raster's CRS, as the three GeoTIFF key tags hold it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(crate) struct RasterCrs {
+    /// GeoKeyDirectoryTag (34735): the header, then 4 shorts per key, sorted by key id.
+    pub(crate) directory: Vec<u16>,
+    /// GeoDoubleParamsTag (34736), if any key refers to it.
+    pub(crate) doubles: Vec<f64>,
+    /// GeoAsciiParamsTag (34737), if any key refers to it.
+    pub(crate) ascii: String,
+    /// What the keys say, for the log: "EPSG:26910 + EPSG:5703 (from the input's WKT)".
+    pub(crate) described: String,
+    /// What the keys cannot say, if anything, and what to do about it.
+    pub(crate) warning: Option<String>,
+}
+
+/// The raster CRS of a LAS file whose VLRs and EVLRs are `records`. As `crs_summary` chooses:
+/// the WKT when LAS 1.4's WKT bit is set, the GeoTIFF keys otherwise, either when there is only
+/// one.
+pub(crate) fn raster_crs<'a>(
+    records: impl IntoIterator<Item = &'a Vlr>,
+    wkt_bit: bool,
+) -> RasterCrs {
+    let records: Vec<&Vlr> = records.into_iter().collect();
+    let find = |id| records.iter().find(|v| v.is("LASF_Projection", id));
+    let wkt = find(2112).map(|v| {
+        String::from_utf8_lossy(&v.data)
+            .trim_end_matches('\0')
+            .to_string()
+    });
+    let keys = find(34735).filter(|_| !(wkt_bit && wkt.is_some()));
+    match (keys, wkt) {
+        (Some(keys), _) => {
+            let doubles = find(34736).map(|v| doubles_of(&v.data)).unwrap_or_default();
+            let ascii = find(34737)
+                .map(|v| String::from_utf8_lossy(&v.data).into_owned())
+                .unwrap_or_default();
+            from_keys(&shorts_of(&keys.data), doubles, ascii)
+        }
+        (_, Some(w)) => from_wkt(&w),
+        (None, None) => RasterCrs {
+            described: "none".into(),
+            warning: Some("the input has no CRS, so the rasters have none: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
+            ..no_keys()
+        },
+    }
+}
+
+/// Keys with only the model and raster types (user-defined model).
+fn no_keys() -> RasterCrs {
+    RasterCrs {
+        directory: directory(&[(MODEL_TYPE, 32767), (RASTER_TYPE, PIXEL_IS_AREA)]),
+        ..RasterCrs::default()
+    }
+}
+
+/// A key directory holding `keys` (id, value), each stored in the directory itself.
+fn directory(keys: &[(u16, u16)]) -> Vec<u16> {
+    let mut d = vec![1, 1, 0, keys.len() as u16];
+    for &(id, v) in keys {
+        d.extend_from_slice(&[id, 0, 1, v]);
+    }
+    d
+}
+
+/// The input's own key directory with its raster type set to PixelIsArea.
+fn from_keys(keys: &[u16], doubles: Vec<f64>, ascii: String) -> RasterCrs {
+    if keys.len() < 4 || keys.len() < 4 + 4 * keys[3] as usize {
+        return RasterCrs {
+            described: "none".into(),
+            warning: Some("the input's GeoTIFF key directory is cut short, so the rasters have no CRS: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
+            ..no_keys()
+        };
+    }
+    let mut entries: Vec<[u16; 4]> = keys[4..4 + 4 * keys[3] as usize]
+        .chunks_exact(4)
+        .map(|e| [e[0], e[1], e[2], e[3]])
+        .filter(|e| e[0] != RASTER_TYPE)
+        .collect();
+    entries.push([RASTER_TYPE, 0, 1, PIXEL_IS_AREA]);
+    entries.sort_by_key(|e| e[0]);
+    let mut directory = vec![keys[0], keys[1], keys[2], entries.len() as u16];
+    entries.iter().for_each(|e| directory.extend_from_slice(e));
+    let code = |id| {
+        entries
+            .iter()
+            .find(|e| e[0] == id && e[1] == 0)
+            .map(|e| e[3])
+    };
+    let name = match (code(PROJECTED).or(code(GEOGRAPHIC)), code(VERTICAL)) {
+        (Some(h), Some(v)) => format!("EPSG:{h} + EPSG:{v}"),
+        (Some(h), None) => format!("EPSG:{h}"),
+        _ => "user-defined".into(),
+    };
+    RasterCrs {
+        directory,
+        doubles,
+        ascii,
+        described: format!("{name} (the input's GeoTIFF keys)"),
+        warning: None,
+    }
+}
+
+/// Keys naming the EPSG codes of a WKT's horizontal (and vertical) CRS.
+fn from_wkt(wkt: &str) -> RasterCrs {
+    let tree = parse(wkt);
+    let (horizontal, vertical) = match &tree {
+        Some(n) if is(n, &["COMPD_CS", "COMPOUNDCRS"]) => (
+            n.children.iter().find(|c| horizontal_kind(c).is_some()),
+            n.children
+                .iter()
+                .find(|c| is(c, &["VERT_CS", "VERTCRS", "VERTICALCRS"])),
+        ),
+        Some(n) => (Some(n), None),
+        None => (None, None),
+    };
+    let h = horizontal.and_then(|n| Some((horizontal_kind(n)?, epsg(n)?)));
+    let v = vertical.and_then(epsg);
+    let Some((kind, code)) = h else {
+        return RasterCrs {
+            described: "none".into(),
+            warning: Some(format!("the input's WKT CRS ({}) names no EPSG code, which GeoTIFF keys need, so the rasters have no CRS: assign it in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs with the WKT)", name_of(horizontal.or(tree.as_ref())))),
+            ..no_keys()
+        };
+    };
+    let mut keys = vec![
+        (MODEL_TYPE, kind.0),
+        (RASTER_TYPE, PIXEL_IS_AREA),
+        (kind.1, code),
+    ];
+    keys.extend(v.map(|v| (VERTICAL, v)));
+    let described = match v {
+        Some(v) => format!("EPSG:{code} + EPSG:{v} (from the input's WKT)"),
+        None => format!("EPSG:{code} (from the input's WKT)"),
+    };
+    RasterCrs {
+        directory: directory(&keys),
+        described,
+        ..RasterCrs::default()
+    }
+}
+
+/// The model type and the key of a horizontal CRS node: projected or geographic.
+fn horizontal_kind(n: &Node) -> Option<(u16, u16)> {
+    if is(n, &["PROJCS", "PROJCRS", "PROJECTEDCRS"]) {
+        Some((1, PROJECTED))
+    } else if is(n, &["GEOGCS", "GEOGCRS", "GEOGRAPHICCRS"]) {
+        Some((2, GEOGRAPHIC))
+    } else {
+        None
+    }
+}
+
+/// A node of a WKT: its keyword, quoted and bare values, and child nodes.
+#[derive(Debug)]
+struct Node {
+    keyword: String,
+    values: Vec<String>,
+    children: Vec<Node>,
+}
+
+fn is(n: &Node, keywords: &[&str]) -> bool {
+    keywords.iter().any(|k| n.keyword.eq_ignore_ascii_case(k))
+}
+
+/// The EPSG code of a node's own AUTHORITY (WKT 1) or ID (WKT 2), if it fits a GeoTIFF key.
+fn epsg(n: &Node) -> Option<u16> {
+    n.children
+        .iter()
+        .filter(|c| is(c, &["AUTHORITY", "ID"]))
+        .find(|c| {
+            c.values
+                .first()
+                .is_some_and(|a| a.eq_ignore_ascii_case("EPSG"))
+        })
+        .and_then(|c| c.values.get(1)?.trim().parse().ok())
+}
+
+/// A node's name (its first quoted value), for messages.
+fn name_of(n: Option<&Node>) -> String {
+    n.and_then(|n| n.values.first().cloned())
+        .unwrap_or_else(|| "unnamed".into())
+}
+
+/// Parses a WKT into its tree; None when it is not one.
+fn parse(wkt: &str) -> Option<Node> {
+    let chars: Vec<char> = wkt.chars().collect();
+    let mut at = 0;
+    node(&chars, &mut at)
+}
+
+fn skip_spaces(c: &[char], at: &mut usize) {
+    while c.get(*at).is_some_and(|ch| ch.is_whitespace()) {
+        *at += 1;
+    }
+}
+
+/// One node starting at `at` (a keyword, then its bracketed contents).
+fn node(c: &[char], at: &mut usize) -> Option<Node> {
+    skip_spaces(c, at);
+    let start = *at;
+    while c
+        .get(*at)
+        .is_some_and(|ch| ch.is_ascii_alphanumeric() || *ch == '_')
+    {
+        *at += 1;
+    }
+    let keyword: String = c[start..*at].iter().collect();
+    skip_spaces(c, at);
+    if keyword.is_empty() || !matches!(c.get(*at), Some('[') | Some('(')) {
+        return None;
+    }
+    *at += 1;
+    let mut n = Node {
+        keyword,
+        values: Vec::new(),
+        children: Vec::new(),
+    };
+    loop {
+        skip_spaces(c, at);
+        match c.get(*at)? {
+            ']' | ')' => {
+                *at += 1;
+                return Some(n);
+            }
+            ',' => *at += 1,
+            '"' => n.values.push(quoted(c, at)?),
+            ch if ch.is_ascii_alphabetic() => {
+                let save = *at;
+                match node(c, at) {
+                    Some(child) => n.children.push(child),
+                    None => {
+                        *at = save;
+                        n.values.push(bare(c, at));
+                    }
+                }
+            }
+            _ => n.values.push(bare(c, at)),
+        }
+    }
+}
+
+/// A quoted string ("" inside is a quote).
+fn quoted(c: &[char], at: &mut usize) -> Option<String> {
+    *at += 1;
+    let mut s = String::new();
+    loop {
+        match c.get(*at)? {
+            '"' if c.get(*at + 1) == Some(&'"') => {
+                s.push('"');
+                *at += 2;
+            }
+            '"' => {
+                *at += 1;
+                return Some(s);
+            }
+            ch => {
+                s.push(*ch);
+                *at += 1;
+            }
+        }
+    }
+}
+
+/// A bare value: up to the next comma or closing bracket.
+fn bare(c: &[char], at: &mut usize) -> String {
+    let start = *at;
+    while c.get(*at).is_some_and(|ch| !matches!(ch, ',' | ']' | ')')) {
+        *at += 1;
+    }
+    c[start..*at].iter().collect::<String>().trim().to_string()
+}
+
+fn shorts_of(b: &[u8]) -> Vec<u16> {
+    b.chunks_exact(2)
+        .map(|p| u16::from_le_bytes([p[0], p[1]]))
+        .collect()
+}
+
+fn doubles_of(b: &[u8]) -> Vec<f64> {
+    b.chunks_exact(8)
+        .map(|p| f64::from_le_bytes(p.try_into().unwrap_or([0; 8])))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const UTM: &str = r#"PROJCS["NAD83 / UTM zone 10N",GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101,AUTHORITY["EPSG","7019"]],AUTHORITY["EPSG","6269"]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4269"]],PROJECTION["Transverse_Mercator"],PARAMETER["central_meridian",-123],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AUTHORITY["EPSG","26910"]]"#;
+
+    fn key(c: &RasterCrs, id: u16) -> Option<u16> {
+        c.directory[4..]
+            .chunks_exact(4)
+            .find(|e| e[0] == id)
+            .map(|e| e[3])
+    }
+
+    /// A WKT 1 projected CRS gives its own code, not a nested one (the datum's, the unit's).
+    #[test]
+    fn a_projected_wkt_gives_its_epsg_code() {
+        let c = from_wkt(UTM);
+        assert_eq!(key(&c, PROJECTED), Some(26910));
+        assert_eq!(key(&c, MODEL_TYPE), Some(1));
+        assert_eq!(key(&c, RASTER_TYPE), Some(PIXEL_IS_AREA));
+        assert_eq!(c.directory[3] as usize * 4 + 4, c.directory.len());
+        assert!(c.warning.is_none());
+    }
+
+    /// A compound CRS gives the horizontal and the vertical code; WKT 2 IDs count too.
+    #[test]
+    fn compound_and_wkt2_crs_give_both_codes() {
+        let compound = format!(
+            r#"COMPD_CS["NAD83 / UTM 10N + NAVD88",{UTM},VERT_CS["NAVD88 height",VERT_DATUM["North American Vertical Datum 1988",2005],UNIT["metre",1],AUTHORITY["EPSG","5703"]]]"#
+        );
+        let c = from_wkt(&compound);
+        assert_eq!(
+            (key(&c, PROJECTED), key(&c, VERTICAL)),
+            (Some(26910), Some(5703))
+        );
+        let wkt2 = r#"GEOGCRS["WGS 84",DATUM["World Geodetic System 1984",ELLIPSOID["WGS 84",6378137,298.257223563]],CS[ellipsoidal,2],ID["EPSG",4326]]"#;
+        let c = from_wkt(wkt2);
+        assert_eq!(
+            (key(&c, GEOGRAPHIC), key(&c, MODEL_TYPE)),
+            (Some(4326), Some(2))
+        );
+    }
+
+    /// A WKT without a code is said, not guessed; the keys then carry no CRS.
+    #[test]
+    fn a_wkt_without_a_code_is_a_warning() {
+        let c = from_wkt(r#"PROJCS["local grid",UNIT["metre",1]]"#);
+        assert!(c
+            .warning
+            .as_deref()
+            .is_some_and(|w| w.contains("local grid")));
+        assert_eq!(key(&c, PROJECTED), None);
+    }
+
+    /// The input's keys are kept, with the raster type replaced and the keys still sorted.
+    #[test]
+    fn the_inputs_keys_are_kept_with_pixel_is_area() {
+        let keys = [1, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 2, 3072, 0, 1, 32633];
+        let c = from_keys(&keys, vec![], String::new());
+        assert_eq!(
+            c.directory,
+            vec![1, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 1, 3072, 0, 1, 32633]
+        );
+        let without = [1, 1, 0, 1, 3072, 0, 1, 32633];
+        let c = from_keys(&without, vec![], String::new());
+        assert_eq!(
+            c.directory,
+            vec![1, 1, 0, 2, 1025, 0, 1, 1, 3072, 0, 1, 32633]
+        );
+        assert!(from_keys(&[1, 1, 0, 9, 3072], vec![], String::new())
+            .warning
+            .is_some());
+    }
+}

@@ -1,0 +1,277 @@
+//! Rasters of point columns: points are binned by cell out of core ([`bins`]), then the cells
+//! are reduced ([`crate::core::raster::Stat`]) and written row by row as one GeoTIFF per
+//! column ([`geotiff`]), a point-count GeoTIFF, and a quick-look PNG beside each. Fed by the
+//! `raster` command (points of any LAS/LAZ holding the columns) and by `process --raster`
+//! (each point as its output is written), through one [`Rasterizer`].
+
+mod bins;
+pub(crate) mod geokeys;
+pub(crate) mod geotiff;
+
+use std::path::{Path, PathBuf};
+
+use crate::core::raster::{Cell, CellGrid, Stat};
+use crate::error::{Error, Result};
+use crate::io::columns::{ColumnChoice, ColumnSet, Group, TerrainValue, Value};
+use bins::Bins;
+use geokeys::RasterCrs;
+use geotiff::{rows_per_strip, GeoTiff};
+
+/// The name of the point-count raster.
+pub(crate) const COUNT_NAME: &str = "PointCount";
+
+/// One column as a raster shows it.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct RasterColumn {
+    /// The column's name, which is the raster's file name.
+    pub(crate) name: String,
+    /// Its unit ("1/m", "degrees", or empty when unitless or unknown).
+    pub(crate) unit: String,
+    /// Whether its values have a sign that means something (curvatures): a diverging ramp.
+    pub(crate) signed: bool,
+    /// Whether it is a direction in degrees (aspect): its mean is circular.
+    pub(crate) angle: bool,
+}
+
+/// How tilecurv's own columns are shown, with `unit` the symbol of the file's unit ("m"):
+/// every column it can write but the flags and the scale, and whether `--columns` picks it by
+/// default for a raster (the curvatures: H, K, k1, k2, profile, tangential and plan curvature,
+/// shape index, curvedness).
+pub(crate) fn known_columns(unit: &str) -> Vec<(RasterColumn, bool)> {
+    let every = Group::ALL
+        .into_iter()
+        .fold(ColumnChoice::default(), ColumnChoice::with);
+    let set = ColumnSet {
+        choice: every,
+        extra: Vec::new(),
+        unit: unit.into(),
+        wide: false,
+    };
+    let per = format!("1/{unit}");
+    set.columns()
+        .into_iter()
+        .filter_map(|c| {
+            use TerrainValue::*;
+            let (unit, signed, curvature) = match c.value {
+                Value::H | Value::K1 | Value::K2 => (per.clone(), true, true),
+                Value::K => (format!("1/{unit}^2"), true, true),
+                Value::Terrain(Profile | Tangential | Plan) => (per.clone(), true, true),
+                Value::Terrain(ShapeIndex) => (String::new(), true, true),
+                Value::Terrain(Curvedness) => (per.clone(), false, true),
+                Value::Terrain(Slope | Aspect) => ("degrees".into(), false, false),
+                Value::Normal(_) | Value::D1(_) | Value::D2(_) => (String::new(), true, false),
+                _ => return None,
+            };
+            let angle = c.value == Value::Terrain(Aspect);
+            let col = RasterColumn {
+                name: c.name.into(),
+                unit,
+                signed,
+                angle,
+            };
+            Some((col, curvature))
+        })
+        .collect()
+}
+
+/// What rasters to make and where.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct RasterRequest {
+    /// Cell size in file units.
+    pub(crate) cell: f64,
+    /// How a cell's value is formed.
+    pub(crate) stat: Stat,
+    /// The directory the rasters go to.
+    pub(crate) dir: PathBuf,
+    /// The columns, one raster each.
+    pub(crate) columns: Vec<RasterColumn>,
+}
+
+/// What was written.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct RasterSummary {
+    /// The grid.
+    pub(crate) grid: CellGrid,
+    /// Points binned.
+    pub(crate) points: u64,
+    /// Cells holding at least one point.
+    pub(crate) cells: u64,
+    /// The files written.
+    pub(crate) files: Vec<PathBuf>,
+}
+
+/// Points on their way into rasters: each point's cell and column values are binned as they
+/// come ([`Rasterizer::push`]); [`Rasterizer::finish`] writes the rasters.
+pub(crate) struct Rasterizer {
+    request: RasterRequest,
+    bins: Bins,
+    lo: Option<Cell>,
+    hi: Option<Cell>,
+    points: u64,
+}
+
+impl Rasterizer {
+    /// A rasterizer for `request` whose temporary run files go to `scratch`, keeping at most
+    /// `budget` bytes of points in memory.
+    pub(crate) fn new(request: RasterRequest, scratch: &Path, budget: u64) -> Rasterizer {
+        let bins = Bins::new(scratch, request.columns.len(), budget);
+        Rasterizer {
+            request,
+            bins,
+            lo: None,
+            hi: None,
+            points: 0,
+        }
+    }
+
+    /// The request.
+    pub(crate) fn request(&self) -> &RasterRequest {
+        &self.request
+    }
+
+    /// Bins one point at `(x, y)` with one value per column (NaN: undefined). `what` names the
+    /// point for the error when its coordinates have no cell (not finite, or 2^31 cells away).
+    pub(crate) fn push(
+        &mut self,
+        x: f64,
+        y: f64,
+        values: &[f32],
+        what: &dyn Fn() -> String,
+    ) -> Result<()> {
+        let Some(c) = Cell::of(x, y, self.request.cell) else {
+            return Err(Error::Usage(format!(
+                "{}: ({x}, {y}) lies more than 2^31 cells of {} from the origin; use a larger --cell",
+                what(),
+                self.request.cell
+            )));
+        };
+        self.lo = Some(self.lo.map_or(c, |l| Cell {
+            ix: l.ix.min(c.ix),
+            iy: l.iy.min(c.iy),
+        }));
+        self.hi = Some(self.hi.map_or(c, |h| Cell {
+            ix: h.ix.max(c.ix),
+            iy: h.iy.max(c.iy),
+        }));
+        self.points += 1;
+        self.bins.push(c.key(), values)
+    }
+
+    /// Writes one GeoTIFF per column and the point count into the request's directory (made if
+    /// missing), each complete or absent. Returns what was written; an error when no point came.
+    pub(crate) fn finish(self, crs: &RasterCrs) -> Result<RasterSummary> {
+        let (Some(lo), Some(hi)) = (self.lo, self.hi) else {
+            return Err(Error::Usage("no point to make a raster of".into()));
+        };
+        let req = self.request;
+        let grid = CellGrid::covering(req.cell, lo, hi).ok_or_else(|| {
+            Error::Usage(format!(
+                "a raster of cells of {} over the points would have more than 2^31 cells on a side; use a larger --cell",
+                req.cell
+            ))
+        })?;
+        std::fs::create_dir_all(&req.dir).map_err(|e| Error::write(&req.dir, e))?;
+        let mut files: Vec<PathBuf> = req
+            .columns
+            .iter()
+            .map(|c| req.dir.join(format!("{}.tif", c.name)))
+            .collect();
+        files.push(req.dir.join(format!("{COUNT_NAME}.tif")));
+        let writers = files
+            .iter()
+            .map(|p| GeoTiff::create(p, &grid, crs))
+            .collect::<Result<Vec<_>>>()?;
+        let mut rows = Rows::new(&grid, writers);
+        let mut cells = self.bins.into_cells()?;
+        let mut values: Vec<Vec<f32>> = vec![Vec::new(); req.columns.len()];
+        let mut cell_values = vec![0.0f32; files.len()];
+        let mut count = 0u64;
+        while let Some(key) = cells.next_cell(&mut values)? {
+            let cell = Cell::from_key(key);
+            let Some((row, col)) = grid.position(cell) else {
+                return Err(Error::Internal(format!(
+                    "cell {cell:?} outside the raster {grid:?}"
+                )));
+            };
+            for ((v, column), out) in values.iter_mut().zip(&req.columns).zip(&mut cell_values) {
+                *out = req.stat.reduce(v, column.angle);
+            }
+            cell_values[files.len() - 1] = values.first().map_or(0, Vec::len) as f32;
+            rows.put(row, col, &cell_values)?;
+            count += 1;
+        }
+        rows.finish()?;
+        Ok(RasterSummary {
+            grid,
+            points: self.points,
+            cells: count,
+            files,
+        })
+    }
+}
+
+/// The strips of every raster being filled, cell by cell in row order.
+struct Rows {
+    width: usize,
+    height: u32,
+    per_strip: u32,
+    /// The first row of the strips being filled.
+    first: u32,
+    strips: Vec<Vec<f32>>,
+    writers: Vec<GeoTiff>,
+}
+
+impl Rows {
+    fn new(grid: &CellGrid, writers: Vec<GeoTiff>) -> Rows {
+        let mut r = Rows {
+            width: grid.width as usize,
+            height: grid.height,
+            per_strip: rows_per_strip(grid.width),
+            first: 0,
+            strips: Vec::new(),
+            writers,
+        };
+        r.strips = (0..r.writers.len()).map(|_| r.blank()).collect();
+        r
+    }
+
+    /// Cells of the strip starting at `first`, all without data.
+    fn blank(&self) -> Vec<f32> {
+        let rows = self.per_strip.min(self.height - self.first) as usize;
+        vec![f32::NAN; rows * self.width]
+    }
+
+    /// Sets the cell at `row`, `col` of every raster (rows never go back).
+    fn put(&mut self, row: u32, col: u32, values: &[f32]) -> Result<()> {
+        while row >= self.first + self.per_strip {
+            self.flush()?;
+        }
+        let at = (row - self.first) as usize * self.width + col as usize;
+        for (s, &v) in self.strips.iter_mut().zip(values) {
+            s[at] = v;
+        }
+        Ok(())
+    }
+
+    /// Hands the full strips to their writers and starts the next ones.
+    fn flush(&mut self) -> Result<()> {
+        let next = self.first + self.per_strip;
+        let cells = self.per_strip.min(self.height.saturating_sub(next)) as usize * self.width;
+        for (s, w) in self.strips.iter_mut().zip(&self.writers) {
+            w.strip(std::mem::replace(s, vec![f32::NAN; cells]))?;
+        }
+        self.first = next;
+        Ok(())
+    }
+
+    /// Writes the remaining strips and waits for every raster to be complete.
+    fn finish(mut self) -> Result<()> {
+        while self.first < self.height {
+            self.flush()?;
+        }
+        for w in self.writers {
+            w.finish()?;
+        }
+        Ok(())
+    }
+}

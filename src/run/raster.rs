@@ -1,0 +1,233 @@
+//! `tilecurv raster`: GeoTIFFs of the columns of any point files (tilecurv's outputs or
+//! anyone's), one streaming pass over the inputs into the out-of-core binning of
+//! [`crate::io::raster`]. The pieces `process --raster` shares with it (the request, the CRS,
+//! the quick looks) are here too.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use crate::config::Length;
+use crate::core::raster::Stat;
+use crate::error::{Error, Result};
+use crate::io::las::extra_bytes::Descriptor;
+use crate::io::las::header::POINT_FORMAT_SIZES;
+use crate::io::raster::geokeys::{raster_crs, RasterCrs};
+use crate::io::raster::{known_columns, RasterColumn, RasterRequest, RasterSummary, Rasterizer};
+use crate::io::source::{PointSource, Property, SourceLayout};
+use crate::progress::Reporter;
+
+/// A `tilecurv raster` run.
+#[derive(Debug, Clone)]
+pub(crate) struct RasterJob {
+    /// The point files.
+    pub(crate) inputs: Vec<PathBuf>,
+    /// The cell size.
+    pub(crate) cell: Length,
+    /// The columns by name (None: every curvature column the first input holds).
+    pub(crate) columns: Option<Vec<String>>,
+    /// How a cell's value is formed.
+    pub(crate) stat: Stat,
+    /// The output directory.
+    pub(crate) dir: PathBuf,
+}
+
+/// Share of the memory budget the binning keeps in memory before it spills sorted runs.
+pub(crate) fn binning_budget(memory_bytes: u64, share: u64) -> u64 {
+    (memory_bytes / share).max(16 << 20)
+}
+
+/// The scratch directory of a run's binning beside its rasters (hidden, removed at the end).
+pub(crate) fn scratch_dir(dir: &Path) -> PathBuf {
+    dir.join(format!(".tilecurv-raster-{}", std::process::id()))
+}
+
+/// Makes the rasters of `job`. `memory_bytes` bounds the points binned in memory; `chunk`
+/// points are read at a time; a set `cancel` stops the run (nothing is written).
+pub(crate) fn raster(
+    job: &RasterJob,
+    memory_bytes: u64,
+    chunk: usize,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<RasterSummary> {
+    let sources = job
+        .inputs
+        .iter()
+        .map(|p| crate::io::source::open(p))
+        .collect::<Result<Vec<_>>>()?;
+    let first = sources[0].as_ref();
+    let unit = first.unit();
+    let cell = job.cell.in_file_units(unit.unit());
+    if job.cell.has_unit() && unit.unit().is_none() {
+        reporter.warn(&format!(
+            "{} has no CRS unit: --cell {} is taken in file units",
+            first.path().display(),
+            job.cell
+        ));
+    }
+    let symbol = unit.unit().map_or("unit".into(), |u| u.symbol());
+    let columns = choose_columns(first, job.columns.as_deref(), &symbol)?;
+    let request = RasterRequest {
+        cell,
+        stat: job.stat,
+        dir: job.dir.clone(),
+        columns,
+    };
+    let scratch = scratch_dir(&job.dir);
+    let mut rasterizer = Rasterizer::new(request, &scratch, binning_budget(memory_bytes, 2));
+    let total = sources.iter().map(|s| s.len()).sum();
+    reporter.phase("bin", total);
+    for s in &sources {
+        bin_source(s.as_ref(), &mut rasterizer, chunk, reporter, cancel)?;
+    }
+    reporter.finish_phase();
+    let crs = source_crs(first);
+    if let Some(w) = &crs.warning {
+        reporter.warn(w);
+    }
+    reporter.info(&format!("raster CRS: {}", crs.described));
+    rasterizer.finish(&crs)
+}
+
+/// The raster CRS of a source: its LAS CRS ([`raster_crs`]); none for other formats.
+pub(crate) fn source_crs(s: &dyn PointSource) -> RasterCrs {
+    match s.layout() {
+        SourceLayout::Las(p) => {
+            let h = p.header;
+            let records = p.vlrs.iter().chain(p.evlrs.iter().map(|(_, v)| v));
+            raster_crs(records, h.version.1 >= 4 && h.global_encoding & 0x10 != 0)
+        }
+        SourceLayout::Converted => raster_crs(std::iter::empty(), false),
+    }
+}
+
+/// Where a column's value is in a record.
+enum Reader {
+    /// A LAS extra dimension (its no-data value gives NaN).
+    Extra { at: usize, d: Descriptor },
+    /// Any other property.
+    Property(Property),
+}
+
+impl Reader {
+    fn value(&self, rec: &[u8]) -> f32 {
+        match self {
+            Reader::Extra { at, d } => {
+                rec.get(*at..).and_then(|e| d.read(e)).unwrap_or(f64::NAN) as f32
+            }
+            Reader::Property(p) => p.value(rec) as f32,
+        }
+    }
+}
+
+/// The reader of the column `name` in `s` (names compare without case).
+fn reader(s: &dyn PointSource, name: &str) -> Option<Reader> {
+    if let SourceLayout::Las(p) = s.layout() {
+        let base = POINT_FORMAT_SIZES[p.header.point_format as usize] as usize;
+        if let Some(d) = p.extra.iter().find(|d| d.name.eq_ignore_ascii_case(name)) {
+            return d.scalar().map(|_| Reader::Extra {
+                at: base,
+                d: d.clone(),
+            });
+        }
+    }
+    s.properties()
+        .into_iter()
+        .find(|p| p.name.eq_ignore_ascii_case(name))
+        .map(Reader::Property)
+}
+
+/// The columns to raster: those named (each must be in `s`), or every curvature column `s`
+/// holds.
+fn choose_columns(
+    s: &dyn PointSource,
+    names: Option<&[String]>,
+    unit: &str,
+) -> Result<Vec<RasterColumn>> {
+    let known = known_columns(unit);
+    let describe = |name: &str| {
+        known
+            .iter()
+            .find(|(k, _)| k.name.eq_ignore_ascii_case(name))
+            .map(|(k, _)| k.clone())
+            .unwrap_or_else(|| RasterColumn {
+                name: name.to_string(),
+                unit: String::new(),
+                signed: true,
+                angle: false,
+            })
+    };
+    let chosen: Vec<RasterColumn> = match names {
+        Some(names) => names.iter().map(|n| describe(n)).collect(),
+        None => known
+            .iter()
+            .filter(|(k, curvature)| *curvature && reader(s, &k.name).is_some())
+            .map(|(k, _)| k.clone())
+            .collect(),
+    };
+    let have = |n: &str| reader(s, n).is_some();
+    if let Some(missing) = chosen.iter().find(|c| !have(&c.name)) {
+        return Err(Error::Usage(format!(
+            "{} has no column {:?}; it has: {}",
+            s.path().display(),
+            missing.name,
+            column_names(s).join(", ")
+        )));
+    }
+    if chosen.is_empty() {
+        return Err(Error::Usage(format!(
+            "{} holds no curvature column (H, K, k1, k2, ProfileCurvature, ...): run `tilecurv process` on it first, or name the columns with --columns (it has: {})",
+            s.path().display(),
+            column_names(s).join(", ")
+        )));
+    }
+    Ok(chosen)
+}
+
+/// The names of the columns of `s`.
+fn column_names(s: &dyn PointSource) -> Vec<String> {
+    s.properties().into_iter().map(|p| p.name).collect()
+}
+
+/// Bins every point of `s`.
+fn bin_source(
+    s: &dyn PointSource,
+    r: &mut Rasterizer,
+    chunk: usize,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<()> {
+    let readers = r
+        .request()
+        .columns
+        .iter()
+        .map(|c| {
+            reader(s, &c.name).ok_or_else(|| {
+                Error::Usage(format!(
+                    "{} has no column {:?} (the first input has it); it has: {}",
+                    s.path().display(),
+                    c.name,
+                    column_names(s).join(", ")
+                ))
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let rl = s.record_length();
+    let mut values = vec![0.0f32; readers.len()];
+    s.for_each_chunk(chunk, &mut |first, records| {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(Error::Interrupted);
+        }
+        for (i, rec) in records.chunks_exact(rl).enumerate() {
+            let id = first + i as u64;
+            let p = s.decode(id, rec);
+            for (v, rd) in values.iter_mut().zip(&readers) {
+                *v = rd.value(rec);
+            }
+            let what = || format!("{} point {id}", s.path().display());
+            r.push(p.xyz[0], p.xyz[1], &values, &what)?;
+        }
+        reporter.advance((records.len() / rl) as u64);
+        Ok(())
+    })
+}
