@@ -38,8 +38,10 @@ def main() -> int:
     out = laspy.LasData(laspy.LasHeader(point_format=h.point_format, version=h.version))
     out.header.scales = h.scales
     out.header.offsets = h.offsets + steps * h.scales
+    # The point format carries the extra dimensions: laspy writes their VLR from it.
     for vlr in h.vlrs:
-        out.header.vlrs.append(vlr)
+        if not (vlr.user_id == "LASF_Spec" and vlr.record_id == 4):
+            out.header.vlrs.append(vlr)
     points = las.points.copy()
     if a.shuffle is not None:
         perm = np.random.default_rng(a.shuffle).permutation(len(points))

@@ -15,7 +15,8 @@ if ! [ -x "$venv/bin/python3" ]; then
 fi
 # maturin builds the Python package's wheel, pytest runs its tests (python/tests).
 "$venv/bin/python3" -m pip install --quiet --disable-pip-version-check \
-  'laspy[lazrs]==2.7.0' 'numpy<3' 'copclib==2.6.3' 'maturin==1.16.0' 'pytest==9.2.0'
+  'laspy[lazrs]==2.7.0' 'numpy<3' 'copclib==2.6.3' 'maturin==1.16.0' 'pytest==9.2.0' \
+  'rasterio==1.4.4'
 export PATH="$PWD/$venv/bin:$PATH"
 # Each step says its name when it fails, so that a red run says which step broke.
 step() {

@@ -15,6 +15,8 @@
 //! the grid alone, bit for bit. It differs from `q * s + o` by at most 2^-21 of a step (the
 //! phase's rounding) plus the last bit.
 //!
+//! A phase within the f64 noise of the step count ([`representation_noise`]) is 0: an offset
+//! that is a whole number of steps in decimal is one in every file, whatever its magnitude.
 //! The phase rounding moves a grid by at most 2^-21 of a step, far below any LAS scale's
 //! meaning. The one split that two files could make differently is a phase within float noise
 //! of an odd multiple of 2^-21 of a step; an offset that is a whole or half number of steps
@@ -27,6 +29,17 @@ const PHASE_STEPS: f64 = (1u64 << 20) as f64;
 /// Offsets beyond this many steps keep the file's formula (their step count is not an exact
 /// integer in f64).
 const MAX_STEPS: f64 = (1u64 << 52) as f64;
+
+/// A bound, in steps, on how far `offset / scale` computed in f64 lies from the ratio of the
+/// decimal numbers a writer meant (16 times the sum of the offset's half ulp over the scale and
+/// the scale's and the division's relative rounding): an offset that is a whole number of steps
+/// in decimal (5270000 - 567 * 0.00025) comes out that far from an integer, which at UTM
+/// northings and a 0.00025 scale exceeds the phase's 2^-20 of a step.
+fn representation_noise(scale: f64, offset: f64) -> f64 {
+    let o = offset.abs();
+    let ulp = f64::from_bits(o.to_bits() + 1) - o;
+    16.0 * (ulp / 2.0 / scale + (o / scale) * 2.0 * f64::EPSILON)
+}
 
 /// How one axis's stored integers map to coordinates: the file's scale and offset, and a factor
 /// applied last (a vertical unit's, 1 for x and y).
@@ -47,7 +60,10 @@ impl AxisGrid {
             (scale.is_finite() && scale > 0.0 && ratio.is_finite() && ratio.abs() < MAX_STEPS)
                 .then(|| {
                     let n = ratio.round();
-                    let phase = ((ratio - n) * PHASE_STEPS).round() / PHASE_STEPS;
+                    let phase = match (ratio - n).abs() <= representation_noise(scale, offset) {
+                        true => 0.0,
+                        false => ((ratio - n) * PHASE_STEPS).round() / PHASE_STEPS,
+                    };
                     (n as i64, phase)
                 });
         Self {
@@ -127,6 +143,32 @@ mod tests {
                 assert_eq!(a.integer(v), Some(q));
             }
         }
+    }
+
+    /// Offsets that are whole steps apart in decimal but not in binary (a UTM northing moved
+    /// by whole steps of 0.00025, as a writer computes it in f64 or parses it from text) give
+    /// the same bits: the f64 noise of the step count is not taken for a phase.
+    #[test]
+    fn whole_steps_apart_in_decimal_give_the_same_bits() {
+        let s = 0.00025;
+        let base = AxisGrid::new(s, 5_270_000.0, 1.0);
+        for k in [-567i64, 1, 1234, -98_765, 4_000_001] {
+            let computed = 5_270_000.0 - k as f64 * s;
+            let parsed: f64 = format!("{computed:.5}").parse().expect("decimal");
+            for o in [computed, parsed] {
+                let g = AxisGrid::new(s, o, 1.0);
+                for q in [0i64, 17, 1_000_000, -3_000_000] {
+                    assert_eq!(
+                        g.value(q + k).to_bits(),
+                        base.value(q).to_bits(),
+                        "offset {o} moved {k} steps"
+                    );
+                }
+            }
+        }
+        // A true sub-step phase is kept.
+        let tenth = AxisGrid::new(s, 5_270_000.0 + 0.1 * s, 1.0);
+        assert!((tenth.value(0) - 5_270_000.000025).abs() < 1e-9);
     }
 
     /// An offset half a step off the grid of another file keeps its half: the coordinates are

@@ -33,7 +33,7 @@ pub(crate) struct RasterJob {
 
 /// Share of the memory budget the binning keeps in memory before it spills sorted runs.
 pub(crate) fn binning_budget(memory_bytes: u64, share: u64) -> u64 {
-    (memory_bytes / share).max(16 << 20)
+    (memory_bytes / share).max(1 << 20)
 }
 
 /// The scratch directory of a run's binning beside its rasters (hidden, removed at the end).

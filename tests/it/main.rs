@@ -25,6 +25,7 @@ mod order;
 mod orientation;
 mod outofcore;
 mod radius;
+mod raster;
 mod real_files;
 mod reference;
 mod rerun;

@@ -14,7 +14,7 @@ use crate::common::{
 
 /// Writes `input`'s points to `output` with offsets moved by `steps` and the options `more` of
 /// `scripts/regrid.py`. False (a loud skip) when laspy is missing outside CI.
-fn regrid(input: &Path, output: &Path, steps: [i64; 3], more: &[&str]) -> bool {
+pub(crate) fn regrid(input: &Path, output: &Path, steps: [i64; 3], more: &[&str]) -> bool {
     let steps = steps.map(|s| s.to_string());
     let out = Command::new("python3")
         .arg(root().join("scripts/regrid.py"))

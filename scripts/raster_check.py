@@ -1,0 +1,127 @@
+"""Checks tilecurv's rasters against an independent binning of the point file they came from.
+
+    python3 scripts/raster_check.py POINTS.laz RASTER_DIR --cell C --stat mean --columns H,K
+
+laspy reads the points and their columns (a scaled column's raw type minimum is its declared
+no-data value, as tilecurv writes them), numpy bins them into cells of C file units aligned to
+multiples of C, and rasterio (GDAL) reads every GeoTIFF: its CRS (compared with GDAL's reading
+of the point file's WKT or GeoTIFF keys), transform, no-data value, and each cell against the
+binning. Prints one line per raster; exits non-zero on the first mismatch.
+"""
+
+import argparse
+import sys
+
+import laspy
+import numpy as np
+import rasterio
+from rasterio.crs import CRS
+
+
+def column(las, name):
+    """The column's values as f64, NaN where undefined (NaN, or the raw type's minimum)."""
+    if name.lower() in ("x", "y", "z"):
+        return np.asarray(getattr(las, name.lower()), dtype=np.float64)
+    dim = next(d for d in las.point_format.dimensions if d.name.lower() == name.lower())
+    raw = np.asarray(las.points.array[dim.name])
+    values = np.asarray(las[dim.name], dtype=np.float64)
+    if np.issubdtype(raw.dtype, np.integer) and dim.scales is not None:
+        values[raw == np.iinfo(raw.dtype).min] = np.nan
+    return values
+
+
+def point_crs(las):
+    """GDAL's reading of the point file's CRS (WKT VLR, else GeoTIFF keys via its EPSG code)."""
+    for v in las.header.vlrs + list(las.header.evlrs or []):
+        if v.record_id == 2112:
+            return CRS.from_wkt(v.string)
+    for v in las.header.vlrs:
+        if v.record_id == 34735:
+            keys = {k.id: k.value_offset for k in v.geo_keys}
+            code = keys.get(3072, keys.get(2048))
+            return None if code is None else CRS.from_epsg(code)
+    return None
+
+
+def reduce(stat, values, circular):
+    """The cell value of `values` (defined ones only), as tilecurv documents it."""
+    v = np.sort(values[~np.isnan(values)].astype(np.float32))
+    if stat == "count":
+        return float(len(v))
+    if len(v) == 0:
+        return np.nan
+    if stat == "mean" and circular:
+        r = np.radians(v.astype(np.float64))
+        s, c = np.sin(r).sum(), np.cos(r).sum()
+        if np.hypot(s, c) < 1e-9 * len(v):
+            return np.nan
+        return float(np.degrees(np.arctan2(s, c)) % 360.0)
+    if stat == "mean":
+        return float(v.astype(np.float64).mean())
+    if stat == "median":
+        n = len(v)
+        return float(v[n // 2]) if n % 2 else (float(v[n // 2 - 1]) + float(v[n // 2])) / 2
+    return float(v[0] if stat == "min" else v[-1])
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("points")
+    p.add_argument("rasters")
+    p.add_argument("--cell", type=float, required=True)
+    p.add_argument("--stat", default="mean")
+    p.add_argument("--columns", required=True)
+    a = p.parse_args()
+    las = laspy.read(a.points)
+    ix = np.floor(np.asarray(las.x) / a.cell).astype(np.int64)
+    iy = np.floor(np.asarray(las.y) / a.cell).astype(np.int64)
+    west, north = ix.min(), iy.max()
+    width, height = ix.max() - west + 1, north - iy.min() + 1
+    rows, cols = north - iy, ix - west
+    flat = rows * width + cols
+    order = np.argsort(flat, kind="stable")
+    cells, starts = np.unique(flat[order], return_index=True)
+    ends = np.append(starts[1:], len(order))
+    expect_crs = point_crs(las)
+    names = a.columns.split(",") + ["PointCount"]
+    for name in names:
+        with rasterio.open(f"{a.rasters}/{name}.tif") as r:
+            t = r.transform
+            assert (r.width, r.height) == (width, height), (name, r.width, r.height, width, height)
+            assert (t.a, t.e, t.b, t.d) == (a.cell, -a.cell, 0, 0), (name, t)
+            assert (t.c, t.f) == (west * a.cell, (north + 1) * a.cell), (name, t, west, north)
+            assert r.nodata == float(np.finfo(np.float32).min), (name, r.nodata)
+            assert r.dtypes[0] == "float32" and r.compression is not None, (name, r.dtypes)
+            if expect_crs is None:
+                assert r.crs is None or not r.crs.is_valid, (name, r.crs)
+            else:
+                assert r.crs is not None and r.crs.to_epsg() == expect_crs.to_epsg(), (
+                    name, r.crs, expect_crs.to_epsg())
+            grid = r.read(1, masked=True)
+        want = np.full(width * height, np.nan)
+        if name == "PointCount":
+            want[cells] = ends - starts
+        else:
+            values = column(las, name)[order]
+            circular = name.lower() == "aspect"
+            for c, s, e in zip(cells, starts, ends):
+                want[c] = reduce(a.stat, values[s:e], circular)
+        want = want.reshape(height, width)
+        got = np.where(grid.mask, np.nan, grid.data.astype(np.float64))
+        same_nodata = np.isnan(want) == np.isnan(got)
+        assert same_nodata.all(), (name, int((~same_nodata).sum()), "cells differ in no-data")
+        d = np.isfinite(want)
+        want32 = want[d].astype(np.float32).astype(np.float64)
+        err = np.abs(got[d] - want32)
+        tol = 1e-6 * np.maximum(np.abs(want32), 1e-30)
+        if name.lower() == "aspect" and a.stat == "mean":
+            err = np.minimum(err, 360 - err)
+            tol = np.full_like(err, 1e-3)
+        bad = err > tol
+        assert not bad.any(), (name, int(bad.sum()), float(err.max()))
+        print(f"ok {name}: {d.sum()} cells of {width}x{height}, largest difference {err.max():.3g}, "
+              f"crs {None if expect_crs is None else expect_crs.to_epsg()}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

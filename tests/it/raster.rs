@@ -1,0 +1,211 @@
+//! `tilecurv raster` against an independent reading: every GeoTIFF read back by rasterio
+//! (GDAL), its CRS, transform and no-data value checked and every cell compared with numpy's
+//! binning of the point file's column as laspy reads it (`scripts/raster_check.py`), for every
+//! statistic; and the rasters' bytes unchanged by the points' order, the file's offsets and the
+//! memory budget (which decides whether the binning spills sorted runs to disk).
+
+use std::path::Path;
+use std::process::Command;
+
+use crate::common::{process, root, s, shared, tilecurv, under_ci};
+use crate::offsets::regrid;
+
+/// rasterio and laspy are importable: a failure under CI=true, else a loud skip.
+fn rasterio_available() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import rasterio, laspy, lazrs"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        assert!(
+            !under_ci(),
+            "python3 with rasterio, laspy and lazrs is required under CI=true"
+        );
+        eprintln!("SKIPPED: raster check (python3 -c 'import rasterio, laspy, lazrs' failed)");
+    }
+    ok
+}
+
+/// `tilecurv raster` with `args`, which must succeed.
+fn raster(args: &[&str]) {
+    let out = tilecurv(&[&["raster", "-q"], args].concat());
+    assert!(
+        out.status.success(),
+        "raster {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// `scripts/raster_check.py` on `points` and the rasters in `dir`, which must pass; returns
+/// its report.
+fn check(points: &Path, dir: &Path, cell: f64, stat: &str, columns: &str) -> String {
+    let out = Command::new("python3")
+        .arg(root().join("scripts/raster_check.py"))
+        .args([points, dir])
+        .args([
+            "--cell",
+            &format!("{cell:?}"),
+            "--stat",
+            stat,
+            "--columns",
+            columns,
+        ])
+        .output()
+        .expect("python3 runs");
+    let report = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "raster check failed for {stat} {columns}: {report}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    report
+}
+
+/// A real survey (GeoTIFF keys, metres) with its curvature and terrain columns: every statistic
+/// of every column equals numpy's binning, cell for cell, in the survey's EPSG code.
+#[test]
+fn rasters_equal_an_independent_binning_for_every_statistic() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    if !rasterio_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("topo.laz");
+    process(
+        &input,
+        &out,
+        &["--columns", "H,K,k1,k2,terrain", "-k", "20"],
+    );
+    let all = "H,K,k1,k2,ProfileCurvature,TangentialCurvature,PlanCurvature,ShapeIndex,Curvedness";
+    let r = dir.path().join("default");
+    raster(&[s(&out), "--cell", "2m", "-o", s(&r)]);
+    let report = check(&out, &r, 2.0, "mean", all);
+    assert!(report.contains("crs 2949"), "{report}");
+    for stat in ["mean", "median", "min", "max", "count"] {
+        let r = dir.path().join(stat);
+        let cols = "H,Slope,Aspect,z";
+        raster(&[
+            s(&out),
+            "--cell",
+            "1.5",
+            "--stat",
+            stat,
+            "--columns",
+            cols,
+            "-o",
+            s(&r),
+        ]);
+        check(&out, &r, 1.5, stat, cols);
+    }
+}
+
+/// A LAS 1.4 file in US survey feet with a WKT CRS: the cell is converted to file units and the
+/// WKT becomes the EPSG code GDAL finds for it.
+#[test]
+fn a_wkt_crs_in_feet_becomes_its_epsg_code() {
+    let Some(input) = shared("las/test1_4.las") else {
+        return;
+    };
+    if !rasterio_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("t.las");
+    process(&input, &out, &["--columns", "H,K", "-k", "10"]);
+    let r = dir.path().join("r");
+    raster(&[s(&out), "--cell", "3m", "-o", s(&r)]);
+    let report = check(&out, &r, 3.0 / (1200.0 / 3937.0), "mean", "H,K");
+    assert!(!report.contains("crs None"), "{report}");
+}
+
+/// The same points shuffled, on moved offsets, as LAZ, and binned through sorted runs on disk
+/// (a 2 MiB budget) give the same GeoTIFF bytes.
+#[test]
+fn rasters_do_not_depend_on_order_offsets_or_memory() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    if !rasterio_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("topo.las");
+    // Floats: laspy's copy keeps NaN, but drops a scaled column's declared no-data value.
+    process(
+        &input,
+        &out,
+        &["--columns", "H,K,terrain", "-k", "20", "--f32"],
+    );
+    let moved = dir.path().join("moved.laz");
+    if !regrid(&out, &moved, [1234, -567, 89], &["--shuffle", "3"]) {
+        return;
+    }
+    let cols = "H,ProfileCurvature,Aspect";
+    let runs = [
+        (out.as_path(), "base", "2G"),
+        (moved.as_path(), "moved", "2G"),
+        (out.as_path(), "spilled", "2M"),
+    ];
+    for (points, name, memory) in runs {
+        let r = dir.path().join(name);
+        raster(&[
+            s(points),
+            "--cell",
+            "1m",
+            "--columns",
+            cols,
+            "--memory",
+            memory,
+            "-o",
+            s(&r),
+        ]);
+    }
+    for name in ["H", "ProfileCurvature", "Aspect", "PointCount"] {
+        let file = |d: &str| {
+            std::fs::read(dir.path().join(d).join(format!("{name}.tif"))).expect("raster")
+        };
+        let base = file("base");
+        assert!(base.len() > 1000, "{name}");
+        assert!(
+            base == file("moved"),
+            "{name}: shuffled, moved copy differs"
+        );
+        assert!(base == file("spilled"), "{name}: spilled binning differs");
+    }
+}
+
+/// Bad requests are usage errors naming what to do, and leave no directory behind.
+#[test]
+fn a_missing_column_is_a_usage_error_that_leaves_nothing() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let r = dir.path().join("r");
+    let out = tilecurv(&["raster", s(&input), "--cell", "1m", "-o", s(&r)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no curvature column") && err.contains("tilecurv process"),
+        "{err}"
+    );
+    let out = tilecurv(&[
+        "raster",
+        s(&input),
+        "--cell",
+        "1m",
+        "--columns",
+        "H",
+        "-o",
+        s(&r),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no column \"H\"") && err.contains("intensity"),
+        "{err}"
+    );
+    assert!(!r.exists(), "the refused runs made {}", r.display());
+}
