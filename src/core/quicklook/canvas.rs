@@ -52,4 +52,30 @@ impl Picture {
             }
         }
     }
+
+    /// Sets to `colour` every opaque pixel of the `w` x `h` rectangle at the top left that has
+    /// a transparent one of it within `reach` pixels left, right, above or below: the edge of
+    /// no data, `reach` pixels wide.
+    pub(super) fn outline_transparent(&mut self, w: u32, h: u32, reach: u32, colour: Rgba) {
+        let (w, h) = (w.min(self.width) as usize, h.min(self.height) as usize);
+        let stride = self.width as usize;
+        let clear = |x: usize, y: usize| self.rgba[(y * stride + x) * 4 + 3] == 0;
+        let mut edge = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let touches = (1..=reach as usize).any(|d| {
+                    (x >= d && clear(x - d, y))
+                        || (x + d < w && clear(x + d, y))
+                        || (y >= d && clear(x, y - d))
+                        || (y + d < h && clear(x, y + d))
+                });
+                if !clear(x, y) && touches {
+                    edge.push((y * stride + x) * 4);
+                }
+            }
+        }
+        for i in edge {
+            self.rgba[i..i + 4].copy_from_slice(&colour);
+        }
+    }
 }

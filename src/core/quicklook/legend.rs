@@ -1,21 +1,24 @@
 //! The legend panel beside a quick look's map: the quantity and its unit, a colour bar with
 //! its limits labelled (and a triangle at an end where values go beyond it and saturate), the
 //! data's full range, how it was clipped, and what transparency and shading mean. Opaque
-//! white, text in near-black at twice the font's size.
+//! white, text in near-black. Its size follows the map's: laid out in font pixels, drawn at a
+//! whole `scale`, so that a picture shrunk to fit a screen keeps a legible legend.
 
 use super::canvas::Rgba;
 use super::colour::{self, Rgb, Stretch};
 use super::font::{text_width, CAP_H, GLYPH_H};
 use super::{Legend, Picture, Ramp, SUN_ALTITUDE_DEG, SUN_AZIMUTH_DEG};
 
-const SCALE: u32 = 2;
-const PAD: u32 = 16;
-const LINE: u32 = GLYPH_H * SCALE + 6;
-const BAR_W: u32 = 28;
-const BAR_H: u32 = 256;
+// Lengths in font pixels, multiplied by the panel's scale.
+const PAD: u32 = 8;
+const LINE: u32 = GLYPH_H + 3;
+const BAR_W: u32 = 14;
+const BAR_H: u32 = 128;
 /// Height of the triangles that mark saturated ends.
-const TRIANGLE: u32 = 14;
-const TICK: u32 = 8;
+const TRIANGLE: u32 = 7;
+const TICK: u32 = 4;
+/// From the tick's end to its label.
+const GAP: u32 = 3;
 const INK: Rgba = [34, 34, 34, 255];
 const RULE: Rgba = [110, 110, 110, 255];
 const PAPER: Rgba = [255, 255, 255, 255];
@@ -40,11 +43,13 @@ pub(super) struct Panel {
     saturated: (bool, bool),
     lines: Vec<String>,
     width: u32,
+    /// Image pixels per font pixel.
+    scale: u32,
 }
 
 impl Panel {
-    /// The panel of `legend` reporting `notes`.
-    pub(super) fn new(legend: &Legend<'_>, notes: &Notes<'_>) -> Panel {
+    /// The panel of `legend` reporting `notes`, drawn at `scale` image pixels per font pixel.
+    pub(super) fn new(legend: &Legend<'_>, notes: &Notes<'_>, scale: u32) -> Panel {
         let s = notes.stretch;
         let title = if legend.unit.is_empty() {
             legend.title.to_string()
@@ -54,7 +59,7 @@ impl Panel {
         let mut lines = Vec::new();
         let (mut ticks, mut saturated) = (Vec::new(), (false, false));
         match s.range {
-            None => lines.push("no data".to_string()),
+            None => lines.push("no data in any cell".to_string()),
             Some((min, max)) => {
                 ticks = ticks_of(s);
                 saturated = (min < s.low, max > s.high);
@@ -65,7 +70,7 @@ impl Panel {
                     lines.push(clip_note(s));
                 }
                 if notes.any_missing {
-                    lines.push("transparent: no data".to_string());
+                    lines.push("no data: transparent, grey edge".to_string());
                 }
             }
         }
@@ -74,16 +79,17 @@ impl Panel {
                 "hillshade: sun az {SUN_AZIMUTH_DEG}, alt {SUN_ALTITUDE_DEG}"
             ));
         }
-        let labels = ticks.iter().map(|(_, l)| text_width(l, SCALE)).max();
-        let bar_block = labels.map_or(0, |w| BAR_W + TICK + 6 + w);
-        let text = lines.iter().chain([&title]).map(|l| text_width(l, SCALE));
-        let width = text.chain([bar_block]).max().unwrap_or(0) + 2 * PAD;
+        let labels = ticks.iter().map(|(_, l)| text_width(l, 1)).max();
+        let bar_block = labels.map_or(0, |w| BAR_W + TICK + GAP + w);
+        let text = lines.iter().chain([&title]).map(|l| text_width(l, 1));
+        let width = (text.chain([bar_block]).max().unwrap_or(0) + 2 * PAD) * scale;
         Panel {
             title,
             ticks,
             saturated,
             lines,
             width,
+            scale,
         }
     }
 
@@ -94,21 +100,21 @@ impl Panel {
 
     /// The top of the colour bar, below the title and the upper triangle.
     fn bar_top(&self) -> u32 {
-        PAD + LINE + 10 + TRIANGLE
+        (PAD + LINE + 5 + TRIANGLE) * self.scale
     }
 
     /// The top of the text lines, below the bar if there is one.
     fn lines_top(&self) -> u32 {
         if self.ticks.is_empty() {
-            PAD + LINE + 4
+            (PAD + LINE + 2) * self.scale
         } else {
-            self.bar_top() + BAR_H + TRIANGLE + 14
+            self.bar_top() + (BAR_H + TRIANGLE + 7) * self.scale
         }
     }
 
     /// Pixels down.
     pub(super) fn height(&self) -> u32 {
-        self.lines_top() + self.lines.len() as u32 * LINE + PAD
+        self.lines_top() + (self.lines.len() as u32 * LINE + PAD) * self.scale
     }
 
     /// Draws the panel on `picture` from column `x0` to its right edge, the bar from `lut`.
@@ -120,43 +126,47 @@ impl Panel {
             picture.height,
             PAPER,
         );
-        let x = x0 + PAD;
-        picture.text(x, PAD, &self.title, SCALE, INK);
+        let k = self.scale;
+        let x = x0 + PAD * k;
+        // The title drawn twice, a pixel apart: bolder than the notes below it.
+        picture.text(x, PAD * k, &self.title, k, INK);
+        picture.text(x + 1, PAD * k, &self.title, k, INK);
         if !self.ticks.is_empty() {
             self.draw_bar(picture, x, lut);
         }
         for (i, line) in self.lines.iter().enumerate() {
-            picture.text(x, self.lines_top() + i as u32 * LINE, line, SCALE, INK);
+            picture.text(x, self.lines_top() + i as u32 * LINE * k, line, k, INK);
         }
     }
 
     /// The colour bar (high end up) at column `x`, its saturation triangles, ticks and labels.
     fn draw_bar(&self, picture: &mut Picture, x: u32, lut: &[Rgb]) {
-        let top = self.bar_top();
+        let k = self.scale;
+        let (top, bar_w, bar_h, tri) = (self.bar_top(), BAR_W * k, BAR_H * k, TRIANGLE * k);
         let opaque = |c: Rgb| [c[0], c[1], c[2], 255];
-        for y in 0..BAR_H {
-            let u = 1.0 - f64::from(y) / f64::from(BAR_H - 1);
-            picture.fill(x, top + y, BAR_W, 1, opaque(colour::at(lut, u)));
+        for y in 0..bar_h {
+            let u = 1.0 - f64::from(y) / f64::from(bar_h - 1);
+            picture.fill(x, top + y, bar_w, 1, opaque(colour::at(lut, u)));
         }
         // The frame keeps the white middle of a diverging bar visible on the white panel.
-        picture.frame(x - 1, top - 1, BAR_W + 2, BAR_H + 2, RULE);
-        for i in 0..TRIANGLE {
-            let w = BAR_W * (i + 1) / TRIANGLE;
-            let left = x + (BAR_W - w) / 2;
+        picture.frame(x - 1, top - 1, bar_w + 2, bar_h + 2, RULE);
+        for i in 0..tri {
+            let w = bar_w * (i + 1) / tri;
+            let left = x + (bar_w - w) / 2;
             if self.saturated.1 {
                 let c = opaque(colour::at(lut, 1.0));
-                picture.fill(left, top - 2 - TRIANGLE + i, w, 1, c);
+                picture.fill(left, top - 2 - tri + i, w, 1, c);
             }
             if self.saturated.0 {
                 let c = opaque(colour::at(lut, 0.0));
-                picture.fill(left, top + BAR_H + 1 + TRIANGLE - i, w, 1, c);
+                picture.fill(left, top + bar_h + 1 + tri - i, w, 1, c);
             }
         }
         for (u, label) in &self.ticks {
-            let y = top + ((1.0 - u) * f64::from(BAR_H - 1)).round() as u32;
-            picture.fill(x + BAR_W, y.saturating_sub(1), TICK, 2, INK);
-            let ty = y.saturating_sub(CAP_H * SCALE / 2);
-            picture.text(x + BAR_W + TICK + 6, ty, label, SCALE, INK);
+            let y = top + ((1.0 - u) * f64::from(bar_h - 1)).round() as u32;
+            picture.fill(x + bar_w, y.saturating_sub(k / 2), TICK * k, k, INK);
+            let ty = y.saturating_sub(CAP_H * k / 2);
+            picture.text(x + bar_w + (TICK + GAP) * k, ty, label, k, INK);
         }
     }
 }
@@ -285,7 +295,7 @@ mod tests {
             shaded,
             any_missing,
         };
-        Panel::new(&legend, &notes)
+        Panel::new(&legend, &notes, 2)
     }
 
     #[test]
@@ -294,7 +304,7 @@ mod tests {
         assert_eq!(p.title, "ProfileCurvature (1/m)");
         assert_eq!(p.lines[0], "data -0.31 to 0.27");
         assert_eq!(p.lines[1], "clipped at 98th pct |value|");
-        assert_eq!(p.lines[2], "transparent: no data");
+        assert_eq!(p.lines[2], "no data: transparent, grey edge");
         assert_eq!(p.lines[3], "hillshade: sun az 315, alt 45");
         let labels: Vec<&str> = p.ticks.iter().map(|(_, l)| l.as_str()).collect();
         // 98th percentile of |v| over {0, 0.27, 0.31}: rank 1.96, 0.27 + 0.96 * 0.04.
@@ -307,7 +317,7 @@ mod tests {
         assert_eq!(labels, ["29.4", "0.6"]);
 
         let p = panel(vec![f32::NAN; 3], Ramp::Diverging, false);
-        assert_eq!(p.lines, ["no data"]);
+        assert_eq!(p.lines, ["no data in any cell"]);
         assert!(p.ticks.is_empty());
         let p = panel(vec![0.0; 3], Ramp::Diverging, false);
         assert_eq!(p.lines, ["all values 0"]);

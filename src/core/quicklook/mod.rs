@@ -85,9 +85,10 @@ pub struct Picture {
     pub rgba: Vec<u8>,
 }
 
-/// The quick look of `values`: the map coloured with `ramp` (no data transparent), shaded by
-/// `shade` if given, and the legend panel to its right. A `shade` on a grid of another size
-/// than `values` is a caller's mistake and is left out.
+/// The quick look of `values`: the map coloured with `ramp` (no data transparent, its edge
+/// outlined in grey so that holes read on a white page too), shaded by `shade` if given, and
+/// the legend panel to its right. A `shade` on a grid of another size than `values` is a
+/// caller's mistake and is left out.
 pub fn render(values: &Grid, ramp: Ramp, legend: &Legend<'_>, shade: Option<Shade<'_>>) -> Picture {
     let stretch = Stretch::of(values, ramp, legend.clip_percentile);
     let lut = colour::lut(ramp);
@@ -109,25 +110,59 @@ pub fn render(values: &Grid, ramp: Ramp, legend: &Legend<'_>, shade: Option<Shad
         shaded: shading.is_some(),
         any_missing,
     };
-    let panel = legend::Panel::new(legend, &notes);
+    // The legend grows with the map, so that it stays legible when the picture is shrunk to fit
+    // a screen: a font pixel is 2 image pixels beside maps under 1200 pixels, 4 from 1600.
+    let scale = (map_w.max(map_h) / 400).clamp(2, 4);
+    let panel = legend::Panel::new(legend, &notes, scale);
     let mut picture = Picture::blank(map_w + panel.width(), map_h.max(panel.height()));
-    for row in 0..values.height {
-        for col in 0..values.width {
-            let v = values.get(i64::from(col), i64::from(row));
-            let Some(u) = stretch.position(v) else {
-                continue;
-            };
-            let mut rgb = colour::at(&lut, u);
-            if let Some(s) = &shading {
-                let k = 0.6 + 0.4 * s[(row * values.width + col) as usize];
-                rgb = rgb.map(|c| (f32::from(c) * k).round() as u8);
-            }
-            let (x, y) = (col * magnify, row * magnify);
-            picture.fill(x, y, magnify, magnify, [rgb[0], rgb[1], rgb[2], 255]);
-        }
-    }
+    let paint = Paint {
+        stretch: &stretch,
+        lut: &lut,
+        shading: shading.as_deref(),
+        magnify,
+    };
+    paint.map(&mut picture, values);
+    picture.outline_transparent(map_w, map_h, scale / 2, NO_DATA_EDGE);
     panel.draw(&mut picture, map_w, &lut);
     picture
+}
+
+/// The grey of the edge of no data on the map.
+const NO_DATA_EDGE: canvas::Rgba = [96, 96, 96, 255];
+
+/// How the map's pixels are coloured.
+struct Paint<'a> {
+    stretch: &'a Stretch,
+    lut: &'a [colour::Rgb],
+    /// The hillshade of each value, 0 to 1.
+    shading: Option<&'a [f32]>,
+    /// Image pixels per value along each axis.
+    magnify: u32,
+}
+
+impl Paint<'_> {
+    /// Paints `values` from the picture's top left corner; no data stays transparent.
+    fn map(&self, picture: &mut Picture, values: &Grid) {
+        let level = 0.6 + 0.4 * shade::level_ground();
+        for row in 0..values.height {
+            for col in 0..values.width {
+                let v = values.get(i64::from(col), i64::from(row));
+                let Some(u) = self.stretch.position(v) else {
+                    continue;
+                };
+                let mut rgb = colour::at(self.lut, u);
+                if let Some(s) = self.shading {
+                    // Multiplied, not replaced, and at most by 40%, so the colours still read;
+                    // divided by the factor of flat ground so that level terrain keeps the
+                    // legend's colours exactly (0 stays white), sunlit slopes a little lighter.
+                    let k = (0.6 + 0.4 * s[(row * values.width + col) as usize]) / level;
+                    rgb = rgb.map(|c| (f32::from(c) * k).round().min(255.0) as u8);
+                }
+                let (x, y, m) = (col * self.magnify, row * self.magnify, self.magnify);
+                picture.fill(x, y, m, m, [rgb[0], rgb[1], rgb[2], 255]);
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -64,3 +64,8 @@ pub(super) fn hillshade(shade: &Shade<'_>) -> Vec<f32> {
     }
     out
 }
+
+/// The shade of level ground: the sine of the sun's altitude.
+pub(super) fn level_ground() -> f32 {
+    SUN_ALTITUDE_DEG.to_radians().sin() as f32
+}

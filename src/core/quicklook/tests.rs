@@ -192,6 +192,16 @@ fn no_data_is_transparent_and_degenerate_grids_render() {
     let p = render(&g, Ramp::Diverging, &legend(), None);
     assert_eq!(pixel(&p, 240 + 10, 10)[3], 0, "no data is transparent");
     assert_eq!(pixel(&p, 10, 10)[3], 255);
+    assert_eq!(
+        pixel(&p, 239, 10),
+        NO_DATA_EDGE,
+        "the edge of no data is outlined"
+    );
+    assert_eq!(
+        pixel(&p, 10, 239),
+        pixel(&p, 10, 10),
+        "the map's own edge is not"
+    );
     // The legend panel is opaque white beside the map.
     assert_eq!(pixel(&p, p.width - 2, p.height - 2), [255, 255, 255, 255]);
     for ramp in [Ramp::Diverging, Ramp::Sequential] {
@@ -270,4 +280,12 @@ fn a_plane_facing_the_sun_is_brighter_than_one_facing_away() {
         oklab_lightness(pixel(&p, 240, 240)[..3].try_into().unwrap())
     };
     assert!(look(&facing) > look(&flat) && look(&flat) > look(&away));
+    // Level ground keeps the legend's colours: 0 stays white under the shade.
+    let zero = grid(9, 9, vec![0.0; 81]);
+    let shade = Some(Shade {
+        elevation: &flat,
+        cell: 1.0,
+    });
+    let p = render(&zero, Ramp::Diverging, &legend(), shade);
+    assert_eq!(pixel(&p, 240, 240), [255, 255, 255, 255]);
 }
