@@ -70,7 +70,9 @@ pub struct Legend<'a> {
     pub title: &'a str,
     /// Its unit (`1/m`, `degrees`); empty for a dimensionless one.
     pub unit: &'a str,
-    /// The clip percentile, 50 to 100 ([`DEFAULT_CLIP_PERCENTILE`] by default).
+    /// The clip percentile ([`DEFAULT_CLIP_PERCENTILE`] by default): of |value| for a
+    /// diverging ramp (0 to 100), the upper one for a sequential ramp (50 to 100, the lower
+    /// being 100 minus it). Out of range it is bounded; NaN means the default.
     pub clip_percentile: f64,
 }
 
@@ -87,8 +89,9 @@ pub struct Picture {
 
 /// The quick look of `values`: the map coloured with `ramp` (no data transparent, its edge
 /// outlined in grey so that holes read on a white page too), shaded by `shade` if given, and
-/// the legend panel to its right. A `shade` on a grid of another size than `values` is a
-/// caller's mistake and is left out.
+/// the legend panel to its right. A map under 480 pixels on its long side is magnified by a
+/// whole factor, each value a square of pixels; the legend's text grows with the map. A
+/// `shade` on a grid of another size than `values` is a caller's mistake and is left out.
 pub fn render(values: &Grid, ramp: Ramp, legend: &Legend<'_>, shade: Option<Shade<'_>>) -> Picture {
     let stretch = Stretch::of(values, ramp, legend.clip_percentile);
     let lut = colour::lut(ramp);
@@ -155,7 +158,8 @@ impl Paint<'_> {
                     // Multiplied, not replaced, and at most by 40%, so the colours still read;
                     // divided by the factor of flat ground so that level terrain keeps the
                     // legend's colours exactly (0 stays white), sunlit slopes a little lighter.
-                    let k = (0.6 + 0.4 * s[(row * values.width + col) as usize]) / level;
+                    let i = row as usize * values.width as usize + col as usize;
+                    let k = (0.6 + 0.4 * s[i]) / level;
                     rgb = rgb.map(|c| (f32::from(c) * k).round().min(255.0) as u8);
                 }
                 let (x, y, m) = (col * self.magnify, row * self.magnify, self.magnify);
