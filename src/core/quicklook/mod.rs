@@ -68,7 +68,8 @@ pub enum Ramp {
 pub struct Legend<'a> {
     /// The quantity's name (the raster's column name, `ProfileCurvature`).
     pub title: &'a str,
-    /// Its unit (`1/m`, `degrees`); empty for a dimensionless one.
+    /// Its unit (`1/m`, `degrees`); empty for a dimensionless one. Both are drawn in printable
+    /// ASCII: any other character shows as `?`.
     pub unit: &'a str,
     /// The clip percentile ([`DEFAULT_CLIP_PERCENTILE`] by default): of |value| for a
     /// diverging ramp (0 to 100), the upper one for a sequential ramp (50 to 100, the lower
