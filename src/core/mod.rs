@@ -12,6 +12,7 @@ pub mod orient;
 pub mod plan;
 pub mod point;
 pub mod quantize;
+pub mod quicklook;
 pub mod radix;
 pub mod raster;
 pub mod rng;
