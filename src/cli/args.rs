@@ -5,6 +5,7 @@
 
 use std::path::PathBuf;
 
+use super::raster::RasterOut;
 use crate::config::{ExecOptions, RunOptions, RunParams};
 use crate::error::{Error, Result};
 use crate::run::Process;
@@ -66,6 +67,9 @@ pub(super) struct ProcessArgs {
     #[command(flatten)]
     exec: ExecArgs,
 
+    #[command(flatten)]
+    rasters: RasterOut,
+
     /// Print the plan (tiles, expected peak memory, work-directory disk, estimated run time from
     /// timing the median tile) and stop. Scans the inputs once.
     #[arg(long)]
@@ -110,6 +114,7 @@ impl ExecArgs {
             threads: default_threads(self.threads),
             chunk_points: self.chunk_points,
             progress_json: self.progress_json.clone(),
+            rasters: None,
         }
     }
 }
@@ -120,9 +125,12 @@ impl ProcessArgs {
         self.exec.quiet
     }
 
-    /// The execution settings.
+    /// The execution settings, with the rasters asked for.
     pub(super) fn exec(&self) -> ExecOptions {
-        self.exec.options()
+        ExecOptions {
+            rasters: self.rasters.options(),
+            ..self.exec.options()
+        }
     }
 
     /// The run, validated.
@@ -292,6 +300,9 @@ pub(super) struct AssembleArgs {
 
     #[command(flatten)]
     pub exec: ExecArgs,
+
+    #[command(flatten)]
+    pub rasters: RasterOut,
 }
 
 /// `tilecurv info`.

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use super::args::ExecArgs;
 use super::{fail, reporter, CANCEL};
-use crate::config::Length;
+use crate::config::{Length, RasterOptions};
 use crate::core::raster::Stat;
 use crate::progress::say;
 use crate::run::raster::{raster, RasterJob};
@@ -42,6 +42,41 @@ fn parse_columns(s: &str) -> Result<Names, String> {
     match v.is_empty() {
         true => Err("name at least one column".into()),
         false => Ok(Names(v)),
+    }
+}
+
+/// The rasters `process` and `assemble` make of their outputs' columns as they write them.
+#[derive(clap::Args, Debug, Clone)]
+pub(super) struct RasterOut {
+    /// Also write rasters of the outputs' columns with cells of this size (a length with a unit
+    /// like --tile: 1m, 0.5m, 3ft, or file units), binned while the outputs are written (no
+    /// second read): one float32 GeoTIFF per column and PointCount.tif, as `tilecurv raster`
+    /// makes them, with a PNG quick look beside each. Cells are aligned to multiples of the
+    /// cell size in the CRS.
+    #[arg(long = "raster", value_name = "CELL", value_parser = Length::parse)]
+    cell: Option<Length>,
+
+    /// Directory of the rasters (made if missing). Default: beside the output, named after it
+    /// with `.rasters` (out.laz -> out.rasters/; an output directory gets rasters/ inside).
+    #[arg(long, value_name = "DIR", requires = "cell")]
+    raster_dir: Option<PathBuf>,
+
+    #[arg(long = "raster-columns", value_name = "LIST", help = COLUMNS_HELP, requires = "cell", value_parser = parse_columns)]
+    raster_columns: Option<Names>,
+
+    #[arg(long = "raster-stat", value_name = "STAT", help = STAT_HELP, default_value = "mean", value_parser = parse_stat)]
+    raster_stat: Stat,
+}
+
+impl RasterOut {
+    /// The rasters asked for, if any.
+    pub(super) fn options(&self) -> Option<RasterOptions> {
+        Some(RasterOptions {
+            cell: self.cell?,
+            stat: self.raster_stat,
+            columns: self.raster_columns.clone().map(|c| c.0),
+            dir: self.raster_dir.clone(),
+        })
     }
 }
 

@@ -75,7 +75,10 @@ pub(super) fn status(a: StatusArgs) -> Result<i32, i32> {
 
 /// `tilecurv assemble`.
 pub(super) fn assemble(a: AssembleArgs) -> Result<i32, i32> {
-    let opts = a.exec.options();
+    let opts = crate::config::ExecOptions {
+        rasters: a.rasters.options(),
+        ..a.exec.options()
+    };
     let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
     let s =
         cluster::assemble(&a.work, &a.output, &opts, &reporter, &CANCEL).map_err(|e| fail(&e))?;

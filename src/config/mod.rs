@@ -146,6 +146,19 @@ pub struct Param {
     pub value: String,
 }
 
+/// The rasters `process --raster` and `assemble --raster` write beside the outputs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RasterOptions {
+    /// Cell size.
+    pub cell: Length,
+    /// How a cell's value is formed.
+    pub stat: crate::core::raster::Stat,
+    /// The columns by name (None: every curvature column of the outputs).
+    pub columns: Option<Vec<String>>,
+    /// The directory (None: beside the output, see `run::raster::default_dir`).
+    pub dir: Option<std::path::PathBuf>,
+}
+
 /// How a run executes: none of it changes the output.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExecOptions {
@@ -157,6 +170,8 @@ pub struct ExecOptions {
     pub chunk_points: usize,
     /// Append JSON progress lines to this file (`-`: standard output).
     pub progress_json: Option<std::path::PathBuf>,
+    /// Rasters of the outputs' columns, made as they are written (none by default).
+    pub rasters: Option<RasterOptions>,
 }
 
 impl Default for ExecOptions {
@@ -167,6 +182,7 @@ impl Default for ExecOptions {
             memory_bytes: default_memory(),
             chunk_points: 1_000_000,
             progress_json: None,
+            rasters: None,
         }
     }
 }

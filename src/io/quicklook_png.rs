@@ -9,13 +9,6 @@ use crate::error::{Error, Result};
 use crate::io::durable::write_durably;
 
 /// Writes `picture` to `path` as an RGBA PNG, replacing any file there only once it is whole.
-#[cfg_attr(
-    not(test),
-    expect(
-        dead_code,
-        reason = "the raster stage (issue 27, item 3) calls it; remove this once it does"
-    )
-)]
 pub(crate) fn write_png(path: &Path, picture: &Picture) -> Result<()> {
     let bytes = encode(picture).map_err(|e| Error::write(path, e))?;
     write_durably(path, &bytes)

@@ -26,6 +26,7 @@ use crate::io::workdir::ResultStore;
 use crate::progress::Reporter;
 use crate::run::bucket::chunk_points;
 use crate::run::orientation::resolve_orientation;
+use crate::run::raster::{default_dir, OutputRasters, Tap};
 use crate::run::{Exec, Run};
 
 /// Writes every output of `run` from its tile results (the tiles of `tiles`, all finished).
@@ -49,6 +50,20 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
         ));
     }
     let encoding = Encoding::new(spec.params.column_type, steps);
+    let mut rasters = match &exec.rasters {
+        Some(o) => {
+            let dir = o.dir.clone().unwrap_or_else(|| default_dir(&spec.outputs));
+            let budget = exec.memory.budget_bytes as u64;
+            Some(OutputRasters::new(
+                o,
+                &spec.cols,
+                &spec.sources,
+                dir,
+                budget,
+            )?)
+        }
+        None => None,
+    };
     let mut merger = Merger::open(store.dir(), &files, &spec.cols, exec.memory.budget_bytes)?;
     exec.reporter.phase("write", spec.total_points);
     let chunk = chunk_points(spec, exec);
@@ -68,15 +83,29 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
             cancel: exec.cancel,
             pool: &exec.pool,
         };
+        let mut tap = rasters.as_mut().map(|r| r.tap(source.as_ref(), &out_cols));
         undefined += assemble(
             &merge,
             &mut merger,
-            output,
+            (output, tap.as_mut()),
             &provenance,
             &spec.output_options,
         )?;
     }
     exec.reporter.finish_phase();
+    if let Some(r) = rasters {
+        let s = r.finish(exec.reporter)?;
+        exec.reporter.info(&format!(
+            "rasters: {} files of {}x{} cells of {} in {}",
+            s.files.len(),
+            s.grid.width,
+            s.grid.height,
+            s.grid.cell,
+            s.files[0]
+                .parent()
+                .map_or(String::new(), |d| d.display().to_string())
+        ));
+    }
     Ok(undefined)
 }
 
@@ -139,12 +168,12 @@ pub(crate) struct Merge<'a> {
 pub(crate) fn assemble(
     m: &Merge<'_>,
     merger: &mut Merger,
-    output: &Path,
+    (output, tap): (&Path, Option<&mut Tap<'_>>),
     provenance: &str,
     options: &OutputOptions,
 ) -> Result<u64> {
     let mut writer = create_sink(m.source, output, m.cols, provenance, options)?;
-    match merge_into(writer.as_mut(), m, merger) {
+    match merge_into(writer.as_mut(), m, merger, tap) {
         Ok(undefined) => writer.finish().map(|_| undefined),
         Err(e) => {
             writer.abandon();
@@ -184,7 +213,12 @@ impl HandOff {
 /// to this one, which writes them: the writes overlap the merge instead of following it. At
 /// most [`GROUP`] buffers circulate, so memory does not grow. The output's bytes are those of
 /// one thread: the buffers are written in the order of the records they hold.
-fn merge_into(writer: &mut dyn PointSink, m: &Merge<'_>, merger: &mut Merger) -> Result<u64> {
+fn merge_into(
+    writer: &mut dyn PointSink,
+    m: &Merge<'_>,
+    merger: &mut Merger,
+    tap: Option<&mut Tap<'_>>,
+) -> Result<u64> {
     let (full_tx, full_rx) = bounded::<Vec<u8>>(GROUP);
     let (free_tx, free_rx) = bounded::<Vec<u8>>(GROUP);
     std::thread::scope(|s| {
@@ -194,7 +228,7 @@ fn merge_into(writer: &mut dyn PointSink, m: &Merge<'_>, merger: &mut Merger) ->
         };
         let merge = std::thread::Builder::new()
             .name("assemble merge".into())
-            .spawn_scoped(s, move || merge_records(m, merger, &hand));
+            .spawn_scoped(s, move || merge_records(m, merger, &hand, tap));
         let merge = match merge {
             Ok(m) => m,
             Err(e) => {
@@ -240,7 +274,12 @@ struct GroupResults {
 /// sequential) while the previous group is encoded ([`encode_group`], on `m.pool`'s other
 /// threads), whose buffers then go to the writer in order: the decoding and encoding were two
 /// thirds of this thread's time. Returns the number of points whose curvature is undefined.
-fn merge_records(m: &Merge<'_>, merger: &mut Merger, hand: &HandOff) -> Result<u64> {
+fn merge_records(
+    m: &Merge<'_>,
+    merger: &mut Merger,
+    hand: &HandOff,
+    mut tap: Option<&mut Tap<'_>>,
+) -> Result<u64> {
     let rl = m.source.record_length();
     let piece = (HANDOFF_BYTES / (rl + m.cols.record_size())).max(1);
     let mut results: [GroupResults; 2] = Default::default();
@@ -270,6 +309,9 @@ fn merge_records(m: &Merge<'_>, merger: &mut Merger, hand: &HandOff) -> Result<u
                 });
                 for e in encoded {
                     undefined += e.undefined;
+                    if let Some(t) = tap.as_deref_mut() {
+                        t.feed(&e.buf)?;
+                    }
                     hand.send(e.buf)?;
                 }
                 taken?;

@@ -93,6 +93,8 @@ pub(crate) struct Exec<'a> {
     pub reporter: &'a dyn Reporter,
     /// Set by a signal: every stage stops at its next check.
     pub cancel: &'a AtomicBool,
+    /// The rasters to make of the outputs as they are written, if any.
+    pub rasters: Option<crate::config::RasterOptions>,
 }
 
 /// Stack of each worker thread, which decodes LAZ chunks (the laz crate's decompressors keep
@@ -129,6 +131,7 @@ impl<'a> Exec<'a> {
             chunk_points: opts.chunk_points,
             reporter,
             cancel,
+            rasters: opts.rasters.clone(),
         })
     }
 }

@@ -6,9 +6,11 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::config::Length;
+use crate::config::{Length, RasterOptions};
 use crate::core::raster::Stat;
 use crate::error::{Error, Result};
+use crate::io::columns::output::OutputColumns;
+use crate::io::columns::ColumnSet;
 use crate::io::las::extra_bytes::Descriptor;
 use crate::io::las::header::POINT_FORMAT_SIZES;
 use crate::io::raster::geokeys::{raster_crs, RasterCrs};
@@ -213,7 +215,7 @@ fn bin_source(
         })
         .collect::<Result<Vec<_>>>()?;
     let rl = s.record_length();
-    let mut values = vec![0.0f32; readers.len()];
+    let mut values = vec![0.0f32; readers.len() + 1];
     s.for_each_chunk(chunk, &mut |first, records| {
         if cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
@@ -224,10 +226,160 @@ fn bin_source(
             for (v, rd) in values.iter_mut().zip(&readers) {
                 *v = rd.value(rec);
             }
+            values[readers.len()] = p.xyz[2] as f32;
             let what = || format!("{} point {id}", s.path().display());
             r.push(p.xyz[0], p.xyz[1], &values, &what)?;
         }
         reporter.advance((records.len() / rl) as u64);
         Ok(())
     })
+}
+
+/// The default directory of the rasters of `outputs`: beside a single output, named after it
+/// with `.rasters` (out.laz -> out.rasters/), else `rasters/` beside the outputs.
+pub(crate) fn default_dir(outputs: &[PathBuf]) -> PathBuf {
+    match outputs {
+        [one] => one.with_extension("rasters"),
+        _ => outputs[0].with_file_name("rasters"),
+    }
+}
+
+/// The rasters of a run's outputs (`process --raster`, `assemble --raster`), binned from each
+/// output record as it is written.
+pub(crate) struct OutputRasters {
+    rasterizer: Rasterizer,
+    crs: RasterCrs,
+}
+
+impl OutputRasters {
+    /// The rasters `opts` asks for of outputs with the columns `cols` (the run's), from the
+    /// inputs `sources`, into `dir`; `memory_bytes` bounds the points binned in memory.
+    pub(crate) fn new(
+        opts: &RasterOptions,
+        cols: &ColumnSet,
+        sources: &[Box<dyn PointSource>],
+        dir: PathBuf,
+        memory_bytes: u64,
+    ) -> Result<OutputRasters> {
+        let first = sources[0].as_ref();
+        let cell = opts.cell.in_file_units(first.unit().unit());
+        let known = known_columns(&cols.unit);
+        let written: Vec<&str> = cols.columns().iter().map(|c| c.name).collect();
+        let columns: Vec<RasterColumn> = match &opts.columns {
+            Some(names) => names
+                .iter()
+                .map(|n| {
+                    let found = known.iter().find(|(k, _)| k.name.eq_ignore_ascii_case(n));
+                    match found {
+                        Some((k, _)) if written.contains(&k.name.as_str()) => Ok(k.clone()),
+                        _ => Err(Error::Usage(format!(
+                            "--raster-columns {n}: the outputs have no such column; they have {}",
+                            written.join(", ")
+                        ))),
+                    }
+                })
+                .collect::<Result<_>>()?,
+            None => known
+                .into_iter()
+                .filter(|(k, curvature)| *curvature && written.contains(&k.name.as_str()))
+                .map(|(k, _)| k)
+                .collect(),
+        };
+        if columns.is_empty() {
+            return Err(Error::Usage(format!(
+                "--raster: the outputs hold no curvature column ({}); add some with --columns or name them with --raster-columns",
+                written.join(", ")
+            )));
+        }
+        let request = RasterRequest {
+            cell,
+            stat: opts.stat,
+            dir: dir.clone(),
+            columns,
+        };
+        let scratch = scratch_dir(&dir);
+        Ok(OutputRasters {
+            rasterizer: Rasterizer::new(request, &scratch, binning_budget(memory_bytes, 4)),
+            crs: source_crs(first),
+        })
+    }
+
+    /// The tap of one output: its records are `source`'s followed by `out`'s columns.
+    pub(crate) fn tap<'a>(
+        &'a mut self,
+        source: &'a dyn PointSource,
+        out: &OutputColumns,
+    ) -> Tap<'a> {
+        let rl = source.record_length();
+        let mut at = rl;
+        let mut readers = Vec::new();
+        for c in out.descriptors() {
+            let size = c.ty.size();
+            if let Some(i) = self
+                .rasterizer
+                .request()
+                .columns
+                .iter()
+                .position(|r| r.name == c.name)
+            {
+                let (scale, value_offset) = c.scaling.unwrap_or((1.0, 0.0));
+                let d = Descriptor {
+                    name: c.name.clone(),
+                    data_type: c.ty as u8,
+                    offset: 0,
+                    size,
+                    scale,
+                    value_offset,
+                    no_data: c.no_data,
+                };
+                readers.push((i, at, d));
+            }
+            at += size;
+        }
+        readers.sort_by_key(|r| r.0);
+        Tap {
+            values: vec![0.0; readers.len() + 1],
+            readers: readers.into_iter().map(|(_, at, d)| (at, d)).collect(),
+            row: at,
+            source,
+            rasterizer: &mut self.rasterizer,
+        }
+    }
+
+    /// Writes the rasters and their quick looks.
+    pub(crate) fn finish(self, reporter: &dyn Reporter) -> Result<RasterSummary> {
+        if let Some(w) = &self.crs.warning {
+            reporter.warn(w);
+        }
+        self.rasterizer.finish(&self.crs)
+    }
+}
+
+/// Bins the records of one output as they are written.
+pub(crate) struct Tap<'a> {
+    rasterizer: &'a mut Rasterizer,
+    source: &'a dyn PointSource,
+    /// Per raster column, where its value is in an output record and how it is stored.
+    readers: Vec<(usize, Descriptor)>,
+    /// Bytes of an output record (the input's record and the new columns).
+    row: usize,
+    values: Vec<f32>,
+}
+
+impl Tap<'_> {
+    /// Bins every output record in `records` (whole records, in order).
+    pub(crate) fn feed(&mut self, records: &[u8]) -> Result<()> {
+        let rl = self.source.record_length();
+        for rec in records.chunks_exact(self.row) {
+            let p = self.source.decode(0, &rec[..rl]);
+            for (v, (at, d)) in self.values.iter_mut().zip(&self.readers) {
+                *v = d.read(&rec[*at..]).unwrap_or(f64::NAN) as f32;
+            }
+            self.values[self.readers.len()] = p.xyz[2] as f32;
+            let what = || format!("a point of {}", self.source.path().display());
+            self.rasterizer
+                .push(p.xyz[0], p.xyz[1], &self.values, &what)?;
+        }
+        Ok(())
+    }
 }

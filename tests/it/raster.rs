@@ -209,3 +209,51 @@ fn a_missing_column_is_a_usage_error_that_leaves_nothing() {
     );
     assert!(!r.exists(), "the refused runs made {}", r.display());
 }
+
+/// `process --raster` bins each point as its output is written: its rasters are those
+/// `tilecurv raster` makes of the output, byte for byte, and its quick looks are PNGs.
+#[test]
+fn process_rasters_equal_the_rasters_of_its_output() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("topo.laz");
+    let r = dir.path().join("beside");
+    let args = [
+        "--columns",
+        "H,K,terrain",
+        "-k",
+        "20",
+        "--raster",
+        "2m",
+        "--raster-dir",
+        s(&r),
+    ];
+    process(&input, &out, &args);
+    let again = dir.path().join("again");
+    raster(&[s(&out), "--cell", "2m", "-o", s(&again)]);
+    let names = [
+        "H",
+        "K",
+        "ProfileCurvature",
+        "PlanCurvature",
+        "ShapeIndex",
+        "PointCount",
+    ];
+    for name in names {
+        let tif = |d: &Path| std::fs::read(d.join(format!("{name}.tif"))).expect("raster");
+        assert!(
+            tif(&r) == tif(&again),
+            "{name}: process --raster differs from raster"
+        );
+        let png = std::fs::read(r.join(format!("{name}.png"))).expect("quick look");
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{name}.png");
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(&r)
+        .expect("dir")
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "scratch left: {leftovers:?}");
+}

@@ -10,9 +10,13 @@ pub(crate) mod geotiff;
 
 use std::path::{Path, PathBuf};
 
+use crate::core::quicklook::{
+    render, Grid, Legend, Ramp, Shade, Thumbnail, DEFAULT_CLIP_PERCENTILE, DEFAULT_MAX_SIDE,
+};
 use crate::core::raster::{Cell, CellGrid, Stat};
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnSet, Group, TerrainValue, Value};
+use crate::io::quicklook_png::write_png;
 use bins::Bins;
 use geokeys::RasterCrs;
 use geotiff::{rows_per_strip, GeoTiff};
@@ -114,7 +118,8 @@ impl Rasterizer {
     /// A rasterizer for `request` whose temporary run files go to `scratch`, keeping at most
     /// `budget` bytes of points in memory.
     pub(crate) fn new(request: RasterRequest, scratch: &Path, budget: u64) -> Rasterizer {
-        let bins = Bins::new(scratch, request.columns.len(), budget);
+        // One more value per point: its z, whose cell means shade the quick looks.
+        let bins = Bins::new(scratch, request.columns.len() + 1, budget);
         Rasterizer {
             request,
             bins,
@@ -129,8 +134,9 @@ impl Rasterizer {
         &self.request
     }
 
-    /// Bins one point at `(x, y)` with one value per column (NaN: undefined). `what` names the
-    /// point for the error when its coordinates have no cell (not finite, or 2^31 cells away).
+    /// Bins one point at `(x, y)` with one value per column followed by its z (`values` is
+    /// one longer than the columns; NaN: undefined). `what` names the point for the error when
+    /// its coordinates have no cell (not finite, or 2^31 cells away).
     pub(crate) fn push(
         &mut self,
         x: f64,
@@ -183,8 +189,10 @@ impl Rasterizer {
             .collect::<Result<Vec<_>>>()?;
         let mut rows = Rows::new(&grid, writers);
         let mut cells = self.bins.into_cells()?;
-        let mut values: Vec<Vec<f32>> = vec![Vec::new(); req.columns.len()];
-        let mut cell_values = vec![0.0f32; files.len()];
+        let n = req.columns.len();
+        let mut values: Vec<Vec<f32>> = vec![Vec::new(); n + 1];
+        // The columns' cell values, the point count, then the mean z (shade only).
+        let mut cell_values = vec![0.0f32; n + 2];
         let mut count = 0u64;
         while let Some(key) = cells.next_cell(&mut values)? {
             let cell = Cell::from_key(key);
@@ -196,11 +204,25 @@ impl Rasterizer {
             for ((v, column), out) in values.iter_mut().zip(&req.columns).zip(&mut cell_values) {
                 *out = req.stat.reduce(v, column.angle);
             }
-            cell_values[files.len() - 1] = values.first().map_or(0, Vec::len) as f32;
+            cell_values[n] = values[n].len() as f32;
+            cell_values[n + 1] = Stat::Mean.reduce(&mut values[n], false);
             rows.put(row, col, &cell_values)?;
             count += 1;
         }
-        rows.finish()?;
+        let (looks, factor) = rows.finish()?;
+        let mut shown: Vec<RasterColumn> = req.columns.clone();
+        shown.push(RasterColumn {
+            name: COUNT_NAME.into(),
+            unit: "points".into(),
+            signed: false,
+            angle: false,
+        });
+        files.extend(quick_looks(
+            &req.dir,
+            &shown,
+            looks,
+            grid.cell * factor as f64,
+        )?);
         Ok(RasterSummary {
             grid,
             points: self.points,
@@ -208,6 +230,41 @@ impl Rasterizer {
             files,
         })
     }
+}
+
+/// Writes a PNG quick look of each raster of `columns` from its thumbnail (`looks`: one per
+/// column, then the elevation's, whose pixels are `pixel` CRS units wide), shaded by the
+/// elevation; returns the files.
+fn quick_looks(
+    dir: &Path,
+    columns: &[RasterColumn],
+    mut looks: Vec<Grid>,
+    pixel: f64,
+) -> Result<Vec<PathBuf>> {
+    let Some(elevation) = looks.pop() else {
+        return Ok(Vec::new());
+    };
+    let mut files = Vec::new();
+    for (c, g) in columns.iter().zip(&looks) {
+        let ramp = if c.signed {
+            Ramp::Diverging
+        } else {
+            Ramp::Sequential
+        };
+        let legend = Legend {
+            title: &c.name,
+            unit: &c.unit,
+            clip_percentile: DEFAULT_CLIP_PERCENTILE,
+        };
+        let shade = Shade {
+            elevation: &elevation,
+            cell: pixel,
+        };
+        let path = dir.join(format!("{}.png", c.name));
+        write_png(&path, &render(g, ramp, &legend, Some(shade)))?;
+        files.push(path);
+    }
+    Ok(files)
 }
 
 /// The strips of every raster being filled, cell by cell in row order.
@@ -218,7 +275,10 @@ struct Rows {
     /// The first row of the strips being filled.
     first: u32,
     strips: Vec<Vec<f32>>,
+    /// The GeoTIFFs of the first strips (the last strip, the elevation, has none).
     writers: Vec<GeoTiff>,
+    /// A quick-look thumbnail of every strip's raster.
+    thumbs: Vec<Thumbnail>,
 }
 
 impl Rows {
@@ -229,9 +289,12 @@ impl Rows {
             per_strip: rows_per_strip(grid.width),
             first: 0,
             strips: Vec::new(),
+            thumbs: (0..=writers.len())
+                .map(|_| Thumbnail::new(grid.width, grid.height, DEFAULT_MAX_SIDE))
+                .collect(),
             writers,
         };
-        r.strips = (0..r.writers.len()).map(|_| r.blank()).collect();
+        r.strips = (0..r.thumbs.len()).map(|_| r.blank()).collect();
         r
     }
 
@@ -257,21 +320,30 @@ impl Rows {
     fn flush(&mut self) -> Result<()> {
         let next = self.first + self.per_strip;
         let cells = self.per_strip.min(self.height.saturating_sub(next)) as usize * self.width;
-        for (s, w) in self.strips.iter_mut().zip(&self.writers) {
-            w.strip(std::mem::replace(s, vec![f32::NAN; cells]))?;
+        for (i, s) in self.strips.iter_mut().enumerate() {
+            let strip = std::mem::replace(s, vec![f32::NAN; cells]);
+            self.thumbs[i].push_rows(self.first, &strip);
+            if let Some(w) = self.writers.get(i) {
+                w.strip(strip)?;
+            }
         }
         self.first = next;
         Ok(())
     }
 
-    /// Writes the remaining strips and waits for every raster to be complete.
-    fn finish(mut self) -> Result<()> {
+    /// Writes the remaining strips and waits for every raster to be complete. Returns the
+    /// thumbnails and how many cells a side each of their pixels covers.
+    fn finish(mut self) -> Result<(Vec<Grid>, u32)> {
         while self.first < self.height {
             self.flush()?;
         }
         for w in self.writers {
             w.finish()?;
         }
-        Ok(())
+        let factor = self.thumbs.first().map_or(1, Thumbnail::factor);
+        Ok((
+            self.thumbs.into_iter().map(Thumbnail::finish).collect(),
+            factor,
+        ))
     }
 }
