@@ -258,7 +258,7 @@ mod tests {
     fn the_mean_of_aspects_is_circular() {
         let mut v = [350.0f32, 10.0];
         let m = Stat::Mean.reduce(&mut v, true);
-        assert!(m < 1e-3 || m > 359.999, "{m}");
+        assert!(!(1e-3..=359.999).contains(&m), "{m}");
         let mut v = [80.0f32, 100.0, 90.0];
         assert!((Stat::Mean.reduce(&mut v, true) - 90.0).abs() < 1e-4);
         let mut v = [0.0f32, 180.0];
