@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
-# The cost of the terrain columns (and of rasters, once `process --raster` exists), as CPU-time
-# ratios against a baseline run interleaved with them on the same input, so that a machine
-# shared with other work shifts both alike.
+# The cost of the terrain columns and of rasters, as CPU-time ratios against a baseline run
+# interleaved with them on the same input, so that a machine shared with other work shifts all
+# alike.
 #
 # usage: scripts/bench_terrain.sh [SIZE] [ROUNDS]     (default: 2M points, 5 rounds)
 #
 # Each round runs, in turn on a warm page cache:
 #   base:    tilecurv process IN -o OUT.las -k $K --threads $THREADS --columns H,K,flags
 #   terrain: the same with --columns H,K,flags,terrain
-# and prints the CPU time (user + system, /usr/bin/time) of each and their ratio; then the
-# median ratio over the rounds. Environment: TILECURV_BENCH_DIR (default /tmp/tilecurv-bench),
+#   raster:  the terrain run with --raster 1m (a GeoTIFF and a PNG of each curvature column)
+# and prints the CPU time (user + system, /usr/bin/time) of each and the ratios terrain/base
+# and raster/terrain; then the median ratios over the rounds. Environment: TILECURV_BENCH_DIR (default /tmp/tilecurv-bench),
 # K (30), THREADS (2), SEED (1), TILECURV (a binary; default: cargo build --release).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,10 +32,12 @@ cpu_s() { awk -F': ' '/User time|System time/ { s += $2 } END { printf "%.2f", s
 declare -A variants=(
     [base]="--columns H,K,flags"
     [terrain]="--columns H,K,flags,terrain"
+    [raster]="--columns H,K,flags,terrain --raster 1m"
 )
-order=(base terrain)
+order=(base terrain raster)
 ratios=()
-printf '%-6s %10s %10s %8s\n' round "base (s)" "terrain (s)" ratio
+raster_ratios=()
+printf '%-6s %10s %12s %11s %8s %8s\n' round "base (s)" "terrain (s)" "raster (s)" terrain raster
 for r in $(seq 1 "$ROUNDS"); do
     declare -A cpu=()
     for v in "${order[@]}"; do
@@ -44,11 +47,13 @@ for r in $(seq 1 "$ROUNDS"); do
         /usr/bin/time -v -o "$BENCH_DIR/time_$v.txt" "$TILECURV" process "$in" -o "$out" -q \
             -k "$K" --threads "$THREADS" ${variants[$v]}
         cpu[$v]=$(cpu_s "$BENCH_DIR/time_$v.txt")
-        rm -f "$out"
+        rm -rf "$out" "${out%.las}.rasters"
     done
     ratio=$(awk -v a="${cpu[terrain]}" -v b="${cpu[base]}" 'BEGIN { printf "%.3f", a / b }')
+    rratio=$(awk -v a="${cpu[raster]}" -v b="${cpu[terrain]}" 'BEGIN { printf "%.3f", a / b }')
     ratios+=("$ratio")
-    printf '%-6s %10s %10s %8s\n' "$r" "${cpu[base]}" "${cpu[terrain]}" "$ratio"
+    raster_ratios+=("$rratio")
+    printf '%-6s %10s %12s %11s %8s %8s\n' "$r" "${cpu[base]}" "${cpu[terrain]}" "${cpu[raster]}" "$ratio" "$rratio"
 done
-median=$(printf '%s\n' "${ratios[@]}" | sort -n | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }')
-echo "input: $in ($SIZE points), -k $K, --threads $THREADS; median CPU ratio terrain/base over $ROUNDS rounds: $median"
+med() { printf '%s\n' "$@" | sort -n | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
+echo "input: $in ($SIZE points), -k $K, --threads $THREADS; median CPU ratios over $ROUNDS rounds: terrain/base $(med "${ratios[@]}"), raster/terrain $(med "${raster_ratios[@]}")"

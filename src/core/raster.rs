@@ -139,21 +139,26 @@ impl Stat {
     /// The cell value of `values` (one cell's values of one column, NaN for undefined ones),
     /// NaN when none is defined. `circular` takes the values as angles in degrees (aspect):
     /// the mean is the direction of the mean unit vector, in [0, 360), and the median, min and
-    /// max are those of the plain values. The values are sorted first (NaN last), so the result
-    /// does not depend on their order.
+    /// max are those of the plain values. The result does not depend on the values' order: the
+    /// mean and the median sort them first (NaN last); the min and max compare by total order
+    /// (-0 below +0).
     pub fn reduce(self, values: &mut [f32], circular: bool) -> f32 {
+        let defined = values.iter().copied().filter(|v| !v.is_nan());
+        match self {
+            Stat::Count => return defined.count() as f32,
+            Stat::Min => return defined.min_by(f32::total_cmp).unwrap_or(f32::NAN),
+            Stat::Max => return defined.max_by(f32::total_cmp).unwrap_or(f32::NAN),
+            Stat::Mean | Stat::Median => {}
+        }
         values.sort_unstable_by(|a, b| a.total_cmp(b));
         let n = values.iter().take_while(|v| !v.is_nan()).count();
         let v = &values[..n];
         match self {
-            Stat::Count => n as f32,
             _ if n == 0 => f32::NAN,
             Stat::Mean if circular => circular_mean(v),
-            Stat::Mean => (v.iter().map(|&x| x as f64).sum::<f64>() / n as f64) as f32,
             Stat::Median if n % 2 == 1 => v[n / 2],
             Stat::Median => ((v[n / 2 - 1] as f64 + v[n / 2] as f64) / 2.0) as f32,
-            Stat::Min => v[0],
-            Stat::Max => v[n - 1],
+            _ => (v.iter().map(|&x| x as f64).sum::<f64>() / n as f64) as f32,
         }
     }
 }

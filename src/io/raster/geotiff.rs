@@ -130,20 +130,22 @@ fn encode<W: Write + Seek, K: TiffKind>(
     let mut dir = encoder.image_directory().map_err(tiff_err)?;
     let (mut offsets, mut counts) = (Vec::new(), Vec::new());
     let mut rows = 0u64;
-    let mut bytes = Vec::new();
+    let (mut raw, mut packed) = (Vec::new(), Vec::new());
     for strip in strips {
         rows += strip.len() as u64 / grid.width as u64;
-        let mut z = ZlibEncoder::new(std::mem::take(&mut bytes), flate2::Compression::fast());
+        raw.clear();
         for v in strip {
             let v = if v.is_nan() { NO_DATA } else { v };
-            z.write_all(&v.to_le_bytes())?;
+            raw.extend_from_slice(&v.to_le_bytes());
         }
-        let packed = z.finish()?;
+        // One write of the whole strip: the encoder prepares its output per write.
+        let mut z = ZlibEncoder::new(std::mem::take(&mut packed), flate2::Compression::fast());
+        z.write_all(&raw)?;
+        packed = z.finish()?;
         let at = dir.write_data(&packed[..]).map_err(tiff_err)?;
         offsets.push(K::convert_offset(at).map_err(tiff_err)?);
         counts.push(K::convert_offset(packed.len() as u64).map_err(tiff_err)?);
-        bytes = packed;
-        bytes.clear();
+        packed.clear();
     }
     if rows != grid.height as u64 {
         return Err(std::io::Error::other(

@@ -205,7 +205,10 @@ impl Rasterizer {
                 *out = req.stat.reduce(v, column.angle);
             }
             cell_values[n] = values[n].len() as f32;
-            cell_values[n + 1] = Stat::Mean.reduce(&mut values[n], false);
+            // Shade only: the mean in arrival order, without the sort that makes a published
+            // mean independent of it.
+            let z = &values[n];
+            cell_values[n + 1] = (z.iter().map(|&v| v as f64).sum::<f64>() / z.len() as f64) as f32;
             rows.put(row, col, &cell_values)?;
             count += 1;
         }
