@@ -4,20 +4,14 @@
 
 use std::path::Path;
 
-use crate::common::{generate_terrain, s, tilecurv};
+use crate::common::{generate_terrain, run_stages, s, stdout_of, tilecurv};
 
 /// The points of a chunk of the LAZ files the generator writes: LASzip's default chunk size.
 const LASZIP_CHUNK: u64 = 50_000;
 
 /// Runs `tilecurv args`, asserts it succeeds, returns stdout.
 fn ok(args: &[&str]) -> String {
-    let out = tilecurv(args);
-    assert!(
-        out.status.success(),
-        "tilecurv {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
+    stdout_of(args, 0)
 }
 
 /// The number after `prefix` on a line of `printed`.
@@ -46,8 +40,9 @@ fn cuts(work: &Path) -> Vec<u64> {
         .collect()
 }
 
-/// Plans `input` with `per_task` points per scan task, runs every stage by hand and returns
-/// the bucket tasks, the cuts between them and the output's bytes.
+/// Plans `input` with `per_task` points per scan task, runs every stage by hand (the bucket
+/// tasks in reverse order) and returns the bucket tasks, the cuts between them and the
+/// output's bytes.
 fn split_run(input: &Path, dir: &Path, per_task: &str, opts: &[&str]) -> (u64, Vec<u64>, Vec<u8>) {
     let work = dir.join("w");
     let mut plan = vec!["plan", s(input), "--work", s(&work), "-q"];
@@ -58,24 +53,10 @@ fn split_run(input: &Path, dir: &Path, per_task: &str, opts: &[&str]) -> (u64, V
         count(&printed, "bucket tasks: "),
         count(&printed, "tasks: "),
     );
-    // The bucket tasks in reverse order, as a cluster may finish them.
-    for t in (0..buckets).rev() {
-        ok(&["bucket", "--work", s(&work), "--task", &t.to_string(), "-q"]);
-    }
-    for t in 0..tiles {
-        ok(&[
-            "run-tile",
-            "--work",
-            s(&work),
-            "--task",
-            &t.to_string(),
-            "-q",
-        ]);
-    }
     let name = input.file_name().expect("file name");
     let out = dir.join("out").join(name);
     std::fs::create_dir_all(dir.join("out")).expect("output directory");
-    ok(&["assemble", "--work", s(&work), "-o", s(&out), "-q"]);
+    run_stages(&work, buckets, tiles, s(&out));
     let bytes = std::fs::read(&out).expect("assembled output");
     (buckets, cuts(&work), bytes)
 }
