@@ -110,6 +110,11 @@ if [ "$tasks" -gt "$max" ]; then
   echo "submit.sh: $tasks tasks exceed MaxArraySize $max: re-planning with --tiles-per-task $tiles_per_task" >&2
   plan "$@"
 fi
+if [ "$buckets" -gt "$max" ]; then
+  # Bucket tasks are inputs and ranges of their points: fewer only with larger ranges.
+  echo "submit.sh: $buckets bucket tasks exceed MaxArraySize $max: pass a larger --points-per-scan-task (or fewer inputs)" >&2
+  exit 2
+fi
 echo "plan: $buckets bucket tasks, $tasks tile tasks in $work" >&2
 mkdir -p "$logs"   # after plan (which clears a work directory of other runs)
 
