@@ -160,10 +160,10 @@ pub(super) struct PlanArgs {
     /// Points of one input per bucket task: 50M, 2e7, 1000000 (k, M, G = powers of ten). A
     /// larger LAS input is scanned by several tasks, split between records; a larger LAZ input
     /// between its compressed chunks (LASzip writes 50,000 points a chunk), so a task holds
-    /// about N points, give or take a chunk. PLY, XYZ, PCD, OFF and OBJ inputs are read from their start
-    /// and stay one task each. Smaller inputs are one task each. Default: 50M, so that a
-    /// 1e10-point file is 200 tasks of about a minute each while a delivered survey tile stays
-    /// one. The output does not depend on it.
+    /// about N points, give or take a chunk. PLY, XYZ, PCD, OFF and OBJ inputs are read from
+    /// their start and stay one task each, whatever their size. Default: 50M, so that a
+    /// 1e10-point file is 200 tasks of about a minute on one core each while a delivered
+    /// survey tile stays one. The output does not depend on it.
     #[arg(long, value_name = "N", value_parser = parse_count)]
     pub points_per_scan_task: Option<u64>,
 
