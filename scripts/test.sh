@@ -51,7 +51,8 @@ step wheel-install "$venv/bin/python3" -m pip install --quiet --disable-pip-vers
 step pytest env TILECURV_BIN="$bin" "$venv/bin/python3" -m pytest -q -rs -p no:cacheprovider python/tests
 # The cluster test: a throwaway single-node Slurm (slurmctld, slurmd and munge from Debian's
 # packages, installed when missing; needs root), a two-file job through scripts/slurm/submit.sh,
-# byte-identical to `process`, then a lost task resubmitted. Never skipped under CI=true.
+# byte-identical to `process`, then a lost task resubmitted, then one input scanned by three
+# bucket tasks. Never skipped under CI=true.
 if [ "$(id -u)" = 0 ] || [ "${CI:-}" = true ]; then
   step cluster bash scripts/slurm/slurm-ci.sh bash scripts/slurm/cluster_test.sh "$bin"
 else

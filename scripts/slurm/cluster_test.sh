@@ -3,7 +3,9 @@
 # which exports SLURM_CONF): a two-file, multi-tile job through submit.sh must give outputs
 # byte-identical to `tilecurv process`; then one task's results are deleted, assemble must refuse
 # with exit 5 naming it, `status --missing` must name it, and resubmitting only that task must
-# give the same bytes again. Prints `N passed, N failed` and exits non-zero on any failure.
+# give the same bytes again; last, one LAZ input scanned by three bucket tasks of the array
+# (--points-per-scan-task) must give process's bytes too. Prints `N passed, N failed` and exits
+# non-zero on any failure.
 set -euo pipefail
 tool=$(readlink -f "$1")
 here=$(cd "$(dirname "$0")" && pwd)
@@ -53,6 +55,19 @@ check "resubmitted outputs are byte-identical to process" same_outputs out2
 job=$(sed -n 's/^run-tile array (tasks [0-9,-]*): //p' <<<"$resubmitted")
 check "the resubmitted array ran task $missing alone" \
   test "$(cd w/log && ls tile-"$job"_*.log)" = "tile-${job}_$missing.log"
+
+# One input split between bucket tasks: 130k points in LASzip chunks of 50k, 40k points a task
+# cut at the chunk starts nearest 32.5k, 65k and 97.5k: 50k and 100k, three tasks.
+"$tool" generate terrain -o c.laz --points 130k --seed 3 -q
+"$tool" process c.laz -o ref/c.laz "${opts[@]}" -q
+mkdir -p out3
+split=$(bash "$here/submit.sh" --tool "$tool" --work "$dir/w3" -o "$dir/out3/c.laz" \
+  --points-per-scan-task 40k --tiles-per-task 8 --wait -- c.laz "${opts[@]}" 2>&1)
+echo "$split"
+check "plan split the one input into 3 bucket tasks" grep -q "^plan: 3 bucket tasks" <<<"$split"
+bucket_job=$(sed -n 's/^bucket array: //p' <<<"$split")
+check "the bucket array ran 3 tasks" test "$(cd w3/log && ls bucket-"$bucket_job"_*.log | wc -l)" = 3
+check "split-scan output is byte-identical to process" cmp out3/c.laz ref/c.laz
 
 echo "cluster: $passed passed, $failed failed"
 [ "$failed" = 0 ]

@@ -5,16 +5,18 @@
 #   scripts/slurm/submit.sh --resubmit --work W -o OUT [options]
 #
 # The first form runs `tilecurv plan` here (on the submit host), then submits a bucket array (one
-# task per input file), a run-tile array (one task per group of tiles) and assemble, chained with
-# --dependency=afterany: assemble checks that every tile is done itself and exits 5, naming the
-# missing tasks and writing nothing, when one failed. The second form resubmits only the tile
-# tasks `tilecurv status --missing` lists, then assemble. W must be on a file system every node
-# sees at the same path; OUT is a file for one input, a directory (ending in /) for several.
+# task per input file, or per range of points of a large LAS/LAZ one), a run-tile array (one task
+# per group of tiles) and assemble, chained with --dependency=afterany: assemble checks that
+# every tile is done itself and exits 5, naming the missing tasks and writing nothing, when one
+# failed. The second form resubmits only the tile tasks `tilecurv status --missing` lists, then
+# assemble. W must be on a file system every node sees at the same path; OUT is a file for one
+# input, a directory (ending in /) for several.
 #
 # Options:
 #   --tool PATH          the tilecurv binary as the nodes see it (default: tilecurv on PATH)
 #   --tiles-per-task K   tiles per run-tile task (default: plan's, raised so the array fits
 #                        the cluster's MaxArraySize)
+#   --points-per-scan-task N  points of one input per bucket task (default: plan's, 50M)
 #   --cpus N             CPUs per task (sbatch -c; the tool's threads follow SLURM_CPUS_PER_TASK)
 #   --mem M              memory per task for sbatch --mem (e.g. 16G); the tool gets --memory at
 #                        half of it
@@ -24,13 +26,14 @@
 #   --sbatch "ARGS"      extra arguments for every sbatch (partition, account, time, ...)
 set -euo pipefail
 
-tool=tilecurv work= out= tiles_per_task= cpus=1 mem= max_running= logs= wait=0 resubmit=0 extra=
+tool=tilecurv work= out= tiles_per_task= per_scan= cpus=1 mem= max_running= logs= wait=0 resubmit=0 extra=
 while [ $# -gt 0 ]; do
   case "$1" in
     --tool) tool=$2; shift 2 ;;
     --work) work=$2; shift 2 ;;
     -o|--output) out=$2; shift 2 ;;
     --tiles-per-task) tiles_per_task=$2; shift 2 ;;
+    --points-per-scan-task) per_scan=$2; shift 2 ;;
     --cpus) cpus=$2; shift 2 ;;
     --mem) mem=$2; shift 2 ;;
     --max-running) max_running=$2; shift 2 ;;
@@ -86,9 +89,10 @@ if [ $resubmit = 1 ]; then
   exit $rc
 fi
 
-plan() {   # plans (with --tiles-per-task if set); sets buckets, per and tasks from its output
+plan() {   # plans (with --tiles-per-task, --points-per-scan-task if set); sets buckets, per, tasks
   local o
-  o=$("$tool" plan "$@" --work "$work" ${tiles_per_task:+--tiles-per-task "$tiles_per_task"} -q)
+  o=$("$tool" plan "$@" --work "$work" ${tiles_per_task:+--tiles-per-task "$tiles_per_task"} \
+    ${per_scan:+--points-per-scan-task "$per_scan"} -q)
   buckets=$(sed -n 's/^bucket tasks: //p' <<<"$o")
   per=$(sed -n 's/^tiles per task: //p' <<<"$o")
   tasks=$(tail -n 1 <<<"$o" | sed -n 's/^tasks: //p')
@@ -105,6 +109,11 @@ if [ "$tasks" -gt "$max" ]; then
   tiles_per_task=$(( (grid + max - 1) / max ))
   echo "submit.sh: $tasks tasks exceed MaxArraySize $max: re-planning with --tiles-per-task $tiles_per_task" >&2
   plan "$@"
+fi
+if [ "$buckets" -gt "$max" ]; then
+  # Bucket tasks are inputs and ranges of their points: fewer only with larger ranges.
+  echo "submit.sh: $buckets bucket tasks exceed MaxArraySize $max: pass a larger --points-per-scan-task (or fewer inputs)" >&2
+  exit 2
 fi
 echo "plan: $buckets bucket tasks, $tasks tile tasks in $work" >&2
 mkdir -p "$logs"   # after plan (which clears a work directory of other runs)

@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use super::raster::RasterOut;
-use crate::config::{ExecOptions, RunOptions, RunParams};
+use crate::config::{parse_count, ExecOptions, RunOptions, RunParams};
 use crate::error::{Error, Result};
 use crate::run::Process;
 
@@ -165,6 +165,16 @@ pub(super) struct PlanArgs {
     #[arg(long, value_name = "N")]
     pub tiles_per_task: Option<u64>,
 
+    /// Points of one input per bucket task: 50M, 2e7, 1000000 (k, M, G = powers of ten). A
+    /// larger LAS input is scanned by several tasks, split between records; a larger LAZ input
+    /// between its compressed chunks (LASzip writes 50,000 points a chunk), so a task holds
+    /// about N points, give or take a chunk. PLY, XYZ, PCD, OFF and OBJ inputs are read from
+    /// their start and stay one task each, whatever their size. Default: 50M, so that a
+    /// 1e10-point file is 200 tasks of about a minute on one core each while a delivered
+    /// survey tile stays one. The output does not depend on it.
+    #[arg(long, value_name = "N", value_parser = parse_count)]
+    pub points_per_scan_task: Option<u64>,
+
     /// Print only warnings and errors (the task counts are always printed).
     #[arg(short, long)]
     pub quiet: bool,
@@ -243,8 +253,8 @@ pub(super) struct BucketArgs {
     #[arg(long)]
     pub work: PathBuf,
 
-    /// The bucket task to run (one per input file, 0 to `bucket tasks` - 1 as `plan` printed),
-    /// or `env` for the scheduler's array index. Without it, every bucket task not done yet.
+    /// The bucket task to run (one per input file or range of points of a large one, 0 to
+    /// `bucket tasks` - 1 as `plan` printed), or `env` for the scheduler's array index. Without it, every bucket task not done yet.
     #[arg(long, value_parser = TaskArg::parse)]
     pub task: Option<TaskArg>,
 

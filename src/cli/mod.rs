@@ -83,7 +83,8 @@ enum Command {
     /// for every task index, and `assemble` (scripts/slurm/submit.sh chains them on Slurm).
     #[command(after_help = EXIT_HELP)]
     Plan(PlanArgs),
-    /// Cluster stage 2: the scan into per-tile buckets, one task per input file (or all).
+    /// Cluster stage 2: the scan into per-tile buckets, one task per input file or range of its
+    /// points (or all).
     #[command(after_help = EXIT_HELP)]
     Bucket(BucketArgs),
     /// Cluster stage 3: the curvature of one tile task's tiles. Idempotent: finished tiles are

@@ -11,8 +11,11 @@ use crate::run::cluster;
 pub(super) fn plan(a: PlanArgs) -> Result<i32, i32> {
     let params = a.params().map_err(|e| fail(&e))?;
     let reporter = reporter(a.quiet, None)?;
-    let p = cluster::plan(&a.inputs(), params, &a.work, a.tiles_per_task, &reporter)
-        .map_err(|e| fail(&e))?;
+    let split = cluster::Split {
+        tiles_per_task: a.tiles_per_task,
+        points_per_scan_task: a.points_per_scan_task,
+    };
+    let p = cluster::plan(&a.inputs(), params, &a.work, split, &reporter).map_err(|e| fail(&e))?;
     if !a.quiet {
         say!(
             "planned {}: {} bucket tasks, {} tile tasks of {} tiles of the grid each",

@@ -1,9 +1,9 @@
 //! The bucket stage: a streaming pass over the inputs that puts every point in the bucket of
 //! its core tile and gathers the scan statistics (bounds, counts per tile, centroid). It runs
-//! as bucket tasks (the task layout's ranges of inputs), each writing its own directory
-//! `buckets/t<task>/`, so that a cluster scans many files at once; `process` runs one task over
-//! every input and keeps its buckets in memory while they fit. A task whose directory is
-//! complete is not run again.
+//! as bucket tasks (the task layout's ranges of points of the inputs), each writing its own
+//! directory `buckets/t<task>/`, so that a cluster scans many files, and parts of one huge
+//! file, at once; `process` runs one task over every input and keeps its buckets in memory
+//! while they fit. A task whose directory is complete is not run again.
 
 use std::sync::atomic::Ordering;
 
@@ -34,7 +34,7 @@ pub(crate) fn bucket_task(
     exec: &Exec<'_>,
 ) -> Result<Option<Bucketed>> {
     let (spec, layout) = (&run.spec, &run.layout);
-    let inputs = layout.bucket_tasks.get(task).cloned().ok_or_else(|| {
+    let ranges = layout.bucket_tasks.get(task).ok_or_else(|| {
         Error::Usage(format!(
             "--task {task}: there are {} bucket tasks (0 to {})",
             layout.bucket_tasks.len(),
@@ -46,16 +46,20 @@ pub(crate) fn bucket_task(
         return Ok(None);
     }
     run.work.prepare_buckets()?;
-    let scan_inputs: Vec<ScanInput<'_>> = inputs
-        .clone()
-        .map(|i| ScanInput {
-            source: spec.sources[i].as_ref(),
-            first_id: spec.first_ids[i],
+    let scan_inputs: Vec<ScanInput<'_>> = ranges
+        .iter()
+        .map(|r| ScanInput {
+            source: spec.sources[r.input].as_ref(),
+            first_id: spec.first_ids[r.input],
+            points: r.points.clone(),
             z_scale: spec.resolved.z_scale,
             select: &spec.params.select,
         })
         .collect();
-    let points = scan_inputs.iter().map(|s| s.source.len()).sum();
+    let points = scan_inputs
+        .iter()
+        .map(|s| s.points.end - s.points.start)
+        .sum();
     exec.reporter.phase("scan", points);
     let chunk = chunk_points(spec, exec);
     let bucketed = exec.pool.install(|| {

@@ -13,7 +13,9 @@ use std::time::Instant;
 
 use crate::config::{ExecOptions, RunParams};
 use crate::core::plan::TileKey;
-use crate::core::tasks::{array_syntax, TaskLayout};
+use crate::core::tasks::{
+    array_syntax, split_points, ScanRange, TaskLayout, DEFAULT_POINTS_PER_SCAN_TASK,
+};
 use crate::error::{Error, Result};
 use crate::io::source::declared_bounds;
 use crate::progress::Reporter;
@@ -26,7 +28,7 @@ use crate::run::{Exec, Run, Summary};
 /// What `plan` made.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Planned {
-    /// Bucket tasks (one per input file).
+    /// Bucket tasks (one per input file, or per range of points of a large LAS or LAZ file).
     pub bucket_tasks: usize,
     /// Tile tasks.
     pub tile_tasks: u64,
@@ -55,24 +57,55 @@ fn grid_bounds(spec: &RunSpec) -> Result<(TileKey, TileKey)> {
     })
 }
 
+/// How `plan` splits a run into tasks: tiles of the grid per tile task (None: as few as keep
+/// the tasks within [`crate::core::tasks::DEFAULT_MAX_TASKS`]) and points per bucket task
+/// (None: [`DEFAULT_POINTS_PER_SCAN_TASK`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Split {
+    /// Tiles of the grid per tile task.
+    pub tiles_per_task: Option<u64>,
+    /// Points of one input per bucket task, at most (LAZ: to the nearest chunk).
+    pub points_per_scan_task: Option<u64>,
+}
+
+/// The bucket tasks of `spec`: each input alone, a large one split into ranges of about
+/// `per_task` points where its format allows (LAS records anywhere, LAZ at chunk starts).
+fn scan_tasks(spec: &RunSpec, per_task: u64) -> Vec<Vec<ScanRange>> {
+    let mut tasks = Vec::new();
+    for (input, s) in spec.sources.iter().enumerate() {
+        for points in split_points(s.len(), per_task, &s.cuts()) {
+            tasks.push(vec![ScanRange { input, points }]);
+        }
+    }
+    tasks
+}
+
 /// `tilecurv plan`: opens and checks `inputs` (absolute paths: the tasks run elsewhere),
-/// creates the work directory `work` if needed and writes its manifest and task layout (one
-/// bucket task per input; tile tasks of `tiles_per_task` tiles of the grid over the inputs'
-/// bounds).
+/// creates the work directory `work` if needed and writes its manifest and task layout (bucket
+/// tasks of an input or a range of its points; tile tasks of tiles of the grid over the
+/// inputs' bounds), as `split` says.
 pub fn plan(
     inputs: &[PathBuf],
     params: RunParams,
     work: &Path,
-    tiles_per_task: Option<u64>,
+    split: Split,
     reporter: &dyn Reporter,
 ) -> Result<Planned> {
-    if tiles_per_task == Some(0) {
+    if split.tiles_per_task == Some(0) {
         return Err(Error::Usage("--tiles-per-task must be at least 1".into()));
+    }
+    if split.points_per_scan_task == Some(0) {
+        return Err(Error::Usage(
+            "--points-per-scan-task must be at least 1 (a number of points, e.g. 50M)".into(),
+        ));
     }
     let spec = open_inputs(inputs, params, reporter)?;
     let (lo, hi) = grid_bounds(&spec)?;
-    let buckets = (0..spec.sources.len()).map(|i| i..i + 1).collect();
-    let layout = TaskLayout::new(buckets, lo, hi, tiles_per_task);
+    let per_scan = split
+        .points_per_scan_task
+        .unwrap_or(DEFAULT_POINTS_PER_SCAN_TASK);
+    let buckets = scan_tasks(&spec, per_scan);
+    let layout = TaskLayout::new(buckets, lo, hi, split.tiles_per_task);
     let run = Run::plan(spec, work, layout, reporter)?;
     Ok(Planned {
         bucket_tasks: run.layout.bucket_tasks.len(),

@@ -23,7 +23,7 @@ use crate::run::{Exec, Run};
 /// Runs the dry run for `spec`, whose real work directory would be `work_path`.
 pub(crate) fn dry_run(spec: RunSpec, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
     let scratch = WorkDir::open_scratch(work_path, &spec.manifest())?;
-    let layout = TaskLayout::single(spec.sources.len());
+    let layout = TaskLayout::single(&spec.input_points());
     let run = Run {
         spec,
         work: scratch,

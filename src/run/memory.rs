@@ -105,12 +105,8 @@ pub fn curvature(
     let spec = prepare::resolve(&[name], sources, Vec::new(), params, Vec::new(), reporter)?;
     let exec = Exec::new(opts, &spec, reporter, cancel)?;
     let columns = empty_columns(&spec.cols.columns(), spec.total_points as usize)?;
-    let run = Run::plan(
-        spec,
-        &fresh_work_dir(work_parent),
-        TaskLayout::single(1),
-        reporter,
-    )?;
+    let layout = TaskLayout::single(&spec.input_points());
+    let run = Run::plan(spec, &fresh_work_dir(work_parent), layout, reporter)?;
     let r = (|| {
         let scan = bucket::bucket_all(&run, &exec)?;
         let done = tiles::tiles(&run, &scan, None, &exec)?;

@@ -230,11 +230,10 @@ impl Run {
                 path.display()
             )));
         }
-        let n = spec.sources.len();
-        // Its input ranges index the inputs: one past them is damage, not a panic.
-        let layout = work.task_layout(|t| {
-            TaskLayout::parse(t).filter(|l| l.bucket_tasks.iter().all(|r| r.end <= n))
-        })?;
+        // Its ranges index the inputs and their points: a point scanned twice or never (or
+        // an input past the last) is damage, not a panic or another output.
+        let lens = spec.input_points();
+        let layout = work.task_layout(|t| TaskLayout::parse(t).filter(|l| l.covers(&lens)))?;
         Ok(Run { spec, work, layout })
     }
 
@@ -307,7 +306,7 @@ fn process_in(
         dry_run::dry_run(spec, &exec, &path)?;
         return Ok(nothing);
     }
-    let layout = TaskLayout::single(spec.sources.len());
+    let layout = TaskLayout::single(&spec.input_points());
     let run = Run::plan(spec, &path, layout, reporter)?;
     let r = (|| {
         let scan = bucket::bucket_all(&run, &exec)?;
@@ -379,7 +378,8 @@ mod tests {
             let work = dir.path().join(format!("w{i}"));
             let spec = prepare::open_inputs(std::slice::from_ref(&input), params, &Silent)
                 .expect("opened");
-            drop(Run::plan(spec, &work, TaskLayout::single(1), &Silent).expect("planned"));
+            let layout = TaskLayout::single(&spec.input_points());
+            drop(Run::plan(spec, &work, layout, &Silent).expect("planned"));
             let attached = Run::attach(&work, &Silent).expect("attached");
             let of_task = Exec::new(&opts, &attached.spec, &Silent, &cancel)
                 .expect("exec")

@@ -42,6 +42,11 @@ pub(crate) struct RunSpec {
 }
 
 impl RunSpec {
+    /// The number of points of each input, in command-line order.
+    pub(crate) fn input_points(&self) -> Vec<u64> {
+        self.sources.iter().map(|s| s.len()).collect()
+    }
+
     /// Whether normals are oriented by propagation (`--orient propagate`).
     pub(crate) fn propagates(&self) -> bool {
         self.params.orientation == OrientMode::Propagate

@@ -3,19 +3,7 @@
 //! gives; tasks run twice are harmless; assemble refuses with exit 5 and writes nothing while a
 //! tile is missing; status counts and lists the tasks; a killed attempt's leftovers are swept.
 
-use crate::common::{generate_terrain, s, tilecurv};
-
-/// Runs `tilecurv args`, asserts the exit code, returns stdout.
-fn run(args: &[&str], code: i32) -> String {
-    let out = tilecurv(args);
-    assert_eq!(
-        out.status.code(),
-        Some(code),
-        "tilecurv {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+use crate::common::{generate_terrain, s, stdout_of as run, tilecurv};
 
 #[test]
 fn stages_by_hand_give_the_bytes_of_process() {

@@ -88,6 +88,38 @@ pub fn tilecurv_as_given(args: &[&str]) -> Output {
         .expect("the tilecurv binary runs")
 }
 
+/// Runs `tilecurv args` (as [`tilecurv`]), asserts it exits with `code`, returns its stdout.
+pub fn stdout_of(args: &[&str], code: i32) -> String {
+    let out = tilecurv(args);
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "tilecurv {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Runs the cluster stages by hand over the work directory `work` that `plan` made: bucket
+/// tasks `0..buckets` in reverse order (as a cluster may finish them), tile tasks `0..tiles`,
+/// then `assemble -o output`; asserts each succeeds.
+pub fn run_stages(work: &Path, buckets: u64, tiles: u64, output: &str) {
+    let work = work.to_str().expect("utf-8 path");
+    for t in (0..buckets).rev() {
+        stdout_of(
+            &["bucket", "--work", work, "--task", &t.to_string(), "-q"],
+            0,
+        );
+    }
+    for t in 0..tiles {
+        stdout_of(
+            &["run-tile", "--work", work, "--task", &t.to_string(), "-q"],
+            0,
+        );
+    }
+    stdout_of(&["assemble", "--work", work, "-o", output, "-q"], 0);
+}
+
 /// The texts of a LAS file's tilecurv provenance records, in file order.
 pub fn provenance_texts(path: &Path) -> Vec<String> {
     let (s, _) = records(path);

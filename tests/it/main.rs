@@ -31,6 +31,7 @@ mod reference;
 mod rerun;
 mod sample;
 mod sampled;
+mod scan_split;
 mod shapes;
 mod terrain;
 mod units;

@@ -6,7 +6,9 @@
 
 use std::path::Path;
 
-use crate::common::{column, column_bytes, generate_terrain, median, process, tilecurv, COLUMNS};
+use crate::common::{
+    column, column_bytes, generate_terrain, median, process, run_stages, stdout_of, COLUMNS,
+};
 
 /// Points per square metre of the terrain: 1.5 m holds about 70 points, 3 m about 280.
 const DENSITY: f64 = 10.0;
@@ -135,15 +137,7 @@ fn cluster_stages_keep_the_radius() {
     let input = dir.path().join("a.las");
     generate_terrain(&input, "20000", 4, DENSITY);
     let s = |p: &Path| p.to_str().expect("utf-8 path").to_string();
-    let ok = |args: &[&str]| {
-        let out = tilecurv(args);
-        assert!(
-            out.status.success(),
-            "tilecurv {args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    };
+    let ok = |args: &[&str]| stdout_of(args, 0);
     let opts = ["--tile", "12m", "--radius", "2m", "-k", "60"];
     let (refdir, outdir) = (dir.path().join("ref/"), dir.path().join("out/"));
     let refs = format!("{}/", s(&refdir));
@@ -156,12 +150,7 @@ fn cluster_stages_keep_the_radius() {
         .and_then(|l| l.strip_prefix("tasks: "))
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("plan prints tasks: N: {printed}"));
-    ok(&["bucket", "--work", &work, "--task", "0", "-q"]);
-    for t in 0..tasks {
-        ok(&["run-tile", "--work", &work, "--task", &t.to_string(), "-q"]);
-    }
-    let outs = format!("{}/", s(&outdir));
-    ok(&["assemble", "--work", &work, "-o", &outs, "-q"]);
+    run_stages(Path::new(&work), 1, tasks, &format!("{}/", s(&outdir)));
     let (x, y) = (
         std::fs::read(outdir.join("a.las")).expect("output"),
         std::fs::read(refdir.join("a.las")).expect("reference"),

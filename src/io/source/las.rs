@@ -8,9 +8,11 @@
 mod compressed;
 
 use std::fs::File;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use crate::core::grid::AxisGrid;
+use crate::core::tasks::Cuts;
 use crate::error::{Error, Result};
 use crate::io::crs::{horizontal_unit, UnitSource};
 use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk, ChunkAt};
@@ -215,8 +217,7 @@ impl LasSource {
     /// Drops the mapped pages between `from` and `to` (rounded down to a page) from memory;
     /// returns the new release mark. Only hints the kernel: the data stays readable.
     fn release(&self, from: usize, to: usize) -> usize {
-        const PAGE: usize = 4096;
-        let to = to / PAGE * PAGE;
+        let to = page_below(to);
         let Some(map) = self.map.mapped() else {
             return from;
         };
@@ -231,6 +232,12 @@ impl LasSource {
             from
         }
     }
+}
+
+/// The start of the memory page holding byte `at` of the map (madvise takes whole pages).
+fn page_below(at: usize) -> usize {
+    const PAGE: usize = 4096;
+    at / PAGE * PAGE
 }
 
 /// The extra-bytes descriptors of a file (from every extra-bytes VLR and EVLR, in file order),
@@ -381,6 +388,26 @@ impl PointSource for LasSource {
         chunk_points: usize,
         f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
     ) -> Result<()> {
+        self.for_each_chunk_in(0..self.header.point_count, chunk_points, f)
+    }
+
+    /// LAS records are read in place, so a task may start at any of them; LAZ is decoded from
+    /// a chunk's start, so only there.
+    fn cuts(&self) -> Cuts {
+        match self.laz {
+            None => Cuts::Anywhere,
+            Some(_) => Cuts::At(self.chunks.iter().map(|c| c.first_point).collect()),
+        }
+    }
+
+    /// The records of the points `points` only: LAS records straight from the map, LAZ by
+    /// decoding just the chunks that hold them.
+    fn for_each_chunk_in(
+        &self,
+        points: Range<u64>,
+        chunk_points: usize,
+        f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+    ) -> Result<()> {
         let mut trimmed = Vec::new();
         let mut f = |first: u64, records: &[u8]| match &self.trim {
             None => f(first, records),
@@ -391,16 +418,16 @@ impl PointSource for LasSource {
         };
         let rl = self.stored_length();
         let n = self.header.point_count;
+        let (mut first, end) = (points.start.min(n), points.end.min(n));
         let start = self.header.offset_to_point_data as usize;
         // Pages already streamed are handed back to the kernel, so that resident memory does
         // not grow with the file size (mapped pages count in RSS).
-        let mut released = 0usize;
+        let mut released = page_below(start + first as usize * rl);
         match &self.laz {
             None => {
                 let chunk = chunk_points.max(1);
-                let mut first = 0u64;
-                while first < n {
-                    let m = (n - first).min(chunk as u64) as usize;
+                while first < end {
+                    let m = (end - first).min(chunk as u64) as usize;
                     let a = start + first as usize * rl;
                     f(first, &self.map[a..a + m * rl])?;
                     released = self.release(released, a + m * rl);
@@ -408,7 +435,7 @@ impl PointSource for LasSource {
                 }
                 Ok(())
             }
-            Some(vlr) => self.for_each_laz_chunk(vlr, chunk_points, &mut f),
+            Some(vlr) => self.for_each_laz_chunk(vlr, first..end, chunk_points, &mut f),
         }
     }
 

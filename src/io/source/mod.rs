@@ -16,12 +16,14 @@ pub mod ply;
 pub mod sampled;
 pub mod text;
 
+use std::ops::Range;
 use std::path::Path;
 
 use memmap2::Mmap;
 
 pub use bytes::InputBytes;
 
+use crate::core::tasks::Cuts;
 use crate::error::{Error, Result};
 use crate::io::crs::UnitSource;
 use crate::io::las::extra_bytes::ScalarType;
@@ -59,6 +61,31 @@ pub trait PointSource: Send + Sync {
         chunk_points: usize,
         f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
     ) -> Result<()>;
+    /// Where the points may be split between bucket tasks that each stream a range of them
+    /// ([`PointSource::for_each_chunk_in`]). The default is nowhere: a text, PLY, PCD or mesh
+    /// source is parsed from its start, so it is scanned by one task.
+    fn cuts(&self) -> Cuts {
+        Cuts::At(Vec::new())
+    }
+    /// Streams the raw records of the points `points` (indices in the file) as
+    /// [`PointSource::for_each_chunk`] streams them all, calling `f(first_point_index,
+    /// records)` with the file's own indices. The default streams every record and passes on
+    /// those in the range: correct for any source, fast only for the whole file, which is all
+    /// a source without [`PointSource::cuts`] is asked for.
+    fn for_each_chunk_in(
+        &self,
+        points: Range<u64>,
+        chunk_points: usize,
+        f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+    ) -> Result<()> {
+        if points == (0..self.len()) {
+            return self.for_each_chunk(chunk_points, f);
+        }
+        let rl = self.record_length();
+        self.for_each_chunk(chunk_points, &mut |first, records| {
+            within(&points, first, records, rl, &mut *f)
+        })
+    }
     /// Decodes one raw record.
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
     /// The scale and offset of x, y and z when [`PointSource::decode`] gives every coordinate
@@ -102,6 +129,24 @@ pub trait PointSource: Send + Sync {
         })?;
         Ok(b.get())
     }
+}
+
+/// Calls `f` with the records of `records` (of `rl` bytes, the first being point `first`)
+/// that hold points in `points`, if any.
+pub(crate) fn within(
+    points: &Range<u64>,
+    first: u64,
+    records: &[u8],
+    rl: usize,
+    f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+) -> Result<()> {
+    let end = first + (records.len() / rl.max(1)) as u64;
+    let (a, b) = (points.start.max(first), points.end.min(end));
+    if a >= b {
+        return Ok(());
+    }
+    let at = |p: u64| (p - first) as usize * rl;
+    f(a, &records[at(a)..at(b)])
 }
 
 /// How a source's raw records are laid out, for the writers ([`PointSource::layout`]).

@@ -23,11 +23,12 @@ use crate::io::durable::{sweep_dead_temps, write_durably};
 pub use names::default_path;
 use names::{BUCKETS, LOCK, MANIFEST, RESULTS, TASKS};
 
-/// The version of the work directory's file formats (bucket frames, result files), in every
-/// manifest and its fingerprint: work left by a tilecurv that wrote other formats is discarded
-/// by `process` and refused by the cluster stages, never misread. Each file also starts with
-/// its own magic and version.
-pub(crate) const FORMAT_VERSION: u32 = 4;
+/// The version of the work directory's file formats (bucket frames, result files, the task
+/// layout), in every manifest and its fingerprint: work left by a tilecurv that wrote other
+/// formats is discarded by `process` and refused by the cluster stages, never misread. Each
+/// binary file also starts with its own magic and version. 5: bucket tasks are ranges of
+/// points of the inputs, no longer ranges of inputs.
+pub(crate) const FORMAT_VERSION: u32 = 5;
 
 /// What was found in the work directory when a run started.
 #[derive(Debug, Clone, PartialEq, Eq)]

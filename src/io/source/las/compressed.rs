@@ -1,33 +1,48 @@
 //! LAZ records streamed chunk by chunk through the depth-guarded decoder
 //! ([`crate::io::las::decode`]).
 
-use super::LasSource;
+use std::ops::Range;
+
+use super::{page_below, LasSource};
 use crate::error::{Error, Result};
+use crate::io::las::chunks::chunk_of;
 use crate::io::las::decode::{ChunkDecoder, ChunkJob};
+use crate::io::source::within;
 
 /// Chunks declaring more points than this (LASzip writes 50,000) are decoded piece by piece
 /// rather than into one buffer.
 const STREAMED_CHUNK: usize = 1 << 20;
 
 impl LasSource {
-    /// Decodes the LAZ chunks in file order, whole chunks of about `chunk_points` points at a
-    /// time (in parallel, [`ChunkDecoder`]), and hands each batch to `f`. A chunk declaring
-    /// more than [`STREAMED_CHUNK`] points (or the batch size, if larger) is decoded alone, piece by piece.
+    /// Decodes the LAZ chunks that hold the points `points` in file order, whole chunks of
+    /// about `chunk_points` points at a time (in parallel, [`ChunkDecoder`]), and hands each
+    /// batch's records of `points` to `f`. A chunk declaring more than [`STREAMED_CHUNK`]
+    /// points (or the batch size, if larger) is decoded alone, piece by piece.
     pub(super) fn for_each_laz_chunk(
         &self,
         vlr: &laz::LazVlr,
+        points: Range<u64>,
         chunk_points: usize,
         f: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
     ) -> Result<()> {
+        if points.is_empty() {
+            return Ok(());
+        }
         let rl = vlr.items_size() as usize;
         let n = self.header.point_count;
+        let mut f = |first: u64, records: &[u8]| within(&points, first, records, rl, f);
         let dec = ChunkDecoder::new(rayon::current_num_threads())
             .map_err(|e| Error::Resource(format!("cannot start the LAZ decoding threads: {e}")))?;
         let want = chunk_points.max(1);
         // One limit for both tests below: a chunk the batch loop would not take is streamed.
         let cap = STREAMED_CHUNK.max(want);
-        let live = self.chunks.partition_point(|c| c.first_point < n);
-        let (mut released, mut buf, mut i) = (0usize, Vec::new(), 0usize);
+        // The chunks from the one holding the range's first point to the last holding any.
+        let live = self
+            .chunks
+            .partition_point(|c| c.first_point < n.min(points.end));
+        let mut i = chunk_of(&self.chunks, points.start).map_or(0, |c| c.index);
+        let at = self.chunks.get(i).map_or(0, |c| c.offset as usize);
+        let (mut released, mut buf) = (page_below(at), Vec::new());
         while i < live {
             let first = self.chunks[i].first_point;
             if self.chunk_points(i) > cap {

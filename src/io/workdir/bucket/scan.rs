@@ -1,4 +1,4 @@
-//! The scan of one bucket task: streams its inputs once, appending every point to the bucket of
+//! The scan of one bucket task: streams its ranges of points of its inputs once, appending every point to the bucket of
 //! its core tile and gathering the scan statistics. Buckets stay in memory while they fit the
 //! memory plan (when the caller allows it); past it the largest are spilled as zstd frames. A
 //! spilled task is written to a directory of its own under a temporary name and renamed into
@@ -28,6 +28,9 @@ pub(crate) struct ScanInput<'a> {
     pub source: &'a dyn PointSource,
     /// Global id of its point 0 (the sum of the earlier inputs' counts).
     pub first_id: u64,
+    /// Its points this task scans (indices in the file): a point's id is `first_id` plus its
+    /// index whichever task scans it.
+    pub points: std::ops::Range<u64>,
     /// Factor from the file's z unit to its horizontal unit (1 unless the CRS says the
     /// vertical unit differs): applied to every decoded z, and to file normals, before any
     /// geometry.
@@ -108,7 +111,7 @@ pub(crate) fn scan(
         let rl = input.source.record_length();
         input
             .source
-            .for_each_chunk(chunk_points, &mut |first, records| {
+            .for_each_chunk_in(input.points.clone(), chunk_points, &mut |first, records| {
                 let n = records.len() / rl;
                 // A few pieces per thread at a time: the decoded points in flight stay a few
                 // MiB whatever the chunk size.
