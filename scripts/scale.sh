@@ -17,13 +17,22 @@
 # (default: all cores), FORMAT (las or laz, default las), SEED (default 1), STAGES (process, the
 # default, or split: plan, bucket, run-tile and assemble as separate commands, whose buckets
 # always go to disk), TILECURV (the binary; default: built here with cargo build --release, in
-# CARGO_TARGET_DIR if set), KEEP_OUTPUTS=1 to keep the outputs. Inputs are cached. Compare two
+# CARGO_TARGET_DIR if set), KEEP_OUTPUTS=1 to keep the outputs, TRUTH=none for inputs without
+# the generator's truth columns (28 instead of 60 bytes a record: `generate --no-truth`),
+# MEMORY=default to run without --memory (the default budget), POLL (seconds between two
+# samples of the work directory's size, default 0.5; du walks every file). Inputs are cached. Compare two
 # binaries with the same script, input and settings: TILECURV=old/tilecurv scripts/scale.sh 2M.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 DIR=${TILECURV_SCALE_DIR:-/tmp/tilecurv-scale}
 MEMORY=${MEMORY:-2G}
+TRUTH=${TRUTH:-curvature}
+POLL=${POLL:-0.5}
+MEMORY_ARGS=(--memory "$MEMORY")
+[ "$MEMORY" != default ] || MEMORY_ARGS=()
+TRUTH_ARGS=()
+[ "$TRUTH" != none ] || TRUTH_ARGS=(--no-truth)
 FORMAT=${FORMAT:-las}
 SEED=${SEED:-1}
 STAGES=${STAGES:-process}
@@ -51,7 +60,7 @@ timed() {
 # phase events appended to $5.
 run_stages() {
     local tfile=$1 in=$2 out=$3 work=$4 prog=$5
-    local common=(--memory "$MEMORY" "${THREAD_ARGS[@]}" -q --progress-json "$prog")
+    local common=("${MEMORY_ARGS[@]}" "${THREAD_ARGS[@]}" -q --progress-json "$prog")
     if [ "$STAGES" = split ]; then
         timed "$tfile" "$BIN" plan "$in" --work "$work" --tiles-per-task 1000000 -q >/dev/null
         timed "$tfile" "$BIN" bucket --work "$work" "${common[@]}"
@@ -73,9 +82,9 @@ summary="$DIR/summary.txt"
 printf '%-6s %11s %9s %9s %9s %11s %11s %11s\n' size points "wall (s)" "CPU (s)" "RSS (MiB)" \
     "work B/pt" "buckets" "results" >"$summary"
 for size in "${SIZES[@]}"; do
-    in="$DIR/terrain_${size}_seed${SEED}.$FORMAT"
+    in="$DIR/terrain_${size}_seed${SEED}_truth-${TRUTH}.$FORMAT"
     if [ ! -f "$in" ]; then
-        "$BIN" generate terrain -o "$in" --points "$size" --seed "$SEED" -q
+        "$BIN" generate terrain -o "$in" --points "$size" --seed "$SEED" -q "${TRUTH_ARGS[@]}"
     fi
     out="$DIR/out_$size.$FORMAT"
     work="$DIR/work_$size"
@@ -99,7 +108,7 @@ for size in "${SIZES[@]}"; do
                 i=$((i + 1))
             done
             echo "${peak[*]}" >"$peak_file"
-            sleep 0.5
+            sleep "$POLL"
         done
     ) &
     poller=$!
@@ -128,8 +137,9 @@ for size in "${SIZES[@]}"; do
                 rss / 1024, p[1] / n, p[2] / n, p[3] / n
         }' "$time_file" >>"$summary"
     echo "       phases: $(phases "$prog_file")" >>"$summary"
+    echo "       input $(stat -c %s "$in") bytes, output $(stat -c %s "$out") bytes" >>"$summary"
     [ "${KEEP_OUTPUTS:-0}" = 1 ] || rm -f "$out"
     [ ! -e "$work" ] || echo "scale.sh: warning: the work directory $work was left behind" >&2
 done
-echo "$BIN: $STAGES, --memory $MEMORY, $(nproc) cores${THREADS:+, --threads $THREADS}, $FORMAT input"
+echo "$BIN: $STAGES, --memory $MEMORY, $(nproc) cores${THREADS:+, --threads $THREADS}, $FORMAT input, truth columns: $TRUTH"
 cat "$summary"

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use crate::config::parse_count;
 use crate::progress::say;
 use crate::tools::generate::{
-    generate_shape, generate_terrain, Noise, Shape, ShapeOptions, TerrainOptions,
+    generate_shape, generate_terrain, Noise, Shape, ShapeOptions, TerrainOptions, Truth,
 };
 
 use super::{exit, fail, CANCEL, EXIT_HELP};
@@ -98,6 +98,11 @@ pub(super) struct TerrainArgs {
     /// tangential, plan, aspect). 56 more bytes a point.
     #[arg(long)]
     pub terrain_truth: bool,
+
+    /// Write no truth columns at all: plain point format 1 records (28 bytes a point instead of
+    /// 60), for inputs that must fit a disk (a billion points).
+    #[arg(long, conflicts_with = "terrain_truth")]
+    pub no_truth: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -129,7 +134,11 @@ fn terrain(args: TerrainArgs) -> Result<i32, i32> {
         density_per_m2: args.density,
         seed: args.common.seed,
         noise: args.noise,
-        terrain_truth: args.terrain_truth,
+        truth: match (args.no_truth, args.terrain_truth) {
+            (true, _) => Truth::None,
+            (false, true) => Truth::Terrain,
+            (false, false) => Truth::Curvature,
+        },
     };
     let s = generate_terrain(&opts, &args.common.output, &CANCEL).map_err(|e| fail(&e))?;
     if !args.common.quiet {

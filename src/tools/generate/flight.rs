@@ -12,7 +12,7 @@ use crate::core::surface::HeightField;
 
 use super::terrain::Terrain;
 use super::truth::terrain_truth;
-use super::{Record, TerrainOptions, MAX_TRUTH, SCALE_M};
+use super::{Record, TerrainOptions, Truth, MAX_TRUTH, SCALE_M};
 
 /// Largest width of a flight strip in metres (the square is cut into equal strips).
 const STRIP_WIDTH_M: f64 = 250.0;
@@ -160,10 +160,10 @@ pub(super) fn generate_row(
         let t = jet.curvature();
         let mut truth = [f64::NAN; MAX_TRUTH];
         truth[..4].copy_from_slice(&[t.h, t.k, t.k1, t.k2]);
-        if opts.terrain_truth {
+        if opts.truth == Truth::Terrain {
             truth[4..].copy_from_slice(&terrain_truth(&jet));
         }
-        let columns = if opts.terrain_truth { MAX_TRUTH } else { 4 };
+        let columns = opts.truth.columns();
         let nz = jet.normal()[2];
         let scan_angle = ((x - centre) / FLYING_HEIGHT_M).atan().to_degrees().round() as i8;
         let gps = strip as f64 * STRIP_INTERVAL_S

@@ -27,7 +27,7 @@ use crate::io::las::writer::{HeaderStart, LasFileSpec, LasFileWriter};
 use flight::{generate_row, FlightPlan, IntBounds};
 use terrain::Terrain;
 use truth::truth_descriptors;
-pub use truth::{MAX_TRUTH, TERRAIN_TRUTH_COLUMNS};
+pub use truth::{Truth, MAX_TRUTH, TERRAIN_TRUTH_COLUMNS};
 
 mod flight;
 pub mod shape;
@@ -71,8 +71,8 @@ pub struct TerrainOptions {
     /// Gaussian noise added to z (the truth columns are those of the noise-free surface at
     /// the point's x, y).
     pub noise: Noise,
-    /// Also write the terrain truth columns ([`TERRAIN_TRUTH_COLUMNS`], `--terrain-truth`).
-    pub terrain_truth: bool,
+    /// Which truth columns the records carry.
+    pub truth: Truth,
 }
 
 /// The standard deviation of the noise added to z, in metres: one value, or one for the west
@@ -220,13 +220,13 @@ fn geotiff_keys(epsg: u16) -> Vec<u8> {
 /// The text of the provenance VLR: the options and the units of the truth columns.
 fn provenance(opts: &TerrainOptions) -> String {
     format!(
-        "tilecurv {} generate terrain\npoints={}\ndensity={}\nseed={}\nnoise={}\nterrain_truth={}\nunits=metres; TrueH, Truek1, Truek2 in 1/m, TrueK in 1/m^2; upward normal, positive on hilltops\n",
+        "tilecurv {} generate terrain\npoints={}\ndensity={}\nseed={}\nnoise={}\ntruth={}\nunits=metres; TrueH, Truek1, Truek2 in 1/m, TrueK in 1/m^2; upward normal, positive on hilltops\n",
         env!("CARGO_PKG_VERSION"),
         opts.points,
         opts.density_per_m2,
         opts.seed,
         opts.noise,
-        opts.terrain_truth
+        opts.truth.name()
     )
 }
 
@@ -247,7 +247,7 @@ pub fn generate_terrain(
         offset: OFFSETS_M,
         points: opts.points,
         provenance: provenance(opts),
-        terrain_truth: opts.terrain_truth,
+        truth: opts.truth,
     };
     let side_m = opts.side_m();
     let terrain = Terrain::new(side_m, opts.seed);
@@ -283,19 +283,11 @@ struct FileLayout<'a> {
     points: u64,
     /// The provenance VLR's text.
     provenance: String,
-    /// Whether the records carry the terrain truth columns after the four curvature ones.
-    terrain_truth: bool,
+    /// Which truth columns the records carry.
+    truth: Truth,
 }
 
 impl FileLayout<'_> {
-    /// The number of f64 truth columns of a record.
-    fn truth_columns(&self) -> usize {
-        match self.terrain_truth {
-            true => MAX_TRUTH,
-            false => TRUTH_COLUMNS.len(),
-        }
-    }
-
     /// Creates `output`, lets `fill` write every record and return their integer bounds, then
     /// sets the header's bounds and renames the file into place; on any error the temporary
     /// file is removed and nothing appears.
@@ -305,7 +297,7 @@ impl FileLayout<'_> {
         fill: impl FnOnce(&mut LasFileWriter) -> Result<IntBounds>,
     ) -> Result<IntBounds> {
         let software = format!("tilecurv {} generate", env!("CARGO_PKG_VERSION"));
-        let record_length = record_length(self.truth_columns()) as u16;
+        let record_length = record_length(self.truth.columns()) as u16;
         let geotiff = [Vlr::new(
             "LASF_Projection",
             34735,
@@ -333,7 +325,7 @@ impl FileLayout<'_> {
             record_length,
             vlrs: &geotiff,
             evlrs: &[],
-            extra_bytes: truth_descriptors(self.terrain_truth),
+            extra_bytes: truth_descriptors(self.truth),
             provenance: &self.provenance,
         };
         let mut writer = LasFileWriter::create(output, spec)?;
@@ -454,7 +446,7 @@ mod tests {
             density_per_m2: 10.0,
             seed: 3,
             noise,
-            terrain_truth: false,
+            truth: Truth::Curvature,
         };
         let out = dir.path().join("half.las");
         generate_terrain(&opts, &out, &AtomicBool::new(false)).expect("generates");
@@ -494,7 +486,7 @@ mod tests {
             density_per_m2: 2.0,
             seed: 9,
             noise: Noise::NONE,
-            terrain_truth: false,
+            truth: Truth::Curvature,
         };
         let cancel = AtomicBool::new(false);
         for name in ["t.las", "t.laz"] {

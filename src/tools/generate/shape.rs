@@ -20,7 +20,7 @@ use crate::core::surface::{goursat_curvature, torus_curvature_at, TrueCurvature,
 use crate::error::{Error, Result};
 
 use super::flight::IntBounds;
-use super::{FileLayout, Record, RECORD_LENGTH};
+use super::{FileLayout, Record, Truth, RECORD_LENGTH};
 
 /// Coordinate scale of a shape's file (1 micrometre: the quantisation moves a point by at most
 /// 0.9e-6, far below any neighbourhood's noise; the shapes reach 9.7 m from the origin).
@@ -147,7 +147,7 @@ pub fn generate_shape(
         offset: [0.0; 3],
         points: opts.points,
         provenance: provenance(opts),
-        terrain_truth: false,
+        truth: Truth::Curvature,
     };
     let bounds = layout.write(output, |writer| {
         let mut samples = opts.shape.sampler(opts.seed);

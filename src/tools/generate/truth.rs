@@ -23,8 +23,41 @@ pub const TERRAIN_TRUTH_COLUMNS: [&str; 7] = [
 /// The most truth columns a record holds.
 pub const MAX_TRUTH: usize = TRUTH_COLUMNS.len() + TERRAIN_TRUTH_COLUMNS.len();
 
-/// The extra-bytes descriptors of the truth columns (with the terrain ones when `terrain`).
-pub(super) fn truth_descriptors(terrain: bool) -> Vec<u8> {
+/// Which truth columns a generated record carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Truth {
+    /// None: plain point format 1 records (`--no-truth`), for runs whose input would not fit
+    /// the disk with 32 more bytes a point.
+    None,
+    /// The curvature truth: TrueH, TrueK, Truek1, Truek2 (the default).
+    #[default]
+    Curvature,
+    /// The curvature truth and [`TERRAIN_TRUTH_COLUMNS`] (`--terrain-truth`).
+    Terrain,
+}
+
+impl Truth {
+    /// The number of f64 truth columns of a record.
+    pub fn columns(self) -> usize {
+        match self {
+            Truth::None => 0,
+            Truth::Curvature => TRUTH_COLUMNS.len(),
+            Truth::Terrain => MAX_TRUTH,
+        }
+    }
+
+    /// Its name in the provenance record.
+    pub fn name(self) -> &'static str {
+        match self {
+            Truth::None => "none",
+            Truth::Curvature => "curvature",
+            Truth::Terrain => "terrain",
+        }
+    }
+}
+
+/// The extra-bytes descriptors of the truth columns of `truth`.
+pub(super) fn truth_descriptors(truth: Truth) -> Vec<u8> {
     let descriptions = [
         "true mean curvature (1/m)",
         "true Gaussian curvature (1/m^2)",
@@ -38,11 +71,7 @@ pub(super) fn truth_descriptors(terrain: bool) -> Vec<u8> {
         "true slope (degrees)",
         "true aspect (degrees from N)",
     ];
-    let count = if terrain {
-        MAX_TRUTH
-    } else {
-        TRUTH_COLUMNS.len()
-    };
+    let count = truth.columns();
     TRUTH_COLUMNS
         .iter()
         .chain(TERRAIN_TRUTH_COLUMNS.iter())
