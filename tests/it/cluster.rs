@@ -1,6 +1,6 @@
 //! The cluster stages by hand, without a scheduler (scripts/slurm/cluster_test.sh runs them
 //! through Slurm): plan, bucket tasks, every tile task, assemble give the bytes `process`
-//! gives; tasks run twice are harmless; assemble refuses with exit 5 and writes nothing while a
+//! gives (and `assemble --raster` the rasters of `process --raster`); tasks run twice are harmless; assemble refuses with exit 5 and writes nothing while a
 //! tile is missing; status counts and lists the tasks; a killed attempt's leftovers are swept.
 
 use crate::common::{generate_terrain, s, stdout_of as run, tilecurv};
@@ -17,6 +17,7 @@ fn stages_by_hand_give_the_bytes_of_process() {
     let refdir = format!("{}/", s(&reference));
     args.push(&refdir);
     args.extend(opts);
+    args.extend(["--raster", "2m"]);
     run(&args, 0);
 
     let work = dir.path().join("w");
@@ -78,8 +79,16 @@ fn stages_by_hand_give_the_bytes_of_process() {
     );
     let out = dir.path().join("out");
     let outdir = format!("{}/", s(&out));
-    run(&["assemble", "--work", s(&work), "-o", &outdir, "-q"], 0);
-    for f in ["a.las", "b.laz"] {
+    let assemble = ["assemble", "--work", s(&work), "-o", &outdir, "-q"];
+    run(&[&assemble[..], &["--raster", "2m"]].concat(), 0);
+    // The rasters of several outputs go to rasters/ beside them: one raster of the scene.
+    for f in [
+        "a.las",
+        "b.laz",
+        "rasters/H.tif",
+        "rasters/K.tif",
+        "rasters/PointCount.tif",
+    ] {
         let (x, y) = (
             std::fs::read(out.join(f)).expect("output"),
             std::fs::read(reference.join(f)).expect("reference"),
