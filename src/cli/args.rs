@@ -5,8 +5,8 @@
 
 use std::path::PathBuf;
 
-use super::raster::RasterOut;
-use crate::config::{parse_count, ExecOptions, RunOptions, RunParams};
+use crate::config::{parse_count, ExecOptions, Length, RasterOptions, RunOptions, RunParams};
+use crate::core::raster::Stat;
 use crate::error::{Error, Result};
 use crate::run::Process;
 
@@ -325,4 +325,106 @@ pub(super) struct InfoArgs {
     /// Print a JSON array with one object per file instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+/// What `--stat` says.
+const STAT_HELP: &str = "How a cell's value is formed from the defined values of its points: \
+mean (the default; for Aspect the direction of the mean unit vector), median, min, max, or \
+count. Undefined values (no-data, NaN) are left out.";
+
+/// What the raster columns' option says.
+const COLUMNS_HELP: &str = "The columns to raster, comma-separated, by their names in the file \
+(H, K, k1, k2, ProfileCurvature, TangentialCurvature, PlanCurvature, ShapeIndex, Curvedness, \
+Slope, Aspect, NormalZ, or any extra dimension or field such as z or intensity). Default: every \
+curvature column the file holds (H, K, k1, k2 and the terrain curvatures; not the flags, slope \
+or aspect).";
+
+fn parse_stat(s: &str) -> std::result::Result<Stat, String> {
+    Stat::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = Stat::ALL.iter().map(|s| s.name()).collect();
+        format!("{s:?} is not a statistic: use one of {}", names.join(", "))
+    })
+}
+
+/// Column names, as the raster columns' option lists them.
+#[derive(Debug, Clone)]
+pub(super) struct Names(pub(super) Vec<String>);
+
+fn parse_columns(s: &str) -> std::result::Result<Names, String> {
+    let v: Vec<String> = s
+        .split(',')
+        .map(|c| c.trim().to_string())
+        .filter(|c| !c.is_empty())
+        .collect();
+    match v.is_empty() {
+        true => Err("name at least one column".into()),
+        false => Ok(Names(v)),
+    }
+}
+
+/// The rasters `process` and `assemble` make of their outputs' columns as they write them.
+#[derive(clap::Args, Debug, Clone)]
+pub(super) struct RasterOut {
+    /// Also write rasters of the outputs' columns with cells of this size (a length with a unit
+    /// like --tile: 1m, 0.5m, 3ft, or file units), binned while the outputs are written (no
+    /// second read): one float32 GeoTIFF per column and PointCount.tif, as `tilecurv raster`
+    /// makes them, with a PNG quick look beside each. Cells are aligned to multiples of the
+    /// cell size in the CRS.
+    #[arg(long = "raster", value_name = "CELL", value_parser = Length::parse)]
+    cell: Option<Length>,
+
+    /// Directory of the rasters (made if missing). Default: beside the output, named after it
+    /// with `.rasters` (out.laz -> out.rasters/; an output directory gets rasters/ inside).
+    #[arg(long, value_name = "DIR", requires = "cell")]
+    raster_dir: Option<PathBuf>,
+
+    #[arg(long = "raster-columns", value_name = "LIST", help = COLUMNS_HELP, requires = "cell", value_parser = parse_columns)]
+    raster_columns: Option<Names>,
+
+    #[arg(long = "raster-stat", value_name = "STAT", help = STAT_HELP, default_value = "mean", value_parser = parse_stat)]
+    raster_stat: Stat,
+}
+
+impl RasterOut {
+    /// The rasters asked for, if any.
+    pub(super) fn options(&self) -> Option<RasterOptions> {
+        Some(RasterOptions {
+            cell: self.cell?,
+            stat: self.raster_stat,
+            columns: self.raster_columns.clone().map(|c| c.0),
+            dir: self.raster_dir.clone(),
+        })
+    }
+}
+
+/// `tilecurv raster`.
+#[derive(clap::Args, Debug)]
+pub(super) struct RasterArgs {
+    /// Point files holding the columns: LAS or LAZ (a `tilecurv process` output or any other),
+    /// or the other formats `process` reads. Several files are one scene: one raster covers
+    /// them all. Never modified.
+    #[arg(required = true, num_args = 1..)]
+    pub(super) inputs: Vec<PathBuf>,
+
+    /// Cell size, with a unit like --tile (1m, 0.5m, 3ft, 3usft) or a bare number in file
+    /// units. Cells are aligned to whole multiples of it in the CRS, so the rasters of adjacent
+    /// surveys line up.
+    #[arg(long, value_parser = Length::parse)]
+    pub(super) cell: Length,
+
+    #[arg(long, help = COLUMNS_HELP, value_parser = parse_columns)]
+    pub(super) columns: Option<Names>,
+
+    #[arg(long, help = STAT_HELP, default_value = "mean", value_parser = parse_stat)]
+    pub(super) stat: Stat,
+
+    /// Output directory (made if missing): one float32 GeoTIFF per column, named after it
+    /// (ProfileCurvature.tif, ...), Deflate-compressed, no-data -3.4028235e38, in the input's
+    /// CRS, plus PointCount.tif (points per cell), and a PNG quick look beside each (colour
+    /// ramp over a hillshade, with a legend). Existing files of those names are replaced.
+    #[arg(short, long)]
+    pub(super) output: PathBuf,
+
+    #[command(flatten)]
+    pub(super) exec: ExecArgs,
 }

@@ -77,7 +77,7 @@ enum Command {
     /// Rasters of point columns: one GeoTIFF per column (mean of the cell's points by default)
     /// and a point count, aligned to multiples of the cell size, in the input's CRS.
     #[command(after_help = EXIT_HELP)]
-    Raster(raster::RasterArgs),
+    Raster(args::RasterArgs),
     /// Cluster stage 1: check the inputs, write the work directory's manifest and task layout,
     /// and print `bucket tasks: B` and `tasks: N` (the last line). Then run `bucket`, `run-tile`
     /// for every task index, and `assemble` (scripts/slurm/submit.sh chains them on Slurm).
