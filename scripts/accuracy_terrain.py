@@ -258,7 +258,8 @@ ROWS = [
     ("auto_median", "tilecurv `-k auto`", "median of the cell's points (`--stat median`)"),
     ("auto640", "tilecurv `-k auto --k-range 20..640`", "mean of the cell's points"),
     ("k320", "tilecurv `-k 320`", "mean of the cell's points"),
-    ("jet_auto", "tilecurv `-k auto --estimator jet`", "mean of the cell's points"),
+    ("jet3_auto640", "tilecurv `-k auto --k-range 20..640 --estimator jet --jet-degree 3`",
+     "mean of the cell's points"),
     ("truth_mean", "the truth columns themselves (binning floor)", "mean of the cell's points"),
 ]
 TERRAINS = [("clean", "clean"), ("noise3cm", "3 cm noise")]

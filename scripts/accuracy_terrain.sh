@@ -2,7 +2,7 @@
 # Profile and plan curvature rasters: tilecurv against WhiteboxTools, both against the closed form
 # (issue 27, item 5). A measured comparison, not a test: it prints a Markdown table for the README.
 #
-# usage: scripts/accuracy_terrain.sh
+# usage: scripts/accuracy_terrain.sh                 (SEEDS="0 1 2" for three terrains)
 #
 # In one run, on the same points for every method:
 #  1. `tilecurv generate terrain --points 400k --density 8 --terrain-truth`, clean and with
@@ -13,8 +13,9 @@
 #     not on whole metres), and with two anchor points added at the whole-metre corners, which puts
 #     its grid on tilecurv's, cell for cell (accuracy_terrain.py, with_corner_anchors);
 #  3. tilecurv: `process -k auto --raster 1m` (cell mean), `raster --stat median` of the same
-#     output, and for reference -k 30, -k 320, `-k auto --k-range 20..640`, `-k auto --estimator
-#     jet`, and the truth columns themselves binned (what binning alone costs);
+#     output, and for reference -k 30, -k 320, `-k auto --k-range 20..640` (a larger ladder),
+#     the same with `--estimator jet --jet-degree 3` (a cubic fit, as Florinsky's 5x5 is), and
+#     the truth columns themselves binned (what binning alone costs);
 #  4. scripts/accuracy_terrain.py scores every raster at its cell centres against the generator's
 #     closed form there (cells with true slope > 3 degrees, over 10 m inside the square, the same
 #     cells for all), as median |error| / median |truth|, checks WhiteboxTools' sign and unit
@@ -24,15 +25,15 @@
 # they are; the script prints the least-squares gain of each WhiteboxTools raster on the truth (1
 # when sign and unit agree).
 #
-# Environment: TILECURV_ACCURACY_DIR (work directory, default /tmp/tilecurv-accuracy), SEED
-# (terrain seed, default 1), TILECURV (binary; default: cargo build --release). About 2 minutes on
-# 2 cores.
+# Environment: TILECURV_ACCURACY_DIR (work directory, default /tmp/tilecurv-accuracy), SEEDS
+# (terrain seeds, default 0, generate's default; one table each: the terrains differ much in
+# slope and curvature, and so do the ratios), TILECURV (binary; default: cargo build --release).
+# About 2 minutes per seed on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-WORK=${TILECURV_ACCURACY_DIR:-/tmp/tilecurv-accuracy}
-SEED=${SEED:-1}
-mkdir -p "$WORK"
+ROOT=${TILECURV_ACCURACY_DIR:-/tmp/tilecurv-accuracy}
+SEEDS=${SEEDS:-0}
 venv=target/venv
 [ -x "$venv/bin/python3" ] || python3 -m venv "$venv"
 "$venv/bin/python3" -m pip install --quiet --disable-pip-version-check \
@@ -54,33 +55,40 @@ process() {
         --raster 1m --raster-dir "$t.$label" --raster-columns ProfileCurvature,PlanCurvature
 }
 
-for t in clean noise3cm; do
-    noise=0
-    [ "$t" = noise3cm ] && noise=0.03
-    in="$WORK/$t.las"
-    "$TILECURV" generate terrain -o "$in" --points 400k --density 8 --seed "$SEED" \
-        --noise "$noise" --terrain-truth -q
-    # WhiteboxTools runs beside tilecurv (it is mostly one thread).
-    "$PY" scripts/accuracy_terrain.py wbt "$WORK" "$in" &
-    wbt=$!
-    process "$in" auto -k auto
-    rm -rf "$WORK/$t.auto_median"
-    "$TILECURV" raster "$WORK/$t.auto.las" --cell 1m --stat median -q \
-        --columns ProfileCurvature,PlanCurvature -o "$WORK/$t.auto_median"
-    process "$in" k30 -k 30
-    process "$in" k320 -k 320
-    process "$in" auto640 -k auto --k-range 20..640
-    process "$in" jet_auto -k auto --estimator jet
-    # The truth columns binned like the estimates: the error of a cell mean of exact values.
-    mkdir -p "$WORK/$t.truth_mean"
-    "$TILECURV" raster "$in" --cell 1m -q --columns TrueProfileCurvature,TruePlanCurvature \
-        -o "$WORK/$t.truth_mean.tmp"
-    mv "$WORK/$t.truth_mean.tmp/TrueProfileCurvature.tif" "$WORK/$t.truth_mean/ProfileCurvature.tif"
-    mv "$WORK/$t.truth_mean.tmp/TruePlanCurvature.tif" "$WORK/$t.truth_mean/PlanCurvature.tif"
-    rm -rf "$WORK/$t.truth_mean.tmp"
-    wait "$wbt"
-done
+for SEED in $SEEDS; do
+    WORK=$ROOT/seed$SEED
+    mkdir -p "$WORK"
+    for t in clean noise3cm; do
+        noise=0
+        [ "$t" = noise3cm ] && noise=0.03
+        in="$WORK/$t.las"
+        "$TILECURV" generate terrain -o "$in" --points 400k --density 8 --seed "$SEED" \
+            --noise "$noise" --terrain-truth -q
+        # WhiteboxTools runs beside tilecurv (it is mostly one thread).
+        "$PY" scripts/accuracy_terrain.py wbt "$WORK" "$in" &
+        wbt=$!
+        process "$in" auto -k auto
+        rm -rf "$WORK/$t.auto_median"
+        "$TILECURV" raster "$WORK/$t.auto.las" --cell 1m --stat median -q \
+            --columns ProfileCurvature,PlanCurvature -o "$WORK/$t.auto_median"
+        process "$in" k30 -k 30
+        process "$in" k320 -k 320
+        process "$in" auto640 -k auto --k-range 20..640
+        process "$in" jet3_auto640 -k auto --k-range 20..640 --estimator jet --jet-degree 3
+        # The truth columns binned like the estimates: the error of a cell mean of exact values.
+        mkdir -p "$WORK/$t.truth_mean"
+        "$TILECURV" raster "$in" --cell 1m -q --columns TrueProfileCurvature,TruePlanCurvature \
+            -o "$WORK/$t.truth_mean.tmp"
+        mv "$WORK/$t.truth_mean.tmp/TrueProfileCurvature.tif" "$WORK/$t.truth_mean/ProfileCurvature.tif"
+        mv "$WORK/$t.truth_mean.tmp/TruePlanCurvature.tif" "$WORK/$t.truth_mean/PlanCurvature.tif"
+        rm -rf "$WORK/$t.truth_mean.tmp"
+        wait "$wbt"
+    done
 
-"$PY" scripts/accuracy_terrain.py table "$WORK" "$SEED" | tee "$WORK/table.md"
-echo
-echo "seed $SEED, $(("$SECONDS" - start)) s; rasters and accuracy.csv in $WORK"
+    echo "### seed $SEED"
+    echo
+    "$PY" scripts/accuracy_terrain.py table "$WORK" "$SEED" | tee "$WORK/table.md"
+    echo
+    echo "seed $SEED: $(("$SECONDS" - start)) s since the start; rasters and accuracy.csv in $WORK"
+    echo
+done
