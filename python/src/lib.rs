@@ -24,13 +24,15 @@ use pyo3::exceptions::{PyException, PyKeyboardInterrupt};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use tilecurv::config::{parse_bytes, ExecOptions, RunOptions, OPTIONS};
+use tilecurv::config::{parse_bytes, ExecOptions, Length, RasterOptions, RunOptions, OPTIONS};
+use tilecurv::core::raster::Stat;
 use tilecurv::error::{Error, ExitClass};
 use tilecurv::io::las::header::Quantisation;
 use tilecurv::io::las::vlr::Vlr;
 use tilecurv::io::source::memory::{Coordinates, MemorySource};
 use tilecurv::progress::TermReporter;
 use tilecurv::run::memory::Values;
+use tilecurv::run::raster::RasterJob;
 
 create_exception!(
     _tilecurv,
@@ -304,7 +306,7 @@ impl tilecurv::progress::Reporter for Warnings {
 /// `tilecurv process`: runs the command line's run of `inputs` into `output`; `progress` gets
 /// each `--progress-json` line (a JSON text). Returns the run's summary.
 #[pyfunction]
-#[pyo3(signature = (inputs, output, options, work_dir, dry_run, threads, memory, quiet, progress))]
+#[pyo3(signature = (inputs, output, options, work_dir, dry_run, threads, memory, quiet, progress, rasters))]
 #[allow(clippy::too_many_arguments)]
 fn process(
     py: Python<'_>,
@@ -317,12 +319,17 @@ fn process(
     memory: Option<String>,
     quiet: bool,
     progress: Option<Py<PyAny>>,
+    rasters: (Option<String>, Option<PathBuf>, Option<Vec<String>>, String),
 ) -> PyResult<Bound<'_, PyDict>> {
     let options = run_options(options)?;
     let mut job = tilecurv::run::Process::new(inputs, output, options).map_err(py_error)?;
     job.work_dir = work_dir;
     job.dry_run = dry_run;
-    let exec = exec_options(threads, memory.as_deref())?;
+    let (cell, dir, columns, stat) = rasters;
+    let exec = ExecOptions {
+        rasters: raster_options(cell, dir, columns, &stat)?,
+        ..exec_options(threads, memory.as_deref())?
+    };
     let on_line = |line: &str| -> PyResult<()> {
         match &progress {
             Some(cb) => cb.call1(py, (line,)).map(drop),
@@ -349,6 +356,78 @@ fn process(
     d.set_item("retried", summary.retried)?;
     d.set_item("seconds", summary.seconds)?;
     d.set_item("outputs", summary.outputs)?;
+    Ok(d)
+}
+
+/// The rasters `process(raster=...)` asks for, checked as the command line checks them.
+fn raster_options(
+    cell: Option<String>,
+    dir: Option<PathBuf>,
+    columns: Option<Vec<String>>,
+    stat: &str,
+) -> PyResult<Option<RasterOptions>> {
+    let Some(cell) = cell else {
+        return Ok(None);
+    };
+    Ok(Some(RasterOptions {
+        cell: Length::parse(&cell).map_err(|why| UsageError::new_err(format!("raster: {why}")))?,
+        stat: parse_stat(stat)?,
+        columns,
+        dir,
+    }))
+}
+
+/// The statistic named `stat`, or the usage error naming the choices.
+fn parse_stat(stat: &str) -> PyResult<Stat> {
+    Stat::from_name(stat).ok_or_else(|| {
+        let names: Vec<&str> = Stat::ALL.iter().map(|s| s.name()).collect();
+        UsageError::new_err(format!("stat: {stat:?} is not one of {}", names.join(", ")))
+    })
+}
+
+/// `tilecurv raster`: the rasters of `inputs`' columns into the directory `output`.
+#[pyfunction]
+#[pyo3(signature = (inputs, output, cell, columns, stat, memory, quiet))]
+#[allow(clippy::too_many_arguments)]
+fn raster(
+    py: Python<'_>,
+    inputs: Vec<PathBuf>,
+    output: PathBuf,
+    cell: String,
+    columns: Option<Vec<String>>,
+    stat: String,
+    memory: Option<String>,
+    quiet: bool,
+) -> PyResult<Bound<'_, PyDict>> {
+    let job = RasterJob {
+        inputs,
+        cell: Length::parse(&cell).map_err(|why| UsageError::new_err(format!("cell: {why}")))?,
+        columns,
+        stat: parse_stat(&stat)?,
+        dir: output,
+    };
+    let exec = exec_options(None, memory.as_deref())?;
+    let s = run_waiting(py, &|_| Ok(()), |cancel, tx| {
+        let lines = Lines {
+            tx,
+            partial: Vec::new(),
+        };
+        let reporter = TermReporter::with_json_writer(quiet, Some(Box::new(lines)));
+        tilecurv::run::raster::raster(
+            &job,
+            exec.memory_bytes,
+            exec.chunk_points,
+            &reporter,
+            cancel,
+        )
+    })?;
+    let d = PyDict::new(py);
+    d.set_item("files", s.files)?;
+    d.set_item("points", s.points)?;
+    d.set_item("cells", s.cells)?;
+    d.set_item("width", s.width)?;
+    d.set_item("height", s.height)?;
+    d.set_item("cell", s.cell)?;
     Ok(d)
 }
 
@@ -387,6 +466,7 @@ fn _tilecurv(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(options, m)?)?;
     m.add_function(wrap_pyfunction!(curvature, m)?)?;
     m.add_function(wrap_pyfunction!(process, m)?)?;
+    m.add_function(wrap_pyfunction!(raster, m)?)?;
     m.add_function(wrap_pyfunction!(info_json, m)?)?;
     m.add_function(wrap_pyfunction!(main, m)?)?;
     Ok(())

@@ -38,6 +38,7 @@ from ._tilecurv import (
 __all__ = [
     "curvature",
     "process",
+    "raster",
     "info",
     "OPTIONS",
     "CURVATURE_OPTIONS",
@@ -287,10 +288,18 @@ def process(
     threads: Optional[int] = None,
     memory: Optional[str] = None,
     quiet: bool = False,
+    raster: Optional[str] = None,
+    raster_dir: Optional[Union[str, os.PathLike]] = None,
+    raster_columns: Optional[Sequence[str]] = None,
+    raster_stat: str = "mean",
     **options: Any,
 ) -> Dict[str, Any]:
     """``tilecurv process``: the command line's run of the input files into ``output`` (a file
     for one input, a directory for several), the same bytes, work directory and resume.
+
+    ``raster="1m"`` also writes the GeoTIFF rasters and PNG quick looks of ``--raster``
+    (``raster_dir``, ``raster_columns``, ``raster_stat`` as ``--raster-dir``,
+    ``--raster-columns``, ``--raster-stat``), binned as the outputs are written.
 
     ``progress`` is called with each ``--progress-json`` event as a dict (``phase_start``,
     ``progress``, ``phase_end``, then ``summary``). ``quiet`` keeps only warnings on stderr, as
@@ -318,6 +327,43 @@ def process(
         memory,
         quiet,
         on_line if progress is not None else None,
+        (
+            raster,
+            None if raster_dir is None else os.fspath(raster_dir),
+            None if raster_columns is None else list(raster_columns),
+            raster_stat,
+        ),
+    )
+
+
+def raster(
+    inputs: Union[str, os.PathLike, Sequence[Union[str, os.PathLike]]],
+    output: Union[str, os.PathLike],
+    *,
+    cell: str,
+    columns: Optional[Sequence[str]] = None,
+    stat: str = "mean",
+    memory: Optional[str] = None,
+    quiet: bool = True,
+) -> Dict[str, Any]:
+    """``tilecurv raster``: one float32 GeoTIFF per column of the point files ``inputs`` (one
+    scene) in the directory ``output``, plus ``PointCount.tif``, each with a PNG quick look.
+
+    ``cell`` is a length with a unit (``"1m"``, ``"3ft"``) or in file units (``"0.5"``); cells
+    are whole multiples of it in the CRS. ``columns`` names the columns (default: every
+    curvature column the first file holds); ``stat`` is ``mean``, ``median``, ``min``, ``max``
+    or ``count``. Returns files (a list of pathlib.Path), points, cells, width, height and cell
+    (in file units)."""
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    return _tilecurv.raster(
+        [os.fspath(i) for i in inputs],
+        os.fspath(output),
+        cell,
+        None if columns is None else list(columns),
+        stat,
+        memory,
+        quiet,
     )
 
 

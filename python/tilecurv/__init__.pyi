@@ -65,6 +65,10 @@ def process(
     threads: Optional[int] = None,
     memory: Optional[str] = None,
     quiet: bool = False,
+    raster: Optional[str] = None,
+    raster_dir: Optional[_Path] = None,
+    raster_columns: Optional[Sequence[str]] = None,
+    raster_stat: str = 'mean',
     estimator: str = 'cnc-avg-hexagram',
     k: Union[int, str, None] = None,
     k_range: Union[str, Tuple[int, int], None] = None,
@@ -86,6 +90,17 @@ def process(
     skip_classes: Union[str, Sequence[int]] = '7,18',
     skip_withheld: bool = False,
     sample_faces: Union[int, str, None] = None,
+) -> Dict[str, Any]: ...
+
+def raster(
+    inputs: Union[_Path, Sequence[_Path]],
+    output: _Path,
+    *,
+    cell: str,
+    columns: Optional[Sequence[str]] = None,
+    stat: str = 'mean',
+    memory: Optional[str] = None,
+    quiet: bool = True,
 ) -> Dict[str, Any]: ...
 
 def info(path: Union[_Path, Sequence[_Path]]) -> Any: ...

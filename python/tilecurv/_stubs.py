@@ -85,7 +85,18 @@ def render() -> str:
         + "    threads: Optional[int] = None,\n"
         + "    memory: Optional[str] = None,\n"
         + "    quiet: bool = False,\n"
+        + "    raster: Optional[str] = None,\n"
+        + "    raster_dir: Optional[_Path] = None,\n"
+        + "    raster_columns: Optional[Sequence[str]] = None,\n"
+        + "    raster_stat: str = 'mean',\n"
         + _params(OPTIONS)
+        + ") -> Dict[str, Any]: ...\n"
+        + "\ndef raster(\n    inputs: Union[_Path, Sequence[_Path]],\n    output: _Path,\n    *,\n"
+        + "    cell: str,\n"
+        + "    columns: Optional[Sequence[str]] = None,\n"
+        + "    stat: str = 'mean',\n"
+        + "    memory: Optional[str] = None,\n"
+        + "    quiet: bool = True,\n"
         + ") -> Dict[str, Any]: ...\n"
         + "\ndef info(path: Union[_Path, Sequence[_Path]]) -> Any: ...\n"
     )

@@ -16,7 +16,6 @@ pub(super) fn run(a: RasterArgs) -> Result<i32, i32> {
         stat: a.stat,
         dir: a.output,
     };
-    let made = !job.dir.exists();
     let started = std::time::Instant::now();
     let s = raster(
         &job,
@@ -25,21 +24,15 @@ pub(super) fn run(a: RasterArgs) -> Result<i32, i32> {
         &reporter,
         &CANCEL,
     )
-    .map_err(|e| {
-        if made {
-            // A refused run leaves the folder as it was: the directory it made goes if empty.
-            let _ = std::fs::remove_dir(&job.dir);
-        }
-        fail(&e)
-    })?;
+    .map_err(|e| fail(&e))?;
     if !a.exec.quiet() {
         say!(
-            "done: {} points in {} of {}x{} cells of {} ({} rasters) in {:.1} s -> {}",
+            "done: {} points in {} of {}x{} cells of {} ({} files) in {:.1} s -> {}",
             s.points,
             s.cells,
-            s.grid.width,
-            s.grid.height,
-            s.grid.cell,
+            s.width,
+            s.height,
+            s.cell,
             s.files.len(),
             started.elapsed().as_secs_f64(),
             job.dir.display()

@@ -23,7 +23,7 @@ pub(crate) mod limits;
 pub mod memory;
 pub(crate) mod orientation;
 pub(crate) mod prepare;
-pub(crate) mod raster;
+pub mod raster;
 pub(crate) mod rerun;
 pub(crate) mod spec;
 pub(crate) mod tiles;

@@ -20,17 +20,17 @@ use crate::progress::Reporter;
 
 /// A `tilecurv raster` run.
 #[derive(Debug, Clone)]
-pub(crate) struct RasterJob {
+pub struct RasterJob {
     /// The point files.
-    pub(crate) inputs: Vec<PathBuf>,
+    pub inputs: Vec<PathBuf>,
     /// The cell size.
-    pub(crate) cell: Length,
+    pub cell: Length,
     /// The columns by name (None: every curvature column the first input holds).
-    pub(crate) columns: Option<Vec<String>>,
+    pub columns: Option<Vec<String>>,
     /// How a cell's value is formed.
-    pub(crate) stat: Stat,
+    pub stat: Stat,
     /// The output directory.
-    pub(crate) dir: PathBuf,
+    pub dir: PathBuf,
 }
 
 /// Share of the memory budget the binning keeps in memory before it spills sorted runs.
@@ -43,9 +43,52 @@ pub(crate) fn scratch_dir(dir: &Path) -> PathBuf {
     dir.join(format!(".tilecurv-raster-{}", std::process::id()))
 }
 
-/// Makes the rasters of `job`. `memory_bytes` bounds the points binned in memory; `chunk`
-/// points are read at a time; a set `cancel` stops the run (nothing is written).
-pub(crate) fn raster(
+/// What `tilecurv raster` wrote.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RasterOutcome {
+    /// The GeoTIFFs and PNGs written.
+    pub files: Vec<PathBuf>,
+    /// Points binned.
+    pub points: u64,
+    /// Cells holding at least one point.
+    pub cells: u64,
+    /// Cells per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Cell size in file units.
+    pub cell: f64,
+}
+
+/// Makes the rasters of `job` (`tilecurv raster`). `memory_bytes` bounds the points binned in
+/// memory; `chunk` points are read at a time; a set `cancel` stops the run. On an error nothing
+/// is written, and the output directory is removed if the run made it and it is empty.
+pub fn raster(
+    job: &RasterJob,
+    memory_bytes: u64,
+    chunk: usize,
+    reporter: &dyn Reporter,
+    cancel: &AtomicBool,
+) -> Result<RasterOutcome> {
+    let made = !job.dir.exists();
+    let s = make_rasters(job, memory_bytes, chunk, reporter, cancel).inspect_err(|_| {
+        if made {
+            // A refused run leaves the folder as it was: the directory it made goes if empty.
+            let _ = std::fs::remove_dir(&job.dir);
+        }
+    })?;
+    Ok(RasterOutcome {
+        files: s.files,
+        points: s.points,
+        cells: s.cells,
+        width: s.grid.width,
+        height: s.grid.height,
+        cell: s.grid.cell,
+    })
+}
+
+/// [`raster`]'s work.
+fn make_rasters(
     job: &RasterJob,
     memory_bytes: u64,
     chunk: usize,
@@ -87,8 +130,24 @@ pub(crate) fn raster(
     if let Some(w) = &crs.warning {
         reporter.warn(w);
     }
+    warn_other_crs(&sources, &crs, reporter);
     reporter.info(&format!("raster CRS: {}", crs.described));
     rasterizer.finish(&crs)
+}
+
+/// Warns about each input whose CRS is not the first's: one raster takes the first's.
+fn warn_other_crs(sources: &[Box<dyn PointSource>], crs: &RasterCrs, reporter: &dyn Reporter) {
+    for s in sources.iter().skip(1) {
+        let other = source_crs(s.as_ref());
+        if other.directory != crs.directory {
+            reporter.warn(&format!(
+                "{} has another CRS ({}) than the first input ({}): the rasters are in the first's, and this file's points are placed by their coordinates as they are",
+                s.path().display(),
+                other.described,
+                crs.described
+            ));
+        }
+    }
 }
 
 /// The raster CRS of a source: its LAS CRS ([`raster_crs`]); none for other formats.
