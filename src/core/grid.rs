@@ -15,7 +15,7 @@
 //! the grid alone, bit for bit. It differs from `q * s + o` by at most 2^-21 of a step (the
 //! phase's rounding) plus the last bit.
 //!
-//! A phase within the f64 noise of the step count ([`representation_noise`]) is 0: an offset
+//! A phase within the f64 noise of the step count (`representation_noise`) is 0: an offset
 //! that is a whole number of steps in decimal is one in every file, whatever its magnitude.
 //! The phase rounding moves a grid by at most 2^-21 of a step, far below any LAS scale's
 //! meaning. The one split that two files could make differently is a phase within float noise

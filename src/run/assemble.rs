@@ -83,7 +83,10 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
             cancel: exec.cancel,
             pool: &exec.pool,
         };
-        let mut tap = rasters.as_mut().map(|r| r.tap(source.as_ref(), &out_cols));
+        let mut tap = match rasters.as_mut() {
+            Some(r) => Some(r.tap(source.as_ref(), &out_cols)?),
+            None => None,
+        };
         undefined += assemble(
             &merge,
             &mut merger,

@@ -1,6 +1,6 @@
 //! `tilecurv raster`: GeoTIFFs of the columns of any point files (tilecurv's outputs or
 //! anyone's), one streaming pass over the inputs into the out-of-core binning of
-//! [`crate::io::raster`]. The pieces `process --raster` shares with it (the request, the CRS,
+//! `io::raster`. The pieces `process --raster` shares with it (the request, the CRS,
 //! the quick looks) are here too.
 
 use std::path::{Path, PathBuf};
@@ -331,9 +331,19 @@ impl OutputRasters {
                     let found = known.iter().find(|(k, _)| k.name.eq_ignore_ascii_case(n));
                     match found {
                         Some((k, _)) if written.contains(&k.name.as_str()) => Ok(k.clone()),
+                        _ if reader(first, n).is_some() => Ok(found.map_or_else(
+                            || RasterColumn {
+                                name: n.clone(),
+                                unit: String::new(),
+                                signed: true,
+                                angle: false,
+                            },
+                            |(k, _)| k.clone(),
+                        )),
                         _ => Err(Error::Usage(format!(
-                            "--raster-columns {n}: the outputs have no such column; they have {}",
-                            written.join(", ")
+                            "--raster-columns {n}: the outputs have no such column; they have {}, and the input's {}",
+                            written.join(", "),
+                            column_names(first).join(", ")
                         ))),
                     }
                 })
@@ -363,24 +373,26 @@ impl OutputRasters {
         })
     }
 
-    /// The tap of one output: its records are `source`'s followed by `out`'s columns.
+    /// The tap of one output: its records are `source`'s followed by `out`'s columns. A
+    /// raster column is read from the new columns, else from the input's record (a field or
+    /// an extra dimension of the input, such as z or intensity).
     pub(crate) fn tap<'a>(
         &'a mut self,
         source: &'a dyn PointSource,
         out: &OutputColumns,
-    ) -> Tap<'a> {
-        let rl = source.record_length();
-        let mut at = rl;
-        let mut readers = Vec::new();
+    ) -> Result<Tap<'a>> {
+        let names: Vec<String> = self
+            .rasterizer
+            .request()
+            .columns
+            .iter()
+            .map(|c| c.name.clone())
+            .collect();
+        let mut readers: Vec<Option<Reader>> = names.iter().map(|_| None).collect();
+        let mut at = source.record_length();
         for c in out.descriptors() {
             let size = c.ty.size();
-            if let Some(i) = self
-                .rasterizer
-                .request()
-                .columns
-                .iter()
-                .position(|r| r.name == c.name)
-            {
+            if let Some(i) = names.iter().position(|n| *n == c.name) {
                 let (scale, value_offset) = c.scaling.unwrap_or((1.0, 0.0));
                 let d = Descriptor {
                     name: c.name.clone(),
@@ -391,18 +403,31 @@ impl OutputRasters {
                     value_offset,
                     no_data: c.no_data,
                 };
-                readers.push((i, at, d));
+                readers[i] = Some(Reader::Extra { at, d });
             }
             at += size;
         }
-        readers.sort_by_key(|r| r.0);
-        Tap {
+        let readers = readers
+            .into_iter()
+            .zip(&names)
+            .map(|(r, n)| match r {
+                Some(r) => Ok(r),
+                None => reader(source, n).ok_or_else(|| {
+                    Error::Usage(format!(
+                        "--raster-columns {n}: {} has no such column (the first input has it); it has: {}",
+                        source.path().display(),
+                        column_names(source).join(", ")
+                    ))
+                }),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Tap {
             values: vec![0.0; readers.len() + 1],
-            readers: readers.into_iter().map(|(_, at, d)| (at, d)).collect(),
+            readers,
             row: at,
             source,
             rasterizer: &mut self.rasterizer,
-        }
+        })
     }
 
     /// Writes the rasters and their quick looks.
@@ -419,7 +444,7 @@ pub(crate) struct Tap<'a> {
     rasterizer: &'a mut Rasterizer,
     source: &'a dyn PointSource,
     /// Per raster column, where its value is in an output record and how it is stored.
-    readers: Vec<(usize, Descriptor)>,
+    readers: Vec<Reader>,
     /// Bytes of an output record (the input's record and the new columns).
     row: usize,
     values: Vec<f32>,
@@ -431,8 +456,8 @@ impl Tap<'_> {
         let rl = self.source.record_length();
         for rec in records.chunks_exact(self.row) {
             let p = self.source.decode(0, &rec[..rl]);
-            for (v, (at, d)) in self.values.iter_mut().zip(&self.readers) {
-                *v = d.read(&rec[*at..]).unwrap_or(f64::NAN) as f32;
+            for (v, r) in self.values.iter_mut().zip(&self.readers) {
+                *v = r.value(rec);
             }
             self.values[self.readers.len()] = p.xyz[2] as f32;
             let what = || format!("a point of {}", self.source.path().display());

@@ -220,6 +220,8 @@ fn process_rasters_equal_the_rasters_of_its_output() {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("topo.laz");
     let r = dir.path().join("beside");
+    // z is a field of the input, the others new columns.
+    let cols = "H,K,ProfileCurvature,PlanCurvature,ShapeIndex,z";
     let args = [
         "--columns",
         "H,K,terrain",
@@ -230,9 +232,15 @@ fn process_rasters_equal_the_rasters_of_its_output() {
         "--raster-dir",
         s(&r),
     ];
-    process(&input, &out, &args);
+    process(
+        &input,
+        &out,
+        &[&args[..], &["--raster-columns", cols]].concat(),
+    );
     let again = dir.path().join("again");
     raster(&[s(&out), "--cell", "2m", "-o", s(&again)]);
+    let again_z = dir.path().join("again_z");
+    raster(&[s(&out), "--cell", "2m", "--columns", "z", "-o", s(&again_z)]);
     let names = [
         "H",
         "K",
@@ -240,16 +248,19 @@ fn process_rasters_equal_the_rasters_of_its_output() {
         "PlanCurvature",
         "ShapeIndex",
         "PointCount",
+        "z",
     ];
     for name in names {
         let tif = |d: &Path| std::fs::read(d.join(format!("{name}.tif"))).expect("raster");
+        let other = if name == "z" { &again_z } else { &again };
         assert!(
-            tif(&r) == tif(&again),
+            tif(&r) == tif(other),
             "{name}: process --raster differs from raster"
         );
         let png = std::fs::read(r.join(format!("{name}.png"))).expect("quick look");
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{name}.png");
     }
+    assert!(!r.join("Curvedness.tif").exists(), "a column not asked for");
     let leftovers: Vec<_> = std::fs::read_dir(&r)
         .expect("dir")
         .flatten()
