@@ -131,8 +131,8 @@ def height(x, y, surface):
 
 
 def florinsky(p, q, r, s, t):
-    """Profile, tangential, plan curvature (1/m, convex positive), slope (degrees): algorithms.md
-    10.4."""
+    """Profile, tangential, plan curvature (1/m, convex positive), slope (degrees), by the
+    closed forms of docs/algorithms.md 10.4."""
     g2 = p * p + q * q
     w2 = 1.0 + g2
     across = q * q * r - 2.0 * p * q * s + p * p * t
