@@ -97,7 +97,7 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
     }
     exec.reporter.finish_phase();
     if let Some(r) = rasters {
-        let s = r.finish(exec.reporter)?;
+        let s = r.finish(exec.reporter, exec.cancel)?;
         exec.reporter.info(&format!(
             "rasters: {} files of {}x{} cells of {} in {}",
             s.files.len(),

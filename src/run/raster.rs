@@ -11,6 +11,7 @@ use crate::core::raster::Stat;
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
 use crate::io::columns::ColumnSet;
+use crate::io::durable::{sweep_dead_temps, tmp_name};
 use crate::io::las::extra_bytes::Descriptor;
 use crate::io::las::header::POINT_FORMAT_SIZES;
 use crate::io::raster::geokeys::{raster_crs, RasterCrs};
@@ -38,9 +39,13 @@ pub(crate) fn binning_budget(memory_bytes: u64, share: u64) -> u64 {
     (memory_bytes / share).max(1 << 20)
 }
 
-/// The scratch directory of a run's binning beside its rasters (hidden, removed at the end).
+/// The scratch directory of a run's binning beside its rasters: a temporary name of this
+/// process (hidden, removed at the end), after removing those that killed runs of this host
+/// left there.
 pub(crate) fn scratch_dir(dir: &Path) -> PathBuf {
-    dir.join(format!(".tilecurv-raster-{}", std::process::id()))
+    const RUNS: &str = "raster-runs";
+    sweep_dead_temps(dir, Some(RUNS));
+    tmp_name(&dir.join(RUNS))
 }
 
 /// What `tilecurv raster` wrote.
@@ -132,7 +137,7 @@ fn make_rasters(
     }
     warn_other_crs(&sources, &crs, reporter);
     reporter.info(&format!("raster CRS: {}", crs.described));
-    rasterizer.finish(&crs)
+    rasterizer.finish(&crs, cancel)
 }
 
 /// Warns about each input whose CRS is not the first's: one raster takes the first's.
@@ -430,12 +435,16 @@ impl OutputRasters {
         })
     }
 
-    /// Writes the rasters and their quick looks.
-    pub(crate) fn finish(self, reporter: &dyn Reporter) -> Result<RasterSummary> {
+    /// Writes the rasters and their quick looks; a set `cancel` stops it.
+    pub(crate) fn finish(
+        self,
+        reporter: &dyn Reporter,
+        cancel: &AtomicBool,
+    ) -> Result<RasterSummary> {
         if let Some(w) = &self.crs.warning {
             reporter.warn(w);
         }
-        self.rasterizer.finish(&self.crs)
+        self.rasterizer.finish(&self.crs, cancel)
     }
 }
 

@@ -176,6 +176,33 @@ fn rasters_do_not_depend_on_order_offsets_or_memory() {
     }
 }
 
+/// The run directory a killed raster run of this host left beside the rasters is removed by
+/// the next run; another host's is left alone (its run may be alive there).
+#[test]
+fn a_killed_runs_scratch_is_swept() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("topo.las");
+    process(&input, &out, &["--columns", "H", "-k", "10"]);
+    let r = dir.path().join("r");
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").expect("hostname");
+    let dead = r.join(format!(
+        ".raster-runs.tilecurv-{}-2147483646.tmp",
+        host.trim()
+    ));
+    let other = r.join(".raster-runs.tilecurv-elsewhere-12.tmp");
+    for d in [&dead, &other] {
+        std::fs::create_dir_all(d).expect("fake leftover");
+        std::fs::write(d.join("run1.bin"), [0u8; 64]).expect("fake run");
+    }
+    raster(&[s(&out), "--cell", "5m", "-o", s(&r)]);
+    assert!(!dead.exists(), "the killed run's directory was not swept");
+    assert!(other.exists(), "another host's directory was removed");
+    assert!(r.join("H.tif").exists());
+}
+
 /// Bad requests are usage errors naming what to do, and leave no directory behind.
 #[test]
 fn a_missing_column_is_a_usage_error_that_leaves_nothing() {

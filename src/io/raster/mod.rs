@@ -9,6 +9,7 @@ pub(crate) mod geokeys;
 pub(crate) mod geotiff;
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::core::quicklook::{
     render, Grid, Legend, Ramp, Shade, Thumbnail, DEFAULT_CLIP_PERCENTILE, DEFAULT_MAX_SIDE,
@@ -165,7 +166,8 @@ impl Rasterizer {
 
     /// Writes one GeoTIFF per column and the point count into the request's directory (made if
     /// missing), each complete or absent. Returns what was written; an error when no point came.
-    pub(crate) fn finish(self, crs: &RasterCrs) -> Result<RasterSummary> {
+    /// A set `cancel` stops the writing (nothing appears).
+    pub(crate) fn finish(self, crs: &RasterCrs, cancel: &AtomicBool) -> Result<RasterSummary> {
         let (Some(lo), Some(hi)) = (self.lo, self.hi) else {
             return Err(Error::Usage("no point to make a raster of".into()));
         };
@@ -195,6 +197,9 @@ impl Rasterizer {
         let mut cell_values = vec![0.0f32; n + 2];
         let mut count = 0u64;
         while let Some(key) = cells.next_cell(&mut values)? {
+            if count.is_multiple_of(4096) && cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
+            }
             let cell = Cell::from_key(key);
             let Some((row, col)) = grid.position(cell) else {
                 return Err(Error::Internal(format!(
