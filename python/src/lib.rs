@@ -425,9 +425,9 @@ fn raster(
     d.set_item("files", s.files)?;
     d.set_item("points", s.points)?;
     d.set_item("cells", s.cells)?;
-    d.set_item("width", s.width)?;
-    d.set_item("height", s.height)?;
-    d.set_item("cell", s.cell)?;
+    d.set_item("width", s.grid.width)?;
+    d.set_item("height", s.grid.height)?;
+    d.set_item("cell", s.grid.cell)?;
     Ok(d)
 }
 

@@ -30,9 +30,9 @@ pub(super) fn run(a: RasterArgs) -> Result<i32, i32> {
             "done: {} points in {} of {}x{} cells of {} ({} files) in {:.1} s -> {}",
             s.points,
             s.cells,
-            s.width,
-            s.height,
-            s.cell,
+            s.grid.width,
+            s.grid.height,
+            s.grid.cell,
             s.files.len(),
             started.elapsed().as_secs_f64(),
             job.dir.display()

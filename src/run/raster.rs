@@ -15,7 +15,8 @@ use crate::io::durable::{sweep_dead_temps, tmp_name};
 use crate::io::las::extra_bytes::Descriptor;
 use crate::io::las::header::POINT_FORMAT_SIZES;
 use crate::io::raster::geokeys::{raster_crs, RasterCrs};
-use crate::io::raster::{known_columns, RasterColumn, RasterRequest, RasterSummary, Rasterizer};
+use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
+pub use crate::io::raster::RasterSummary;
 use crate::io::source::{PointSource, Property, SourceLayout};
 use crate::progress::Reporter;
 
@@ -48,23 +49,6 @@ pub(crate) fn scratch_dir(dir: &Path) -> PathBuf {
     tmp_name(&dir.join(RUNS))
 }
 
-/// What `tilecurv raster` wrote.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RasterOutcome {
-    /// The GeoTIFFs and PNGs written.
-    pub files: Vec<PathBuf>,
-    /// Points binned.
-    pub points: u64,
-    /// Cells holding at least one point.
-    pub cells: u64,
-    /// Cells per row.
-    pub width: u32,
-    /// Rows.
-    pub height: u32,
-    /// Cell size in file units.
-    pub cell: f64,
-}
-
 /// Makes the rasters of `job` (`tilecurv raster`). `memory_bytes` bounds the points binned in
 /// memory; `chunk` points are read at a time; a set `cancel` stops the run. On an error nothing
 /// is written, and the output directory is removed if the run made it and it is empty.
@@ -74,21 +58,13 @@ pub fn raster(
     chunk: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
-) -> Result<RasterOutcome> {
+) -> Result<RasterSummary> {
     let made = !job.dir.exists();
-    let s = make_rasters(job, memory_bytes, chunk, reporter, cancel).inspect_err(|_| {
+    make_rasters(job, memory_bytes, chunk, reporter, cancel).inspect_err(|_| {
         if made {
             // A refused run leaves the folder as it was: the directory it made goes if empty.
             let _ = std::fs::remove_dir(&job.dir);
         }
-    })?;
-    Ok(RasterOutcome {
-        files: s.files,
-        points: s.points,
-        cells: s.cells,
-        width: s.grid.width,
-        height: s.grid.height,
-        cell: s.grid.cell,
     })
 }
 

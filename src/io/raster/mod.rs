@@ -92,17 +92,17 @@ pub(crate) struct RasterRequest {
     pub(crate) columns: Vec<RasterColumn>,
 }
 
-/// What was written.
+/// What the rasters of a run are: their grid, and what was written.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct RasterSummary {
-    /// The grid.
-    pub(crate) grid: CellGrid,
+pub struct RasterSummary {
+    /// The grid (its cell size in file units).
+    pub grid: CellGrid,
     /// Points binned.
-    pub(crate) points: u64,
+    pub points: u64,
     /// Cells holding at least one point.
-    pub(crate) cells: u64,
-    /// The files written.
-    pub(crate) files: Vec<PathBuf>,
+    pub cells: u64,
+    /// The GeoTIFFs and PNGs written.
+    pub files: Vec<PathBuf>,
 }
 
 /// Points on their way into rasters: each point's cell and column values are binned as they
