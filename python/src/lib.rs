@@ -367,22 +367,32 @@ fn raster_options(
     stat: &str,
 ) -> PyResult<Option<RasterOptions>> {
     let Some(cell) = cell else {
+        if dir.is_some() || columns.is_some() {
+            return Err(UsageError::new_err(
+                "raster_dir and raster_columns need raster (the cell size, e.g. raster=\"1m\")",
+            ));
+        }
         return Ok(None);
     };
     Ok(Some(RasterOptions {
         cell: Length::parse(&cell).map_err(|why| UsageError::new_err(format!("raster: {why}")))?,
         stat: parse_stat(stat)?,
-        columns,
+        columns: non_empty(columns)?,
         dir,
     }))
 }
 
+/// `columns` unless it names none (the command line refuses an empty list too).
+fn non_empty(columns: Option<Vec<String>>) -> PyResult<Option<Vec<String>>> {
+    match columns {
+        Some(c) if c.is_empty() => Err(UsageError::new_err("columns: name at least one column")),
+        c => Ok(c),
+    }
+}
+
 /// The statistic named `stat`, or the usage error naming the choices.
 fn parse_stat(stat: &str) -> PyResult<Stat> {
-    Stat::from_name(stat).ok_or_else(|| {
-        let names: Vec<&str> = Stat::ALL.iter().map(|s| s.name()).collect();
-        UsageError::new_err(format!("stat: {stat:?} is not one of {}", names.join(", ")))
-    })
+    Stat::parse(stat).map_err(|why| UsageError::new_err(format!("stat: {why}")))
 }
 
 /// `tilecurv raster`: the rasters of `inputs`' columns into the directory `output`.
@@ -402,7 +412,7 @@ fn raster(
     let job = RasterJob {
         inputs,
         cell: Length::parse(&cell).map_err(|why| UsageError::new_err(format!("cell: {why}")))?,
-        columns,
+        columns: non_empty(columns)?,
         stat: parse_stat(&stat)?,
         dir: output,
     };

@@ -339,13 +339,6 @@ Slope, Aspect, NormalZ, or any extra dimension or field such as z or intensity).
 curvature column the file holds (H, K, k1, k2 and the terrain curvatures; not the flags, slope \
 or aspect).";
 
-fn parse_stat(s: &str) -> std::result::Result<Stat, String> {
-    Stat::from_name(s).ok_or_else(|| {
-        let names: Vec<&str> = Stat::ALL.iter().map(|s| s.name()).collect();
-        format!("{s:?} is not a statistic: use one of {}", names.join(", "))
-    })
-}
-
 /// Column names, as the raster columns' option lists them.
 #[derive(Debug, Clone)]
 pub(super) struct Names(pub(super) Vec<String>);
@@ -381,7 +374,7 @@ pub(super) struct RasterOut {
     #[arg(long = "raster-columns", value_name = "LIST", help = COLUMNS_HELP, requires = "cell", value_parser = parse_columns)]
     raster_columns: Option<Names>,
 
-    #[arg(long = "raster-stat", value_name = "STAT", help = STAT_HELP, default_value = "mean", value_parser = parse_stat)]
+    #[arg(long = "raster-stat", value_name = "STAT", help = STAT_HELP, default_value = "mean", value_parser = Stat::parse)]
     raster_stat: Stat,
 }
 
@@ -415,7 +408,7 @@ pub(super) struct RasterArgs {
     #[arg(long, help = COLUMNS_HELP, value_parser = parse_columns)]
     pub(super) columns: Option<Names>,
 
-    #[arg(long, help = STAT_HELP, default_value = "mean", value_parser = parse_stat)]
+    #[arg(long, help = STAT_HELP, default_value = "mean", value_parser = Stat::parse)]
     pub(super) stat: Stat,
 
     /// Output directory (made if missing): one float32 GeoTIFF per column, named after it

@@ -136,6 +136,18 @@ impl Stat {
         Stat::ALL.into_iter().find(|s| s.name() == name)
     }
 
+    /// The statistic named `name`, or a message naming the choices (`--stat`, Python's
+    /// `stat=`).
+    pub fn parse(name: &str) -> Result<Stat, String> {
+        Stat::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = Stat::ALL.iter().map(|s| s.name()).collect();
+            format!(
+                "{name:?} is not a statistic: use one of {}",
+                names.join(", ")
+            )
+        })
+    }
+
     /// The cell value of `values` (one cell's values of one column, NaN for undefined ones),
     /// NaN when none is defined. `circular` takes the values as angles in degrees (aspect):
     /// the mean is the direction of the mean unit vector, in [0, 360), and the median, min and

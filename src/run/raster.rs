@@ -12,11 +12,11 @@ use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
 use crate::io::columns::ColumnSet;
 use crate::io::durable::{sweep_dead_temps, tmp_name};
-use crate::io::las::extra_bytes::Descriptor;
+use crate::io::las::extra_bytes::{self, Descriptor};
 use crate::io::las::header::POINT_FORMAT_SIZES;
 use crate::io::raster::geokeys::{raster_crs, RasterCrs};
-use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
 pub use crate::io::raster::RasterSummary;
+use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
 use crate::io::source::{PointSource, Property, SourceLayout};
 use crate::progress::Reporter;
 
@@ -187,20 +187,8 @@ fn choose_columns(
     unit: &str,
 ) -> Result<Vec<RasterColumn>> {
     let known = known_columns(unit);
-    let describe = |name: &str| {
-        known
-            .iter()
-            .find(|(k, _)| k.name.eq_ignore_ascii_case(name))
-            .map(|(k, _)| k.clone())
-            .unwrap_or_else(|| RasterColumn {
-                name: name.to_string(),
-                unit: String::new(),
-                signed: true,
-                angle: false,
-            })
-    };
     let chosen: Vec<RasterColumn> = match names {
-        Some(names) => names.iter().map(|n| describe(n)).collect(),
+        Some(names) => names.iter().map(|n| describe(&known, n)).collect(),
         None => known
             .iter()
             .filter(|(k, curvature)| *curvature && reader(s, &k.name).is_some())
@@ -226,6 +214,33 @@ fn choose_columns(
     Ok(chosen)
 }
 
+/// How the column `name` is shown: as tilecurv's own column of that name (`known`), else as a
+/// signed quantity without a unit.
+fn describe(known: &[(RasterColumn, bool)], name: &str) -> RasterColumn {
+    known
+        .iter()
+        .find(|(k, _)| k.name.eq_ignore_ascii_case(name))
+        .map(|(k, _)| k.clone())
+        .unwrap_or_else(|| RasterColumn {
+            name: name.to_string(),
+            unit: String::new(),
+            signed: true,
+            angle: false,
+        })
+}
+
+/// The reader of the column `name` of a later input `s`, or the error that it lacks one the
+/// first input has.
+fn reader_of_later(s: &dyn PointSource, name: &str) -> Result<Reader> {
+    reader(s, name).ok_or_else(|| {
+        Error::Usage(format!(
+            "{} has no column {name:?} (the first input has it); it has: {}",
+            s.path().display(),
+            column_names(s).join(", ")
+        ))
+    })
+}
+
 /// The names of the columns of `s`.
 fn column_names(s: &dyn PointSource) -> Vec<String> {
     s.properties().into_iter().map(|p| p.name).collect()
@@ -243,16 +258,7 @@ fn bin_source(
         .request()
         .columns
         .iter()
-        .map(|c| {
-            reader(s, &c.name).ok_or_else(|| {
-                Error::Usage(format!(
-                    "{} has no column {:?} (the first input has it); it has: {}",
-                    s.path().display(),
-                    c.name,
-                    column_names(s).join(", ")
-                ))
-            })
-        })
+        .map(|c| reader_of_later(s, &c.name))
         .collect::<Result<Vec<_>>>()?;
     let rl = s.record_length();
     let mut values = vec![0.0f32; readers.len() + 1];
@@ -309,18 +315,10 @@ impl OutputRasters {
             Some(names) => names
                 .iter()
                 .map(|n| {
-                    let found = known.iter().find(|(k, _)| k.name.eq_ignore_ascii_case(n));
-                    match found {
+                    let known_here = known.iter().find(|(k, _)| k.name.eq_ignore_ascii_case(n));
+                    match known_here {
                         Some((k, _)) if written.contains(&k.name.as_str()) => Ok(k.clone()),
-                        _ if reader(first, n).is_some() => Ok(found.map_or_else(
-                            || RasterColumn {
-                                name: n.clone(),
-                                unit: String::new(),
-                                signed: true,
-                                angle: false,
-                            },
-                            |(k, _)| k.clone(),
-                        )),
+                        _ if reader(first, n).is_some() => Ok(describe(&known, n)),
                         _ => Err(Error::Usage(format!(
                             "--raster-columns {n}: the outputs have no such column; they have {}, and the input's {}",
                             written.join(", "),
@@ -362,50 +360,33 @@ impl OutputRasters {
         source: &'a dyn PointSource,
         out: &OutputColumns,
     ) -> Result<Tap<'a>> {
-        let names: Vec<String> = self
-            .rasterizer
-            .request()
-            .columns
-            .iter()
+        let names: Vec<String> = (self.rasterizer.request().columns.iter())
             .map(|c| c.name.clone())
             .collect();
-        let mut readers: Vec<Option<Reader>> = names.iter().map(|_| None).collect();
-        let mut at = source.record_length();
-        for c in out.descriptors() {
-            let size = c.ty.size();
-            if let Some(i) = names.iter().position(|n| *n == c.name) {
-                let (scale, value_offset) = c.scaling.unwrap_or((1.0, 0.0));
-                let d = Descriptor {
-                    name: c.name.clone(),
-                    data_type: c.ty as u8,
-                    offset: 0,
-                    size,
-                    scale,
-                    value_offset,
-                    no_data: c.no_data,
-                };
-                readers[i] = Some(Reader::Extra { at, d });
-            }
-            at += size;
-        }
-        let readers = readers
-            .into_iter()
-            .zip(&names)
-            .map(|(r, n)| match r {
-                Some(r) => Ok(r),
-                None => reader(source, n).ok_or_else(|| {
-                    Error::Usage(format!(
-                        "--raster-columns {n}: {} has no such column (the first input has it); it has: {}",
-                        source.path().display(),
-                        column_names(source).join(", ")
-                    ))
+        // The new columns as a reader of the output file sees them: their descriptors encoded
+        // as the writer encodes them and parsed as any LAS input's are.
+        let encoded: Vec<u8> = out
+            .descriptors()
+            .iter()
+            .flat_map(extra_bytes::encode)
+            .collect();
+        let new_columns = extra_bytes::parse(&encoded)
+            .map_err(|why| Error::Internal(format!("the output's own descriptors: {why}")))?;
+        let rl = source.record_length();
+        let readers = names
+            .iter()
+            .map(|n| match new_columns.iter().find(|d| d.name == *n) {
+                Some(d) => Ok(Reader::Extra {
+                    at: rl,
+                    d: d.clone(),
                 }),
+                None => reader_of_later(source, n),
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(Tap {
             values: vec![0.0; readers.len() + 1],
             readers,
-            row: at,
+            row: rl + out.record_size(),
             source,
             rasterizer: &mut self.rasterizer,
         })

@@ -302,13 +302,13 @@ impl Rows {
                 .collect(),
             writers,
         };
-        r.strips = (0..r.thumbs.len()).map(|_| r.blank()).collect();
+        r.strips = (0..r.thumbs.len()).map(|_| r.blank(0)).collect();
         r
     }
 
-    /// Cells of the strip starting at `first`, all without data.
-    fn blank(&self) -> Vec<f32> {
-        let rows = self.per_strip.min(self.height - self.first) as usize;
+    /// Cells of the strip starting at row `first`, all without data.
+    fn blank(&self, first: u32) -> Vec<f32> {
+        let rows = self.per_strip.min(self.height.saturating_sub(first)) as usize;
         vec![f32::NAN; rows * self.width]
     }
 
@@ -327,9 +327,9 @@ impl Rows {
     /// Hands the full strips to their writers and starts the next ones.
     fn flush(&mut self) -> Result<()> {
         let next = self.first + self.per_strip;
-        let cells = self.per_strip.min(self.height.saturating_sub(next)) as usize * self.width;
-        for (i, s) in self.strips.iter_mut().enumerate() {
-            let strip = std::mem::replace(s, vec![f32::NAN; cells]);
+        for i in 0..self.strips.len() {
+            let blank = self.blank(next);
+            let strip = std::mem::replace(&mut self.strips[i], blank);
             self.thumbs[i].push_rows(self.first, &strip);
             if let Some(w) = self.writers.get(i) {
                 w.strip(strip)?;
