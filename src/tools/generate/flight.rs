@@ -141,6 +141,7 @@ pub(super) fn generate_row(
     let centre = x0 + 0.5 * width;
     let strip_first = plan.first_point(strip * plan.rows);
     let mut bounds = IntBounds::empty();
+    let columns = opts.truth.columns();
     for (i, (x, y)) in xy.into_iter().enumerate() {
         // Quantise x and y first, so that the stored position lies on the surface exactly in
         // x, y and the truth is the truth at the stored point (z is off by at most 0.5 mm).
@@ -157,13 +158,14 @@ pub(super) fn generate_row(
         let qz = ((jet.h + noise) / SCALE_M).round();
         let q = [qx as i32, qy as i32, qz as i32];
         bounds.add(q);
-        let t = jet.curvature();
         let mut truth = [f64::NAN; MAX_TRUTH];
-        truth[..4].copy_from_slice(&[t.h, t.k, t.k1, t.k2]);
+        if columns > 0 {
+            let t = jet.curvature();
+            truth[..4].copy_from_slice(&[t.h, t.k, t.k1, t.k2]);
+        }
         if opts.truth == Truth::Terrain {
             truth[4..].copy_from_slice(&terrain_truth(&jet));
         }
-        let columns = opts.truth.columns();
         let nz = jet.normal()[2];
         let scan_angle = ((x - centre) / FLYING_HEIGHT_M).atan().to_degrees().round() as i8;
         let gps = strip as f64 * STRIP_INTERVAL_S

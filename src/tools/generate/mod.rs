@@ -52,7 +52,7 @@ pub const TRUTH_COLUMNS: [&str; 4] = ["TrueH", "TrueK", "Truek1", "Truek2"];
 
 /// Bytes per output record: point format 1 plus the four f64 truth columns (without
 /// `--terrain-truth`, whose columns add 8 bytes each: [`record_length`]).
-pub const RECORD_LENGTH: usize = POINT_FORMAT_SIZES[POINT_FORMAT as usize] as usize + 32;
+pub const RECORD_LENGTH: usize = record_length(TRUTH_COLUMNS.len());
 
 /// Bytes per record of a file with `truth` f64 truth columns.
 pub const fn record_length(truth: usize) -> usize {
