@@ -101,7 +101,9 @@ impl Group {
 
     /// The terrain groups (`--columns terrain`, algorithms.md 10): the tail of [`Group::ALL`].
     pub fn terrain() -> impl Iterator<Item = Group> {
-        Group::ALL.into_iter().skip(9)
+        TerrainValue::ALL
+            .into_iter()
+            .filter_map(TerrainValue::group)
     }
 
     /// The name `--columns` gives it.
@@ -489,18 +491,12 @@ impl ColumnSet {
         self.value_size() * self.stored().count() + 1
     }
 
-    /// Where the stored value `v` starts in a record of [`ColumnSet::encode_result`], if it is
+    /// Where the stored value `v` starts in a record of [`ResultLayout::encode`], if it is
     /// stored (the result files' H prediction reads k1 and k2 there).
     pub fn stored_offset(&self, v: Value) -> Option<usize> {
         self.stored()
             .position(|s| s == v)
             .map(|i| i * self.value_size())
-    }
-
-    /// Appends the stored values of one point to `out` (f64 or f32 little-endian, then the
-    /// flags).
-    pub fn encode_result(&self, r: &PointResult, out: &mut Vec<u8>) {
-        self.layout().encode(r, out)
     }
 
     /// The order and width of the stored values, for decoding records
@@ -535,8 +531,8 @@ pub struct ResultLayout {
 }
 
 impl ResultLayout {
-    /// Appends the stored values of one point to `out`, as [`ColumnSet::encode_result`] does
-    /// (a caller encoding many points makes the layout once: walking the chain of optional
+    /// Appends the stored values of one point to `out` (f64 or f32 little-endian, then the
+    /// flags; a caller encoding many points makes the layout once: walking the chain of optional
     /// groups for every value of every point cost 5% of a run with the terrain columns).
     pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
         for v in &self.values[..self.len] {
@@ -548,7 +544,7 @@ impl ResultLayout {
         out.push(r.curvature.flags);
     }
 
-    /// Decodes one point's stored values (as [`ColumnSet::encode_result`] wrote them) into a
+    /// Decodes one point's stored values (as [`ResultLayout::encode`] wrote them) into a
     /// result with id 0 and no patch; values not stored are NaN (directions zero).
     pub fn decode(&self, rec: &[u8]) -> PointResult {
         let mut r = PointResult {

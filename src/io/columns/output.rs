@@ -309,7 +309,7 @@ mod tests {
         assert_eq!(scale(9), (ScalarType::U8, None));
         // Through a result file's record (f32) and back.
         let mut stored = Vec::new();
-        set.encode_result(&result(0.3), &mut stored);
+        set.layout().encode(&result(0.3), &mut stored);
         let back = set.layout().decode(&stored);
         assert_eq!(back.terrain.flags, 2);
         assert_eq!(back.terrain.slope_deg, 36.87f32 as f64);

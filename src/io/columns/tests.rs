@@ -116,7 +116,7 @@ fn flipping_decoded_results_is_exact() {
         terrain: crate::core::terrain::TerrainValues::undefined(crate::core::compute::NO_TERRAIN),
     };
     let mut rec = Vec::new();
-    cols.encode_result(&r, &mut rec);
+    cols.layout().encode(&r, &mut rec);
     assert_eq!(rec.len(), cols.result_size());
     assert_eq!(cols.layout().decode(&rec).curvature, r.curvature);
     let f = cols.layout().decode(&rec).flipped(&cols.extra);
@@ -128,9 +128,9 @@ fn flipping_decoded_results_is_exact() {
     assert!(f.extra[1].is_nan());
     assert_eq!(f.extra[2..], [0.6, -0.8]);
     let mut flipped = Vec::new();
-    cols.encode_result(&f, &mut flipped);
+    cols.layout().encode(&f, &mut flipped);
     let mut back = Vec::new();
-    cols.encode_result(
+    cols.layout().encode(
         &cols.layout().decode(&flipped).flipped(&cols.extra),
         &mut back,
     );
@@ -142,7 +142,7 @@ fn flipping_decoded_results_is_exact() {
         ..cols.clone()
     };
     let mut small = Vec::new();
-    narrow.encode_result(&r, &mut small);
+    narrow.layout().encode(&r, &mut small);
     assert_eq!(small.len(), narrow.result_size());
     assert_eq!(narrow.result_size() - 1, (cols.result_size() - 1) / 2);
     let d = narrow.layout().decode(&small);

@@ -190,7 +190,7 @@ fn the_h_prediction_is_exact_and_pays() {
             .iter()
             .map(|r| {
                 let mut b = GlobalPatch::NONE.0.to_le_bytes().to_vec();
-                cols.encode_result(r, &mut b);
+                cols.layout().encode(r, &mut b);
                 b
             })
             .collect();

@@ -6,7 +6,7 @@
 //! ([`file`]): a header with the tile's [`CurvatureStats`] (the magnitudes the outputs' scaled
 //! columns take their steps from, core::quantize, so that assemble learns them without reading
 //! every record twice), then zstd blocks of ids (varint gaps) and records (the global patch
-//! only with `--orient propagate`, the column values of [`ColumnSet::encode_result`]) as byte
+//! only with `--orient propagate`, the column values of [`crate::io::columns::ResultLayout::encode`]) as byte
 //! planes. The orientation sidecars are in `sidecar`.
 
 mod file;
