@@ -6,9 +6,6 @@ use std::path::Path;
 
 use crate::common::{generate_terrain, run_stages, s, stdout_of, tilecurv};
 
-/// The points of a chunk of the LAZ files the generator writes: LASzip's default chunk size.
-const LASZIP_CHUNK: u64 = 50_000;
-
 /// Runs `tilecurv args`, asserts it succeeds, returns stdout.
 fn ok(args: &[&str]) -> String {
     stdout_of(args, 0)
@@ -82,10 +79,8 @@ fn a_las_and_a_laz_input_split_over_scan_tasks_give_the_bytes_of_process() {
         } else {
             // Only at chunk starts: the ones nearest 32.5k, 65k and 97.5k.
             assert_eq!(cuts, [50_000, 100_000], "{name}");
-            assert!(cuts.iter().all(|c| c % LASZIP_CHUNK == 0), "{cuts:?}");
         }
         assert_eq!(buckets, cuts.len() as u64 + 1, "{name}");
-        assert!(buckets >= 3, "{name}: {buckets} bucket tasks");
         let want = std::fs::read(&reference).expect("process output");
         assert!(
             bytes == want,
