@@ -50,6 +50,8 @@ pub struct AxisGrid {
     post: f64,
     /// The offset's whole steps and phase, or None where the file's formula is kept.
     split: Option<(i64, f64)>,
+    /// `1 / (scale * post)`: [`AxisGrid::integer`]'s first guess multiplies by it.
+    inverse: f64,
 }
 
 impl AxisGrid {
@@ -71,6 +73,7 @@ impl AxisGrid {
             offset,
             post,
             split,
+            inverse: 1.0 / (scale * post),
         }
     }
 
@@ -98,9 +101,16 @@ impl AxisGrid {
         }
     }
 
-    /// The integer whose coordinate is exactly `v` (bit for bit), if there is one.
+    /// The integer whose coordinate is exactly `v` (bit for bit), if there is one: the nearest
+    /// to `v`'s step count or one of its two neighbours, whichever [`AxisGrid::value`] gives
+    /// back `v` from.
+    #[inline]
     pub fn integer(&self, v: f64) -> Option<i64> {
-        let q = ((v / self.post - self.offset) / self.scale).round();
+        // A multiplication rather than two divisions: the guess only has to be within a step.
+        let q = match self.split {
+            Some((n, phase)) => (v * self.inverse - phase).round() - n as f64,
+            None => ((v / self.post - self.offset) / self.scale).round(),
+        };
         if !q.is_finite() || q.abs() >= MAX_STEPS {
             return None;
         }

@@ -98,6 +98,21 @@ impl Points {
         self.xyz.extend_from_slice(&other.xyz);
     }
 
+    /// Appends points given as columns: ids, positions and normals (empty when no point has
+    /// one; else one a point).
+    pub fn append_columns(&mut self, ids: &[u64], xyz: &[[f64; 3]], normals: &[Option<[f64; 3]>]) {
+        debug_assert!(ids.len() == xyz.len() && (normals.is_empty() || normals.len() == ids.len()));
+        if !normals.is_empty() || !self.normals.is_empty() {
+            self.normals.resize(self.len(), None);
+            match normals.is_empty() {
+                true => self.normals.resize(self.len() + ids.len(), None),
+                false => self.normals.extend_from_slice(normals),
+            }
+        }
+        self.ids.extend_from_slice(ids);
+        self.xyz.extend_from_slice(xyz);
+    }
+
     /// Bytes the columns hold on the heap (their capacities), for the memory budget.
     pub fn heap_bytes(&self) -> usize {
         self.ids.capacity() * 8 + self.xyz.capacity() * 24 + self.normals.capacity() * 32

@@ -47,6 +47,31 @@ pub(crate) fn put_planes(out: &mut Vec<u8>, rows: &[u8], width: usize) {
     }
 }
 
+/// Appends the low `width` bytes (at most 8) of each word as byte planes: the same bytes as
+/// [`put_planes`] of the words' little-endian rows cut to `width`, without the rows.
+pub(crate) fn put_word_planes(out: &mut Vec<u8>, words: &[u64], width: usize) {
+    let n = words.len();
+    let start = out.len();
+    out.resize(start + n * width.min(8), 0);
+    for (j, plane) in out[start..].chunks_exact_mut(n.max(1)).enumerate() {
+        for (b, &w) in plane.iter_mut().zip(words) {
+            *b = (w >> (8 * j)) as u8;
+        }
+    }
+}
+
+/// The inverse of [`put_word_planes`]: `n` words of `width` bytes (at most 8) from their
+/// planes, which must hold `n * width` bytes.
+pub(crate) fn get_word_planes(planes: &[u8], n: usize, width: usize) -> Vec<u64> {
+    let mut words = vec![0u64; n];
+    for (j, plane) in planes.chunks_exact(n.max(1)).take(width.min(8)).enumerate() {
+        for (w, &b) in words.iter_mut().zip(plane) {
+            *w |= (b as u64) << (8 * j);
+        }
+    }
+    words
+}
+
 /// The inverse of [`put_planes`]: `n` records of `width` bytes from their planes, appended to
 /// `out`. `planes` must hold `n * width` bytes.
 pub(crate) fn get_planes(out: &mut Vec<u8>, planes: &[u8], n: usize, width: usize) {
@@ -221,6 +246,28 @@ mod tests {
             assert_eq!(unzigzag(zigzag(v)), v);
         }
         assert_eq!((zigzag(0), zigzag(-1), zigzag(1)), (0, 1, 2));
+    }
+
+    #[test]
+    fn word_planes_are_the_planes_of_the_cut_rows() {
+        let words: Vec<u64> = (0..37u64)
+            .map(|i| i * 0x0123_4567_89ab + (i << 60))
+            .collect();
+        for width in [0, 1, 3, 8] {
+            let rows: Vec<u8> = words
+                .iter()
+                .flat_map(|w| w.to_le_bytes().into_iter().take(width))
+                .collect();
+            let mut want = vec![7];
+            put_planes(&mut want, &rows, width);
+            let mut got = vec![7];
+            put_word_planes(&mut got, &words, width);
+            assert_eq!(got, want, "width {width}");
+            let mask = u64::MAX.checked_shr(64 - 8 * width as u32).unwrap_or(0);
+            let back = get_word_planes(&got[1..], words.len(), width);
+            assert_eq!(back, words.iter().map(|w| w & mask).collect::<Vec<_>>());
+        }
+        assert!(get_word_planes(&[], 0, 4).is_empty());
     }
 
     #[test]

@@ -16,9 +16,9 @@ use rayon::prelude::*;
 
 use crate::core::grid::AxisGrid;
 use crate::core::plan::TileKey;
-use crate::core::point::{Points, SourcePoint};
+use crate::core::point::Points;
 use crate::error::{Error, Result};
-use crate::io::pack::{get_planes, put_planes, put_varint, unzigzag, zigzag, Cursor};
+use crate::io::pack::{get_word_planes, put_varint, put_word_planes, unzigzag, zigzag, Cursor};
 use crate::io::workdir::names::bucket_file;
 
 /// The first bytes of every decoded frame: the bucket format and its version.
@@ -59,22 +59,22 @@ const INTEGERS: u8 = 2;
 /// Appends one column of values, in the most compact encoding that gives back their bits.
 fn put_column(out: &mut Vec<u8>, values: &[f64], grid: Option<AxisGrid>) {
     if let Some(g) = grid {
-        let q: Option<Vec<i64>> = values.iter().map(|&v| g.integer(v)).collect();
-        if let Some(q) = q {
+        let mut q = Vec::with_capacity(values.len());
+        if values
+            .iter()
+            .all(|&v| g.integer(v).map(|i| q.push(i)).is_some())
+        {
             let base = q.iter().copied().min().unwrap_or(0);
-            let span = q.iter().map(|&v| v.abs_diff(base)).max().unwrap_or(0);
-            let width = (8 - span.leading_zeros() as usize / 8).min(8);
+            let words: Vec<u64> = q.iter().map(|&v| v.abs_diff(base)).collect();
+            let span = words.iter().copied().max().unwrap_or(0);
+            let width = 8 - span.leading_zeros() as usize / 8;
             out.push(INTEGERS);
             for f in [g.scale(), g.offset(), g.post()] {
                 out.extend_from_slice(&f.to_le_bytes());
             }
             out.extend_from_slice(&base.to_le_bytes());
             out.push(width as u8);
-            let rows: Vec<u8> = q
-                .iter()
-                .flat_map(|&v| v.abs_diff(base).to_le_bytes().into_iter().take(width))
-                .collect();
-            put_planes(out, &rows, width);
+            put_word_planes(out, &words, width);
             return;
         }
     }
@@ -83,15 +83,15 @@ fn put_column(out: &mut Vec<u8>, values: &[f64], grid: Option<AxisGrid>) {
         .all(|&v| (v as f32 as f64).to_bits() == v.to_bits())
     {
         out.push(EXACT_F32);
-        let rows: Vec<u8> = values
+        let words: Vec<u64> = values
             .iter()
-            .flat_map(|&v| (v as f32).to_le_bytes())
+            .map(|&v| (v as f32).to_bits() as u64)
             .collect();
-        put_planes(out, &rows, 4);
+        put_word_planes(out, &words, 4);
     } else {
         out.push(RAW_F64);
-        let rows: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-        put_planes(out, &rows, 8);
+        let words: Vec<u64> = values.iter().map(|v| v.to_bits()).collect();
+        put_word_planes(out, &words, 8);
     }
 }
 
@@ -111,21 +111,19 @@ fn get_column(c: &mut Cursor<'_>, n: usize) -> Option<Vec<f64>> {
     if width > 8 {
         return None;
     }
-    let planes = c.take(n.checked_mul(width)?)?;
-    let mut rows = Vec::new();
-    get_planes(&mut rows, planes, n, width);
-    let word = |i: usize| {
-        let mut w = [0u8; 8];
-        w[..width].copy_from_slice(&rows[i * width..(i + 1) * width]);
-        u64::from_le_bytes(w)
-    };
+    let words = get_word_planes(c.take(n.checked_mul(width)?)?, n, width);
     // A zero-width column (every integer the same) decodes every value from `base` alone.
-    let value = |w: u64| match (tag, grid) {
-        (INTEGERS, Some(g)) => g.value(base.wrapping_add(w as i64)),
-        (EXACT_F32, _) => f32::from_bits(w as u32) as f64,
-        _ => f64::from_bits(w),
-    };
-    Some((0..n).map(|i| value(word(i))).collect())
+    Some(match (tag, grid) {
+        (INTEGERS, Some(g)) => words
+            .iter()
+            .map(|&w| g.value(base.wrapping_add(w as i64)))
+            .collect(),
+        (EXACT_F32, _) => words
+            .iter()
+            .map(|&w| f32::from_bits(w as u32) as f64)
+            .collect(),
+        _ => words.iter().map(|&w| f64::from_bits(w)).collect(),
+    })
 }
 
 /// Appends one run: the points `run` of `points`, of one input (`grids` input `input`).
@@ -203,18 +201,21 @@ fn get_run(c: &mut Cursor<'_>, out: &mut Points) -> Option<()> {
     } else {
         Default::default()
     };
+    let xyz: Vec<[f64; 3]> = (0..n).map(|i| [xyz[0][i], xyz[1][i], xyz[2][i]]).collect();
     let mut k = 0;
-    for (i, id) in ids.into_iter().enumerate() {
-        let normal = has[i].then(|| {
-            k += 1;
-            [normals[0][k - 1], normals[1][k - 1], normals[2][k - 1]]
-        });
-        out.push(&SourcePoint {
-            id,
-            xyz: [xyz[0][i], xyz[1][i], xyz[2][i]],
-            normal,
-        });
-    }
+    let normals: Vec<Option<[f64; 3]>> = match with {
+        0 => Vec::new(),
+        _ => has
+            .iter()
+            .map(|&h| {
+                h.then(|| {
+                    k += 1;
+                    [normals[0][k - 1], normals[1][k - 1], normals[2][k - 1]]
+                })
+            })
+            .collect(),
+    };
+    out.append_columns(&ids, &xyz, &normals);
     Some(())
 }
 

@@ -1,4 +1,5 @@
 use super::*;
+use crate::core::point::SourcePoint;
 
 fn point(id: u64, xyz: [f64; 3], normal: Option<[f64; 3]>) -> SourcePoint {
     SourcePoint { id, xyz, normal }
