@@ -106,13 +106,32 @@ pub(crate) fn open_buckets(run: &Run) -> Result<Bucketed> {
 /// The bucket stage of `process` (its layout has one bucket task over every input): the scan,
 /// in memory while the buckets fit, or the buckets an interrupted run of the same manifest left
 /// complete.
+///
+/// Buckets whose files were released once every tile was done (a run stopped while writing
+/// its outputs) serve while no tile is missing; if one is (a result file deleted since), they
+/// are scanned again.
 pub(crate) fn bucket_all(run: &Run, exec: &Exec<'_>) -> Result<Bucketed> {
-    match bucket_task(run, 0, true, exec)? {
-        Some(b) => Ok(b),
-        None => {
-            exec.reporter
-                .info("reusing the buckets of the interrupted run");
-            open_buckets(run)
-        }
+    if let Some(b) = bucket_task(run, 0, true, exec)? {
+        return Ok(b);
     }
+    let b = open_buckets(run)?;
+    if !run.work.bucket_files_released() {
+        exec.reporter
+            .info("reusing the buckets of the interrupted run");
+        return Ok(b);
+    }
+    if run.missing_tiles(&run.spec.tile_plan(&b.stats))?.is_empty() {
+        exec.reporter
+            .info("every tile of the interrupted run is done: writing the outputs");
+        return Ok(b);
+    }
+    exec.reporter
+        .info("tiles are missing and the interrupted run's buckets were released: scanning again");
+    run.work.discard_buckets()?;
+    bucket_task(run, 0, true, exec)?.ok_or_else(|| {
+        Error::damaged_work(
+            &run.work.bucket_task_dir(0),
+            "holds buckets just deleted; delete the work directory and run again",
+        )
+    })
 }

@@ -311,10 +311,21 @@ fn process_in(
     let r = (|| {
         let scan = bucket::bucket_all(&run, &exec)?;
         let done = tiles::tiles(&run, &scan, None, &exec)?;
+        let spilled = scan.buckets.spilled();
         drop(scan);
         crate::io::limits::return_free_memory();
-        let undefined = assemble::assemble_outputs(&run, &done.plan, &exec)?;
-        Ok((done, undefined))
+        // Every tile is done: the bucket files go while the outputs are written, on a thread
+        // of their own (deleting thousands of files is the file system's work, not ours), so
+        // that their disk is free before the merge's run files need it.
+        std::thread::scope(|s| {
+            if spilled {
+                // A thread that cannot start leaves the files to the directory's removal.
+                let release = std::thread::Builder::new().name("release buckets".into());
+                let _ = release.spawn_scoped(s, || run.work.release_bucket_files());
+            }
+            let undefined = assemble::assemble_outputs(&run, &done.plan, &exec)?;
+            Ok((done, undefined))
+        })
     })();
     let s = r.map(|(d, undefined)| {
         summary(

@@ -119,6 +119,77 @@ fn failed_then_resumed(
     );
 }
 
+/// The names in directory `dir`, sorted.
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("lists the directory")
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// A run whose buckets spilled deletes its bucket files once every tile is done, while it
+/// writes the outputs. When that write fails (`ulimit -f`), the same command writes the output
+/// from the results alone, without a scan; with a tile's result deleted as well, it scans
+/// again. Both give a clean run's bytes.
+#[test]
+fn released_buckets_resume_without_a_scan_or_scan_again_for_a_missing_tile() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let terrain = dir.path().join("terrain.las");
+    // 1M points: 32 MB of buckets, past the 26 MB that --memory 64M keeps in memory.
+    generate_terrain(&terrain, "1M", 4, 10.0);
+    let opts = ["--memory", "64M", "--tile", "50m"];
+    let reference = dir.path().join("reference.las");
+    process(&terrain, &reference, &opts);
+    let out = dir.path().join("out/terrain.las");
+    std::fs::create_dir_all(out.parent().expect("parent")).expect("output dir");
+    let mut args = vec!["process", s(&terrain), "-o", s(&out)];
+    args.extend(opts);
+    let work = tilecurv::run::default_path(&out);
+    for tile_missing in [false, true] {
+        let failed = tilecurv_limited("-f 8000", &args);
+        let err = String::from_utf8_lossy(&failed.stderr);
+        assert_eq!(failed.status.code(), Some(4), "{err}");
+        let buckets = work.join("buckets");
+        assert_eq!(
+            (names_in(&buckets), names_in(&buckets.join("t0"))),
+            (
+                vec!["frames.released".to_string(), "t0".to_string()],
+                vec!["buckets.done".to_string()]
+            ),
+            "the bucket files are gone, the statistics kept: {err}"
+        );
+        let tiles = finished_tiles(&work);
+        assert!(tiles >= 40, "{tiles} tiles: {err}");
+        if tile_missing {
+            let first = names_in(&work.join("results"))
+                .into_iter()
+                .find(|n| n.starts_with("tile_") && n.ends_with(".res"))
+                .expect("a result file");
+            std::fs::remove_file(work.join("results").join(first)).expect("delete a result");
+        }
+        let err = resume(&args);
+        let said = match tile_missing {
+            false => "every tile of the interrupted run is done",
+            true => "tiles are missing and the interrupted run's buckets were released",
+        };
+        assert!(err.contains(said), "{err}");
+        let resumed: Option<usize> = err
+            .split(" resumed)")
+            .next()
+            .and_then(|head| head.rsplit('(').next())
+            .and_then(|n| n.trim().parse().ok());
+        assert_eq!(resumed, Some(tiles - tile_missing as usize), "{err}");
+        assert!(
+            std::fs::read(&out).expect("output") == std::fs::read(&reference).expect("reference"),
+            "tile missing {tile_missing}: the resumed output differs from a clean run's"
+        );
+        std::fs::remove_file(&out).expect("remove the output");
+    }
+}
+
 /// A write past the file-size limit (`ulimit -f`; SIGXFSZ is ignored, so
 /// the write fails with EFBIG) is an output failure, exit 4, for every writer, both in the final
 /// flush (the sample's outputs fit the writers' 4 MiB buffer) and in the middle of the records

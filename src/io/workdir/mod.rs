@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::durable::{sweep_dead_temps, write_durably};
 pub use names::default_path;
-use names::{BUCKETS, LOCK, MANIFEST, RESULTS, TASKS};
+use names::{BUCKETS, BUCKETS_DONE, BUCKETS_RELEASED, LOCK, MANIFEST, RESULTS, TASKS};
 
 /// The version of the work directory's file formats (bucket frames, result files, the task
 /// layout), in every manifest and its fingerprint: work left by a tilecurv that wrote other
@@ -226,6 +226,48 @@ impl WorkDir {
         std::fs::create_dir_all(&buckets).map_err(|e| Error::write(&buckets, e))?;
         sweep_dead_temps(&buckets, None);
         Ok(())
+    }
+
+    /// Deletes the bucket files of every bucket task, keeping each task's statistics (the
+    /// tile plan): `process` calls it once every tile is done, so that the buckets' disk is
+    /// free while the outputs are written (the merge's run files then take its place). The
+    /// marker is made durable first: a run killed while the files go knows the points are
+    /// gone ([`WorkDir::bucket_files_released`]). Best effort: a file left behind is removed
+    /// with the directory.
+    pub(crate) fn release_bucket_files(&self) {
+        let buckets = self.path.join(BUCKETS);
+        if write_durably(&buckets.join(BUCKETS_RELEASED), b"").is_err() {
+            return;
+        }
+        for task in std::fs::read_dir(&buckets).into_iter().flatten().flatten() {
+            if !task.path().is_dir() {
+                continue;
+            }
+            for f in std::fs::read_dir(task.path())
+                .into_iter()
+                .flatten()
+                .flatten()
+            {
+                if f.file_name() != BUCKETS_DONE {
+                    let _ = std::fs::remove_file(f.path());
+                }
+            }
+        }
+    }
+
+    /// Whether the bucket files were deleted after every tile was done
+    /// ([`WorkDir::release_bucket_files`]): only the statistics remain.
+    pub(crate) fn bucket_files_released(&self) -> bool {
+        self.path.join(BUCKETS).join(BUCKETS_RELEASED).exists()
+    }
+
+    /// Deletes the buckets directory (released buckets, before a scan that makes them again).
+    pub(crate) fn discard_buckets(&self) -> Result<()> {
+        let buckets = self.path.join(BUCKETS);
+        match std::fs::remove_dir_all(&buckets) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::write(&buckets, e)),
+            _ => Ok(()),
+        }
     }
 
     /// The result store, created if needed, with the half-written files of killed runs of this

@@ -37,6 +37,9 @@ pub(crate) const BUCKETS: &str = "buckets";
 pub(crate) const RESULTS: &str = "results";
 /// The file that marks a bucket task's directory complete, with its statistics.
 pub(crate) const BUCKETS_DONE: &str = "buckets.done";
+/// The file in the buckets directory that says the bucket files were deleted once every tile
+/// was done: the statistics remain, the points are gone.
+pub(crate) const BUCKETS_RELEASED: &str = "frames.released";
 
 /// The directory of bucket task `task` in the buckets directory `buckets`.
 pub(crate) fn bucket_task_dir(buckets: &Path, task: usize) -> PathBuf {
