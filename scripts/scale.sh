@@ -9,7 +9,9 @@
 # 7 bytes a point on the terrain with the default columns, 5 + 19 with normals, k1, k2), or while assemble merges more result files than it may
 # open at once (run files, up to as much again as the results), and is gone at the end.
 #
-# usage: scripts/scale.sh [SIZE...]        (default: 1M 10M 100M; sizes as `generate --points`)
+# usage: scripts/scale.sh [SIZE...]        (default: 1M 10M 100M; sizes as `generate --points`;
+#        the rates are also given as ratios to the first size's: `20M 100M 300M 20M` measures
+#        the large runs against 20M before and after them)
 #
 # Environment: TILECURV_SCALE_DIR (inputs, outputs and work directories; default
 # /tmp/tilecurv-scale; 100M points need about 6 GB of input, 9 GB of output and a few GB of
@@ -20,7 +22,8 @@
 # CARGO_TARGET_DIR if set), KEEP_OUTPUTS=1 to keep the outputs, TRUTH=none for inputs without
 # the generator's truth columns (28 instead of 60 bytes a record: `generate --no-truth`),
 # MEMORY=default to run without --memory (the default budget), POLL (seconds between two
-# samples of the work directory's size, default 0.5; du walks every file). Inputs are cached. Compare two
+# samples of the work directory's size, default 0.5, and at least 50 times as long as the
+# last walk took: du walks every file). Inputs are cached. Compare two
 # binaries with the same script, input and settings: TILECURV=old/tilecurv scripts/scale.sh 2M.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -79,8 +82,9 @@ phases() {
 }
 
 summary="$DIR/summary.txt"
-printf '%-6s %11s %9s %9s %9s %11s %11s %11s\n' size points "wall (s)" "CPU (s)" "RSS (MiB)" \
-    "work B/pt" "buckets" "results" >"$summary"
+printf '%-6s %11s %9s %9s %9s %11s %11s %11s %10s %8s\n' size points "wall (s)" "CPU (s)" "RSS (MiB)" \
+    "work B/pt" "buckets" "results" "points/s" "x first" >"$summary"
+first_rate=""
 for size in "${SIZES[@]}"; do
     in="$DIR/terrain_${size}_seed${SEED}_truth-${TRUTH}.$FORMAT"
     if [ ! -f "$in" ]; then
@@ -101,14 +105,22 @@ for size in "${SIZES[@]}"; do
     (
         peak=(0 0 0)
         while true; do
+            # One walk of the tree a sample (du -d1: the total and each folder's): at 100M
+            # points the work directory holds ~8,000 files, and three walks every 0.5 s took
+            # a few percent of the run's CPU.
+            started=$(date +%s%N)
+            sizes=$(du -b -d1 "$work" 2>/dev/null || true)
             i=0
             for d in "$work" "$work/buckets" "$work/results"; do
-                b=$(du -sb "$d" 2>/dev/null | cut -f1 || true)
+                b=$(printf '%s\n' "$sizes" | awk -F'\t' -v d="$d" '$2 == d { print $1 }')
                 if [ -n "$b" ] && [ "$b" -gt "${peak[$i]}" ]; then peak[i]=$b; fi
                 i=$((i + 1))
             done
             echo "${peak[*]}" >"$peak_file"
-            sleep "$POLL"
+            # At least 50 times as long as the walk took: du's own CPU stays under 2% of a
+            # core however many files the work directory holds (24,000 at 300M points).
+            took=$(($(date +%s%N) - started))
+            sleep "$(awk -v p="$POLL" -v t="$took" 'BEGIN { s = 50 * t / 1e9; print (s > p ? s : p) }')"
         done
     ) &
     poller=$!
@@ -129,12 +141,16 @@ for size in "${SIZES[@]}"; do
 
     # The point count of the generated header (the legacy u32 at byte 107).
     points=$(od -An -t u4 -j 107 -N 4 "$in" | tr -d ' ')
-    awk -v size="$size" -v n="$points" -v peaks="$(cat "$peak_file")" '
+    # The rate end to end, and its ratio to the first size's rate in this script (a size listed
+    # twice, first and last, shows how far the machine drifted meanwhile).
+    wall=$(awk '{ w += $1 } END { print w }' "$time_file")
+    [ -n "$first_rate" ] || first_rate=$(awk -v n="$points" -v w="$wall" 'BEGIN { print n / w }')
+    awk -v size="$size" -v n="$points" -v peaks="$(cat "$peak_file")" -v first="$first_rate" '
         { wall += $1; cpu += $2 + $3; if ($4 > rss) rss = $4 }
         END {
             split(peaks, p, " ")
-            printf "%-6s %11d %9.1f %9.1f %9.0f %11.2f %11.2f %11.2f\n", size, n, wall, cpu,
-                rss / 1024, p[1] / n, p[2] / n, p[3] / n
+            printf "%-6s %11d %9.1f %9.1f %9.0f %11.2f %11.2f %11.2f %10.0f %8.3f\n", size, n, wall,
+                cpu, rss / 1024, p[1] / n, p[2] / n, p[3] / n, n / wall, n / wall / first
         }' "$time_file" >>"$summary"
     echo "       phases: $(phases "$prog_file")" >>"$summary"
     echo "       input $(stat -c %s "$in") bytes, output $(stat -c %s "$out") bytes" >>"$summary"
