@@ -10,8 +10,8 @@
 # open at once (run files, up to as much again as the results), and is gone at the end.
 #
 # usage: scripts/scale.sh [SIZE...]        (default: 1M 10M 100M; sizes as `generate --points`;
-#        the rates are also given as ratios to the first size's: `20M 100M 300M 20M` measures
-#        the large runs against 20M before and after them)
+#        the rates are also given as ratios to the first size's, and a size listed several
+#        times by its median: `20M 100M 300M 20M 100M 300M` interleaves two rounds)
 #
 # Environment: TILECURV_SCALE_DIR (inputs, outputs and work directories; default
 # /tmp/tilecurv-scale; 100M points need about 6 GB of input, 9 GB of output and a few GB of
@@ -85,6 +85,8 @@ summary="$DIR/summary.txt"
 printf '%-6s %11s %9s %9s %9s %11s %11s %11s %10s %8s\n' size points "wall (s)" "CPU (s)" "RSS (MiB)" \
     "work B/pt" "buckets" "results" "points/s" "x first" >"$summary"
 first_rate=""
+declare -A rates=()
+order=()
 for size in "${SIZES[@]}"; do
     in="$DIR/terrain_${size}_seed${SEED}_truth-${TRUTH}.$FORMAT"
     if [ ! -f "$in" ]; then
@@ -144,7 +146,10 @@ for size in "${SIZES[@]}"; do
     # The rate end to end, and its ratio to the first size's rate in this script (a size listed
     # twice, first and last, shows how far the machine drifted meanwhile).
     wall=$(awk '{ w += $1 } END { print w }' "$time_file")
-    [ -n "$first_rate" ] || first_rate=$(awk -v n="$points" -v w="$wall" 'BEGIN { print n / w }')
+    rate=$(awk -v n="$points" -v w="$wall" 'BEGIN { print n / w }')
+    [ -n "$first_rate" ] || first_rate=$rate
+    rates[$size]="${rates[$size]:-} $rate"
+    [[ " ${order[*]} " == *" $size "* ]] || order+=("$size")
     awk -v size="$size" -v n="$points" -v peaks="$(cat "$peak_file")" -v first="$first_rate" '
         { wall += $1; cpu += $2 + $3; if ($4 > rss) rss = $4 }
         END {
@@ -156,6 +161,16 @@ for size in "${SIZES[@]}"; do
     echo "       input $(stat -c %s "$in") bytes, output $(stat -c %s "$out") bytes" >>"$summary"
     [ "${KEEP_OUTPUTS:-0}" = 1 ] || rm -f "$out"
     [ ! -e "$work" ] || echo "scale.sh: warning: the work directory $work was left behind" >&2
+done
+# A size listed several times (interleaved with the others: `20M 100M 20M 100M`) is summed up
+# by its median rate, and each median as a ratio to the first size's: the machine's drift
+# then weighs on every size alike.
+median() { tr ' ' '\n' | sed '/^$/d' | sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
+base_median=$(echo "${rates[${order[0]}]}" | median)
+for size in "${order[@]}"; do
+    m=$(echo "${rates[$size]}" | median)
+    awk -v size="$size" -v runs="$(echo "${rates[$size]}" | wc -w)" -v m="$m" -v b="$base_median" \
+        'BEGIN { printf "median %-6s %d run(s): %.0f points/s, %.3f x %s\n", size, runs, m, m / b, "'"${order[0]}"'" }' >>"$summary"
 done
 echo "$BIN: $STAGES, --memory $MEMORY, $(nproc) cores${THREADS:+, --threads $THREADS}, $FORMAT input, truth columns: $TRUTH"
 cat "$summary"
