@@ -53,6 +53,11 @@ pub struct TerrainValues {
 }
 
 impl TerrainValues {
+    /// The values of a point without a normal or curvature (undefined, or terrain values not
+    /// asked for): every value NaN.
+    pub const NONE: TerrainValues =
+        TerrainValues::undefined(terrain_flags::NO_NORMAL | terrain_flags::NO_CURVATURE);
+
     /// Every value NaN, with `flags`.
     pub const fn undefined(flags: u8) -> Self {
         TerrainValues {
@@ -73,9 +78,7 @@ impl TerrainValues {
     /// `--orient propagate` changes nothing here.
     pub fn of(normal: V3, c: &Curvature) -> Self {
         if !normal.iter().all(|v| v.is_finite()) {
-            return TerrainValues::undefined(
-                terrain_flags::NO_NORMAL | terrain_flags::NO_CURVATURE,
-            );
+            return TerrainValues::NONE;
         }
         let (n, c) = if normal[2] < 0.0 {
             (normal.map(|v| -v), c.flipped())

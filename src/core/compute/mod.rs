@@ -12,7 +12,7 @@ use crate::core::neighbors::{KnnScratch, NeighbourIndex};
 use crate::core::normals::{orient, pca_normal, Orientation};
 use crate::core::plan::Rect;
 use crate::core::scale::Ladder;
-use crate::core::terrain::{terrain_flags, TerrainValues};
+use crate::core::terrain::TerrainValues;
 use crate::core::tile::TilePoints;
 
 mod auto;
@@ -52,17 +52,13 @@ pub struct ComputeParams<'e> {
     pub terrain: bool,
 }
 
-/// The flags of the terrain values of a result that has none (not asked for, or not computed):
-/// no normal, no curvature.
-pub const NO_TERRAIN: u8 = terrain_flags::NO_NORMAL | terrain_flags::NO_CURVATURE;
-
 impl ComputeParams<'_> {
     /// The terrain values of a point with `normal` and `curvature` when they are asked for;
     /// undefined otherwise (a cost of about 1% of a point's, paid only then).
     fn terrain_of(&self, normal: Option<V3>, curvature: &Curvature) -> TerrainValues {
         match (self.terrain, normal) {
             (true, Some(n)) => TerrainValues::of(n, curvature),
-            _ => TerrainValues::undefined(NO_TERRAIN),
+            _ => TerrainValues::NONE,
         }
     }
 }
@@ -127,7 +123,7 @@ impl PointResult {
             patch: NO_PATCH,
             scale: 0,
             scale_flags: 0,
-            terrain: TerrainValues::undefined(NO_TERRAIN),
+            terrain: TerrainValues::NONE,
         }
     }
 

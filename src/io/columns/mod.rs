@@ -555,7 +555,7 @@ impl ResultLayout {
             patch: NO_PATCH,
             scale: 0,
             scale_flags: 0,
-            terrain: TerrainValues::undefined(crate::core::compute::NO_TERRAIN),
+            terrain: TerrainValues::NONE,
         };
         let (mut at, w) = (0, self.width);
         for v in &self.values[..self.len] {

@@ -113,7 +113,7 @@ fn flipping_decoded_results_is_exact() {
         patch: NO_PATCH,
         scale: 0,
         scale_flags: 0,
-        terrain: crate::core::terrain::TerrainValues::undefined(crate::core::compute::NO_TERRAIN),
+        terrain: crate::core::terrain::TerrainValues::NONE,
     };
     let mut rec = Vec::new();
     cols.layout().encode(&r, &mut rec);

@@ -180,9 +180,7 @@ fn the_h_prediction_is_exact_and_pays() {
                     patch: NO_PATCH,
                     scale: 0,
                     scale_flags: 0,
-                    terrain: crate::core::terrain::TerrainValues::undefined(
-                        crate::core::compute::NO_TERRAIN,
-                    ),
+                    terrain: crate::core::terrain::TerrainValues::NONE,
                 }
             })
             .collect();

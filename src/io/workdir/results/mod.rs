@@ -375,9 +375,7 @@ mod tests {
             patch: crate::core::compute::NO_PATCH,
             scale: 0,
             scale_flags: 0,
-            terrain: crate::core::terrain::TerrainValues::undefined(
-                crate::core::compute::NO_TERRAIN,
-            ),
+            terrain: crate::core::terrain::TerrainValues::NONE,
         }
     }
 
