@@ -9,8 +9,9 @@
 # usage: scripts/billion.sh
 #
 # Needs about 33 bytes a point of free disk in TILECURV_SCALE_DIR (default /tmp/tilecurv-scale):
-# 5 of input, 12 of output, 16 of work directory at its peak; refused (exit 2) when the disk has
-# less. Environment: TILECURV (a binary), TILECURV_SCALE_DIR, POINTS (default 1000M).
+# 4 of input, 6 of LAZ output and 11.5 of work directory at its peak as measured (README), the
+# rest a margin for the other columns' larger outputs and results; refused (exit 2) when the disk
+# has less. Environment: TILECURV (a binary), TILECURV_SCALE_DIR, POINTS (default 1000M).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DIR=${TILECURV_SCALE_DIR:-/tmp/tilecurv-scale}
