@@ -45,4 +45,6 @@ def test_raster_errors_are_usage_errors(tmp_path):
         tilecurv.raster(SAMPLE, tmp_path / "r", cell="1m")
     with pytest.raises(tilecurv.UsageError, match="median"):
         tilecurv.raster(SAMPLE, tmp_path / "r", cell="1m", columns=["z"], stat="middle")
+    with pytest.raises(tilecurv.UsageError, match="at least one input"):
+        tilecurv.raster([], tmp_path / "r", cell="1m", columns=["z"])
     assert not (tmp_path / "r").exists()

@@ -104,8 +104,9 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
             s.grid.width,
             s.grid.height,
             s.grid.cell,
-            s.files[0]
-                .parent()
+            s.files
+                .first()
+                .and_then(|f| f.parent())
                 .map_or(String::new(), |d| d.display().to_string())
         ));
     }

@@ -81,7 +81,9 @@ fn make_rasters(
         .iter()
         .map(|p| crate::io::source::open(p))
         .collect::<Result<Vec<_>>>()?;
-    let first = sources[0].as_ref();
+    let Some(first) = sources.first().map(|s| s.as_ref()) else {
+        return Err(Error::Usage("raster: name at least one input file".into()));
+    };
     let unit = first.unit();
     let cell = job.cell.in_file_units(unit.unit());
     if job.cell.has_unit() && unit.unit().is_none() {
@@ -260,25 +262,56 @@ fn bin_source(
         .iter()
         .map(|c| reader_of_later(s, &c.name))
         .collect::<Result<Vec<_>>>()?;
+    let mut binner = Binner::new(readers);
     let rl = s.record_length();
-    let mut values = vec![0.0f32; readers.len() + 1];
     s.for_each_chunk(chunk, &mut |first, records| {
         if cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
         }
         for (i, rec) in records.chunks_exact(rl).enumerate() {
             let id = first + i as u64;
-            let p = s.decode(id, rec);
-            for (v, rd) in values.iter_mut().zip(&readers) {
-                *v = rd.value(rec);
-            }
-            values[readers.len()] = p.xyz[2] as f32;
             let what = || format!("{} point {id}", s.path().display());
-            r.push(p.xyz[0], p.xyz[1], &values, &what)?;
+            binner.bin(s, id, rec, r, &what)?;
         }
         reporter.advance((records.len() / rl) as u64);
         Ok(())
     })
+}
+
+/// Reads a point's raster values from its record and bins them: the one path of `raster`'s
+/// inputs and of `process --raster`'s output records.
+struct Binner {
+    /// Per raster column, where its value is in a record and how it is stored.
+    readers: Vec<Reader>,
+    /// The values of the point being binned: one a column, then z (for the hillshade).
+    values: Vec<f32>,
+}
+
+impl Binner {
+    fn new(readers: Vec<Reader>) -> Self {
+        Binner {
+            values: vec![0.0; readers.len() + 1],
+            readers,
+        }
+    }
+
+    /// Bins point `id` of `s` whose record is `rec` (the source's record first, then any
+    /// columns an output added); `what` names the point in an error.
+    fn bin(
+        &mut self,
+        s: &dyn PointSource,
+        id: u64,
+        rec: &[u8],
+        r: &mut Rasterizer,
+        what: &dyn Fn() -> String,
+    ) -> Result<()> {
+        let p = s.decode(id, &rec[..s.record_length()]);
+        for (v, rd) in self.values.iter_mut().zip(&self.readers) {
+            *v = rd.value(rec);
+        }
+        self.values[self.readers.len()] = p.xyz[2] as f32;
+        r.push(p.xyz[0], p.xyz[1], &self.values, what)
+    }
 }
 
 /// The default directory of the rasters of `outputs`: beside a single output, named after it
@@ -286,7 +319,9 @@ fn bin_source(
 pub(crate) fn default_dir(outputs: &[PathBuf]) -> PathBuf {
     match outputs {
         [one] => one.with_extension("rasters"),
-        _ => outputs[0].with_file_name("rasters"),
+        _ => outputs
+            .first()
+            .map_or_else(|| PathBuf::from("rasters"), |o| o.with_file_name("rasters")),
     }
 }
 
@@ -307,7 +342,9 @@ impl OutputRasters {
         dir: PathBuf,
         memory_bytes: u64,
     ) -> Result<OutputRasters> {
-        let first = sources[0].as_ref();
+        let Some(first) = sources.first().map(|s| s.as_ref()) else {
+            return Err(Error::Usage("raster: name at least one input file".into()));
+        };
         let cell = opts.cell.in_file_units(first.unit().unit());
         let known = known_columns(&cols.unit);
         let written: Vec<&str> = cols.columns().iter().map(|c| c.name).collect();
@@ -384,8 +421,7 @@ impl OutputRasters {
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(Tap {
-            values: vec![0.0; readers.len() + 1],
-            readers,
+            binner: Binner::new(readers),
             row: rl + out.record_size(),
             source,
             rasterizer: &mut self.rasterizer,
@@ -409,26 +445,18 @@ impl OutputRasters {
 pub(crate) struct Tap<'a> {
     rasterizer: &'a mut Rasterizer,
     source: &'a dyn PointSource,
-    /// Per raster column, where its value is in an output record and how it is stored.
-    readers: Vec<Reader>,
+    /// The raster columns' readers of an output record.
+    binner: Binner,
     /// Bytes of an output record (the input's record and the new columns).
     row: usize,
-    values: Vec<f32>,
 }
 
 impl Tap<'_> {
     /// Bins every output record in `records` (whole records, in order).
     pub(crate) fn feed(&mut self, records: &[u8]) -> Result<()> {
-        let rl = self.source.record_length();
         for rec in records.chunks_exact(self.row) {
-            let p = self.source.decode(0, &rec[..rl]);
-            for (v, r) in self.values.iter_mut().zip(&self.readers) {
-                *v = r.value(rec);
-            }
-            self.values[self.readers.len()] = p.xyz[2] as f32;
             let what = || format!("a point of {}", self.source.path().display());
-            self.rasterizer
-                .push(p.xyz[0], p.xyz[1], &self.values, &what)?;
+            (self.binner).bin(self.source, 0, rec, self.rasterizer, &what)?;
         }
         Ok(())
     }
