@@ -215,24 +215,58 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
 }
 
+/// A GeoTIFF key directory (GeoKeyDirectoryTag; LAS VLR 34735): the header's version,
+/// revision and minor revision, and the keys as (id, location, count, value) entries.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(crate) struct GeoKeys {
+    pub(crate) header: [u16; 3],
+    pub(crate) entries: Vec<[u16; 4]>,
+}
+
+impl GeoKeys {
+    /// The directory stored as little-endian shorts in `data` (a VLR's payload).
+    pub(crate) fn parse(data: &[u8]) -> Result<GeoKeys, String> {
+        let w: Vec<u16> = data
+            .chunks_exact(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]))
+            .collect();
+        GeoKeys::of_shorts(&w)
+    }
+
+    /// The directory whose shorts are `w`: an error when they are fewer than the header or
+    /// its key count says.
+    pub(crate) fn of_shorts(w: &[u16]) -> Result<GeoKeys, String> {
+        let [a, b, c, n, ..] = *w else {
+            return Err("the GeoTIFF key directory is shorter than its 8-byte header".into());
+        };
+        let entries = w
+            .get(4..4 + 4 * n as usize)
+            .ok_or("the GeoTIFF key directory is shorter than its key count says")?;
+        Ok(GeoKeys {
+            header: [a, b, c],
+            entries: (entries.chunks_exact(4))
+                .map(|e| [e[0], e[1], e[2], e[3]])
+                .collect(),
+        })
+    }
+
+    /// The value of key `id` when it is stored in the directory itself (location 0).
+    pub(crate) fn value(&self, id: u16) -> Option<u16> {
+        self.entries
+            .iter()
+            .find(|e| e[0] == id && e[1] == 0)
+            .map(|e| e[3])
+    }
+}
+
 /// The linear unit from a GeoTIFF key directory (ProjLinearUnitsGeoKey 3076, or
 /// ProjLinearUnitSizeGeoKey 3077 for a user-defined unit).
 pub fn geotiff_unit(keys: &[u8], doubles: Option<&[u8]>) -> Result<LengthUnit, String> {
-    let w: Vec<u16> = keys
-        .chunks_exact(2)
-        .map(|c| u16::from_le_bytes([c[0], c[1]]))
-        .collect();
-    if w.len() < 4 {
-        return Err("the GeoTIFF key directory is shorter than its 8-byte header".into());
-    }
-    let n = w[3] as usize;
-    let entries = w
-        .get(4..4 + 4 * n)
-        .ok_or("the GeoTIFF key directory is shorter than its key count says")?;
+    let keys = GeoKeys::parse(keys)?;
     let mut units = None;
     let mut size = None;
     let mut projected = None;
-    for e in entries.chunks_exact(4) {
+    for e in &keys.entries {
         match e[0] {
             3076 if e[1] == 0 => units = Some(e[3]),
             3077 if e[1] == 34736 => {

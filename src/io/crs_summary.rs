@@ -2,7 +2,7 @@
 //! unit (the one `process` uses, from `crs`) and its vertical unit (a compound WKT's vertical
 //! CRS, or GeoTIFF's VerticalUnitsGeoKey). Pure: works on VLR payloads; reads, never converts.
 
-use crate::io::crs::{crs_unit, horizontal_unit, without_spaces, LengthUnit, UnitSource};
+use crate::io::crs::{crs_unit, horizontal_unit, without_spaces, GeoKeys, LengthUnit, UnitSource};
 use crate::io::las::vlr::Vlr;
 
 /// What a file says about its CRS.
@@ -24,39 +24,66 @@ pub struct CrsSummary {
 pub fn crs_summary<'a>(records: impl IntoIterator<Item = &'a Vlr>, wkt_bit: bool) -> CrsSummary {
     let records: Vec<&Vlr> = records.into_iter().collect();
     let horizontal = horizontal_unit(records.iter().copied());
-    let wkt = records
-        .iter()
-        .find(|v| v.is("LASF_Projection", 2112))
-        .map(|v| {
-            String::from_utf8_lossy(&v.data)
-                .trim_end_matches('\0')
-                .to_string()
-        });
-    let keys = records
-        .iter()
-        .find(|v| v.is("LASF_Projection", 34735))
-        .map(|v| geo_keys(&v.data));
-    let keys = keys.filter(|_| !(wkt_bit && wkt.is_some()));
-    match (wkt, keys) {
-        (_, Some(k)) => CrsSummary {
-            stored_as: "GeoTIFF",
-            name: geotiff_name(&k),
-            horizontal,
-            vertical: geotiff_vertical_unit(&k),
-        },
-        (Some(w), None) => CrsSummary {
+    match crs_record(&records, wkt_bit) {
+        CrsRecord::Keys(v) => {
+            let k = geo_keys(&v.data);
+            CrsSummary {
+                stored_as: "GeoTIFF",
+                name: geotiff_name(&k),
+                horizontal,
+                vertical: geotiff_vertical_unit(&k),
+            }
+        }
+        CrsRecord::Wkt(w) => CrsSummary {
             stored_as: "WKT",
             name: wkt_name(&w),
             horizontal,
             vertical: wkt_vertical_unit(&w),
         },
-        (None, None) => CrsSummary {
+        CrsRecord::None => CrsSummary {
             stored_as: "none",
             name: None,
             horizontal,
             vertical: Err("the file has no CRS".into()),
         },
     }
+}
+
+/// The record that holds a LAS file's CRS.
+pub(crate) enum CrsRecord<'a> {
+    /// The GeoTIFF key directory's VLR (34735).
+    Keys(&'a Vlr),
+    /// The OGC WKT (VLR 2112), without its trailing NULs.
+    Wkt(String),
+    /// Neither.
+    None,
+}
+
+/// Which record is the CRS of a file whose VLRs and EVLRs are `records`: with both a WKT and
+/// GeoTIFF keys, the WKT when `wkt_bit` (LAS 1.4's global encoding bit 4) is set, the keys
+/// otherwise (as LAS 1.0-1.3 readers take them).
+pub(crate) fn crs_record<'a>(records: &[&'a Vlr], wkt_bit: bool) -> CrsRecord<'a> {
+    let find = |id| {
+        records
+            .iter()
+            .copied()
+            .find(|v| v.is("LASF_Projection", id))
+    };
+    let wkt = find(2112).map(|v| {
+        String::from_utf8_lossy(&v.data)
+            .trim_end_matches('\0')
+            .to_string()
+    });
+    match (find(34735), wkt) {
+        (Some(keys), w) if !(wkt_bit && w.is_some()) => CrsRecord::Keys(keys),
+        (_, Some(w)) => CrsRecord::Wkt(w),
+        _ => CrsRecord::None,
+    }
+}
+
+/// The keys of the directory `data`, none when it is cut short (`info` reports what it can).
+fn geo_keys(data: &[u8]) -> GeoKeys {
+    GeoKeys::parse(data).unwrap_or_default()
 }
 
 /// The name of the outermost CRS of a WKT: its first quoted string.
@@ -101,8 +128,8 @@ pub fn vertical_unit<'a>(records: impl IntoIterator<Item = &'a Vlr>) -> Vertical
     let keys = geo_keys(&v.data);
     match geotiff_vertical_unit(&keys) {
         Ok(u) => VerticalUnit::Declared(u),
-        Err(why) if key(&keys, 4099).is_some() => VerticalUnit::Unreadable(why),
-        Err(_) => match key(&keys, 4096) {
+        Err(why) if keys.value(4099).is_some() => VerticalUnit::Unreadable(why),
+        Err(_) => match keys.value(4096) {
             Some(code) => VerticalUnit::Unreadable(format!(
                 "the GeoTIFF keys name the vertical CRS EPSG:{code} but no VerticalUnitsGeoKey"
             )),
@@ -125,32 +152,13 @@ pub fn wkt_vertical_unit(wkt: &str) -> Result<LengthUnit, String> {
     crs_unit(&wkt, p).ok_or_else(|| "the WKT's vertical CRS names no unit".into())
 }
 
-/// The (key id, location, count, value) entries of a GeoTIFF key directory.
-fn geo_keys(data: &[u8]) -> Vec<[u16; 4]> {
-    let w: Vec<u16> = data
-        .chunks_exact(2)
-        .map(|c| u16::from_le_bytes([c[0], c[1]]))
-        .collect();
-    let n = w.get(3).copied().unwrap_or(0) as usize;
-    w.get(4..4 + 4 * n)
-        .unwrap_or(&[])
-        .chunks_exact(4)
-        .map(|e| [e[0], e[1], e[2], e[3]])
-        .collect()
-}
-
-/// The value of the GeoTIFF key `id` stored in the directory itself.
-fn key(keys: &[[u16; 4]], id: u16) -> Option<u16> {
-    keys.iter().find(|e| e[0] == id && e[1] == 0).map(|e| e[3])
-}
-
 /// The EPSG codes a GeoTIFF directory names: projected (3072) or geographic (2048), and
 /// vertical (4096).
-fn geotiff_name(keys: &[[u16; 4]]) -> Option<String> {
-    let horizontal = key(keys, 3072)
+pub(crate) fn geotiff_name(keys: &GeoKeys) -> Option<String> {
+    let horizontal = (keys.value(3072))
         .map(|c| format!("EPSG:{c}"))
-        .or_else(|| key(keys, 2048).map(|c| format!("EPSG:{c} (geographic)")));
-    let vertical = key(keys, 4096).map(|c| format!("EPSG:{c}"));
+        .or_else(|| keys.value(2048).map(|c| format!("EPSG:{c} (geographic)")));
+    let vertical = keys.value(4096).map(|c| format!("EPSG:{c}"));
     match (horizontal, vertical) {
         (Some(h), Some(v)) => Some(format!("{h} + {v}")),
         (h, v) => h.or(v),
@@ -158,8 +166,8 @@ fn geotiff_name(keys: &[[u16; 4]]) -> Option<String> {
 }
 
 /// The vertical unit of a GeoTIFF directory (VerticalUnitsGeoKey 4099, an EPSG unit code).
-fn geotiff_vertical_unit(keys: &[[u16; 4]]) -> Result<LengthUnit, String> {
-    let Some(code) = key(keys, 4099) else {
+fn geotiff_vertical_unit(keys: &GeoKeys) -> Result<LengthUnit, String> {
+    let Some(code) = keys.value(4099) else {
         return Err("the GeoTIFF keys have no VerticalUnitsGeoKey".into());
     };
     let (name, metres) = match code {

@@ -199,7 +199,7 @@ impl RunReader {
         match self.r.read_exact(&mut self.rec) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(None),
-            Err(e) => return Err(Error::write(&self.path, e)),
+            Err(e) => return Err(Error::read_work(&self.path, e)),
         }
         let (key, rest) = self.rec.split_at(8);
         for (v, b) in values.iter_mut().zip(rest.chunks_exact(4)) {
@@ -226,7 +226,7 @@ impl Merge {
             heap: BinaryHeap::with_capacity(paths.len()),
         };
         for (i, p) in paths.iter().enumerate() {
-            let f = File::open(p).map_err(|e| Error::write(p, e))?;
+            let f = File::open(p).map_err(|e| Error::read_work(p, e))?;
             m.runs.push(RunReader {
                 path: p.clone(),
                 r: BufReader::with_capacity(READ_BUFFER, f),

@@ -4,6 +4,8 @@
 //! vertical CRS's of a compound one). What cannot be expressed is said in
 //! [`RasterCrs::warning`]: a WKT without EPSG codes, or no CRS at all.
 
+use crate::io::crs::GeoKeys;
+use crate::io::crs_summary::{crs_record, geotiff_name, CrsRecord};
 use crate::io::las::vlr::Vlr;
 
 /// GTModelTypeGeoKey, GTRasterTypeGeoKey, GeographicTypeGeoKey, ProjectedCSTypeGeoKey,
@@ -41,22 +43,16 @@ pub(crate) fn raster_crs<'a>(
 ) -> RasterCrs {
     let records: Vec<&Vlr> = records.into_iter().collect();
     let find = |id| records.iter().find(|v| v.is("LASF_Projection", id));
-    let wkt = find(2112).map(|v| {
-        String::from_utf8_lossy(&v.data)
-            .trim_end_matches('\0')
-            .to_string()
-    });
-    let keys = find(34735).filter(|_| !(wkt_bit && wkt.is_some()));
-    match (keys, wkt) {
-        (Some(keys), _) => {
+    match crs_record(&records, wkt_bit) {
+        CrsRecord::Keys(keys) => {
             let doubles = find(34736).map(|v| doubles_of(&v.data)).unwrap_or_default();
             let ascii = find(34737)
                 .map(|v| String::from_utf8_lossy(&v.data).into_owned())
                 .unwrap_or_default();
             from_keys(&shorts_of(&keys.data), doubles, ascii)
         }
-        (_, Some(w)) => from_wkt(&w),
-        (None, None) => RasterCrs {
+        CrsRecord::Wkt(w) => from_wkt(&w),
+        CrsRecord::None => RasterCrs {
             described: "none".into(),
             warning: Some("the input has no CRS, so the rasters have none: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
             ..no_keys()
@@ -83,38 +79,27 @@ fn directory(keys: &[(u16, u16)]) -> Vec<u16> {
 
 /// The input's own key directory with its raster type set to PixelIsArea.
 fn from_keys(keys: &[u16], doubles: Vec<f64>, ascii: String) -> RasterCrs {
-    if keys.len() < 4 || keys.len() < 4 + 4 * keys[3] as usize {
+    let Ok(mut keys) = GeoKeys::of_shorts(keys) else {
         return RasterCrs {
             described: "none".into(),
             warning: Some("the input's GeoTIFF key directory is cut short, so the rasters have no CRS: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
             ..no_keys()
         };
-    }
-    let mut entries: Vec<[u16; 4]> = keys[4..4 + 4 * keys[3] as usize]
-        .chunks_exact(4)
-        .map(|e| [e[0], e[1], e[2], e[3]])
-        .filter(|e| e[0] != RASTER_TYPE)
-        .collect();
-    entries.push([RASTER_TYPE, 0, 1, PIXEL_IS_AREA]);
-    entries.sort_by_key(|e| e[0]);
-    let mut directory = vec![keys[0], keys[1], keys[2], entries.len() as u16];
-    entries.iter().for_each(|e| directory.extend_from_slice(e));
-    let code = |id| {
-        entries
-            .iter()
-            .find(|e| e[0] == id && e[1] == 0)
-            .map(|e| e[3])
     };
-    let name = match (code(PROJECTED).or(code(GEOGRAPHIC)), code(VERTICAL)) {
-        (Some(h), Some(v)) => format!("EPSG:{h} + EPSG:{v}"),
-        (Some(h), None) => format!("EPSG:{h}"),
-        _ => "user-defined".into(),
-    };
+    keys.entries.retain(|e| e[0] != RASTER_TYPE);
+    keys.entries.push([RASTER_TYPE, 0, 1, PIXEL_IS_AREA]);
+    keys.entries.sort_by_key(|e| e[0]);
+    let mut directory = keys.header.to_vec();
+    directory.push(keys.entries.len() as u16);
+    keys.entries
+        .iter()
+        .for_each(|e| directory.extend_from_slice(e));
+    let name = geotiff_name(&keys).unwrap_or_else(|| "user-defined".into());
     RasterCrs {
         directory,
         doubles,
         ascii,
-        described: format!("{name} (the input's GeoTIFF keys)"),
+        described: format!("{name}, from the input's GeoTIFF keys"),
         warning: None,
     }
 }
