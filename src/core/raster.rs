@@ -6,8 +6,8 @@
 //! `(x, y)` is `(floor(x / cell), floor(y / cell))`, so the rasters of adjacent surveys at one
 //! cell size line up cell for cell. A point exactly on a cell edge belongs to the cell east or
 //! north of it. A cell's value depends only on the values of its points, never on their order
-//! (the values are sorted before they are reduced), so it inherits every invariance of the
-//! columns.
+//! (a mean is an exact sum or a sum in sorted order, a median sorts), so it inherits every
+//! invariance of the columns.
 
 use std::fmt;
 
@@ -151,8 +151,9 @@ impl Stat {
     /// The cell value of `values` (one cell's values of one column, NaN for undefined ones),
     /// NaN when none is defined. `circular` takes the values as angles in degrees (aspect):
     /// the mean is the direction of the mean unit vector, in [0, 360), and the median, min and
-    /// max are those of the plain values. The result does not depend on the values' order: the
-    /// mean and the median sort them first (NaN last); the min and max compare by total order
+    /// max are those of the plain values. The result does not depend on the values' order: a mean
+    /// whose f64 sum is exact in any order takes it as it comes ([`exact_mean`]), other means
+    /// and the median sort the values first (NaN last); the min and max compare by total order
     /// (-0 below +0).
     pub fn reduce(self, values: &mut [f32], circular: bool) -> f32 {
         let defined = values.iter().copied().filter(|v| !v.is_nan());
@@ -160,6 +161,11 @@ impl Stat {
             Stat::Count => return defined.count() as f32,
             Stat::Min => return defined.min_by(f32::total_cmp).unwrap_or(f32::NAN),
             Stat::Max => return defined.max_by(f32::total_cmp).unwrap_or(f32::NAN),
+            Stat::Mean if !circular => {
+                if let Some(mean) = exact_mean(values) {
+                    return mean;
+                }
+            }
             Stat::Mean | Stat::Median => {}
         }
         values.sort_unstable_by(|a, b| a.total_cmp(b));
@@ -179,6 +185,33 @@ impl fmt::Display for Stat {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
+}
+
+/// The mean of the defined values when their f64 sum is exact in any order (NaN when none is
+/// defined), so that no sort is needed for a mean independent of the order; `None` otherwise.
+/// Every f32 is a multiple of its unit in the last place, at most 2^24 of them: n values whose
+/// largest binary exponent is at most `spread` above the smallest are all multiples of the
+/// smallest ulp and their partial sums stay below 2^(24 + spread + log2 n) of it, which f64's
+/// 53-bit significand holds exactly when 24 + spread + ceil(log2 n) <= 53. A cell's values
+/// almost always span far less than the 2^26 this allows for 8 points; the rest are sorted.
+fn exact_mean(values: &[f32]) -> Option<f32> {
+    let (mut n, mut sum) = (0u64, 0.0f64);
+    let (mut lo, mut hi) = (u32::MAX, 0u32);
+    for &v in values.iter().filter(|v| !v.is_nan()) {
+        n += 1;
+        sum += f64::from(v);
+        if v != 0.0 {
+            // The biased exponent; subnormals share the unit of exponent 1.
+            let e = ((v.to_bits() >> 23) & 0xff).max(1);
+            (lo, hi) = (lo.min(e), hi.max(e));
+        }
+    }
+    if n == 0 {
+        return Some(f32::NAN);
+    }
+    let spread = hi.saturating_sub(lo);
+    let room = 64 - (n - 1).leading_zeros(); // ceil(log2 n)
+    (24 + spread + room <= 53 && sum.is_finite()).then(|| (sum / n as f64) as f32)
 }
 
 /// The direction of the mean unit vector of `degrees`, in [0, 360); NaN when they cancel
@@ -268,6 +301,48 @@ mod tests {
         let mut none = [f32::NAN; 3];
         assert!(Stat::Mean.reduce(&mut none, false).is_nan());
         assert_eq!(Stat::Count.reduce(&mut none, false), 0.0);
+    }
+
+    /// The mean without a sort equals the mean of the sorted values, and values too far apart
+    /// in magnitude for an exact sum still give the same mean in every order.
+    #[test]
+    fn the_mean_is_the_sorted_sum_and_ignores_order_when_magnitudes_differ() {
+        let mut rng = crate::core::rng::Rng::new(7);
+        for case in 0..2000_i32 {
+            let n = 1 + (rng.next_u64() % 12) as usize;
+            // Exponent spreads from none to far beyond what an f64 sum holds exactly.
+            let reach = case % 40;
+            let mut v: Vec<f32> = (0..n)
+                .map(|_| {
+                    let m = rng.uniform() * 2.0 - 1.0;
+                    let e = (rng.next_u64() % (reach as u64 + 1)) as i32 - reach / 2;
+                    (m * 2f64.powi(e)) as f32
+                })
+                .collect();
+            let mut sorted = v.clone();
+            sorted.sort_unstable_by(f32::total_cmp);
+            let want = (sorted.iter().map(|&x| f64::from(x)).sum::<f64>() / n as f64) as f32;
+            let exact = exact_mean(&v);
+            if let Some(m) = exact {
+                assert_eq!(m.to_bits(), want.to_bits(), "{v:?}");
+            }
+            for rot in 0..n {
+                v.rotate_left(1);
+                let got = Stat::Mean.reduce(&mut v.clone(), false);
+                assert_eq!(
+                    got.to_bits(),
+                    want.to_bits(),
+                    "case {case} rotation {rot}: {v:?}"
+                );
+            }
+        }
+        // A spread of 2^40 between values is past an exact sum: the sorted path answers.
+        let far = [1.0f32, 1e-12, -1.0];
+        assert_eq!(exact_mean(&far), None);
+        let first = Stat::Mean.reduce(&mut far.clone(), false);
+        for order in [[1e-12f32, -1.0, 1.0], [-1.0, 1.0, 1e-12]] {
+            assert_eq!(Stat::Mean.reduce(&mut order.clone(), false), first);
+        }
     }
 
     /// The circular mean of aspects across north is north, not south.

@@ -161,10 +161,7 @@ mod tests {
         }
         let factor = thumbs[0].factor();
         let [elevation, mean, slope] = thumbs.map(Thumbnail::finish);
-        let shade = Shade {
-            elevation: &elevation,
-            cell: cell * f64::from(factor),
-        };
+        let shade = Shade::of(&elevation, cell * f64::from(factor));
         let legend = |title, unit| Legend {
             title,
             unit,
@@ -177,7 +174,7 @@ mod tests {
                     &mean,
                     Ramp::Diverging,
                     &legend("MeanCurvature", "1/m"),
-                    Some(shade),
+                    Some(&shade),
                 ),
             ),
             (
@@ -186,7 +183,7 @@ mod tests {
                     &slope,
                     Ramp::Sequential,
                     &legend("Slope", "degrees"),
-                    Some(shade),
+                    Some(&shade),
                 ),
             ),
             (

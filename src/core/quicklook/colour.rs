@@ -135,7 +135,7 @@ pub(super) struct Stretch {
 impl Stretch {
     /// The stretch of `grid`'s defined (finite) values: a diverging ramp clipped at
     /// ±(percentile `pct` of |value|), a sequential one from percentile `100 - pct` to `pct`.
-    /// Percentiles are exact (a sorted copy) and interpolate linearly between ranks.
+    /// Percentiles are exact (selected from a copy) and interpolate linearly between ranks.
     pub(super) fn of(grid: &Grid, ramp: Ramp, pct: f64) -> Stretch {
         let pct = if pct.is_finite() {
             pct
@@ -151,19 +151,18 @@ impl Stretch {
             Ramp::Diverging => pct.clamp(0.0, 100.0),
             Ramp::Sequential => pct.clamp(50.0, 100.0),
         };
-        // One sorted copy in f32 (|value| for a diverging ramp): 4 bytes a defined pixel.
-        let mut sorted: Vec<f32> = match ramp {
+        // One copy in f32 (|value| for a diverging ramp): 4 bytes a defined pixel.
+        let mut copy: Vec<f32> = match ramp {
             Ramp::Diverging => defined().map(|x| x.abs()).collect(),
             Ramp::Sequential => defined().copied().collect(),
         };
-        sorted.sort_unstable_by(f32::total_cmp);
         let p = percentile_used;
         let (low, high) = match ramp {
             Ramp::Diverging => {
-                let limit = percentile(&sorted, p);
+                let limit = percentile(&mut copy, p);
                 (-limit, limit)
             }
-            Ramp::Sequential => (percentile(&sorted, 100.0 - p), percentile(&sorted, p)),
+            Ramp::Sequential => (percentile(&mut copy, 100.0 - p), percentile(&mut copy, p)),
         };
         Stretch {
             range,
@@ -194,16 +193,19 @@ impl Stretch {
     }
 }
 
-/// The `p`-th percentile (0..=100) of sorted values, interpolating linearly between ranks
-/// (numpy's default); 0 for no values.
-pub(super) fn percentile(sorted: &[f32], p: f64) -> f64 {
-    let Some(last) = sorted.len().checked_sub(1) else {
+/// The `p`-th percentile (0..=100) of `values`, interpolating linearly between ranks (numpy's
+/// default); 0 for no values. The two ranks are found by selection, not a full sort, which
+/// reorders `values`.
+pub(super) fn percentile(values: &mut [f32], p: f64) -> f64 {
+    let Some(last) = values.len().checked_sub(1) else {
         return 0.0;
     };
     let rank = p / 100.0 * last as f64;
-    let below = rank.floor() as usize;
-    let above = (below + 1).min(last);
+    let below = (rank.floor() as usize).min(last);
     let frac = rank - below as f64;
-    let (a, b) = (f64::from(sorted[below]), f64::from(sorted[above]));
+    let (_, &mut a, upper) = values.select_nth_unstable_by(below, f32::total_cmp);
+    // The next rank is the least of the values above the selected one.
+    let b = upper.iter().copied().min_by(f32::total_cmp).unwrap_or(a);
+    let (a, b) = (f64::from(a), f64::from(b));
     a + frac * (b - a)
 }

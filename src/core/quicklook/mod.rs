@@ -6,7 +6,7 @@
 //! The colours: a diverging ramp (blue, white at 0, red for positive = convex) for signed
 //! quantities, clipped at ±(a percentile of |value|), and a sequential ramp (dark violet to
 //! light yellow, lightness rising evenly) for unsigned ones, clipped between two percentiles.
-//! Percentiles are exact: computed on a sorted copy of the thumbnail's defined values (a few
+//! Percentiles are exact: selected from a copy of the thumbnail's defined values (a few
 //! million at most), interpolating between ranks. Values beyond the clip limits saturate, and
 //! no data is transparent.
 
@@ -93,17 +93,15 @@ pub struct Picture {
 /// the legend panel to its right. A map under 480 pixels on its long side is magnified by a
 /// whole factor, each value a square of pixels; the legend's text grows with the map. A
 /// `shade` on a grid of another size than `values` is a caller's mistake and is left out.
-pub fn render(values: &Grid, ramp: Ramp, legend: &Legend<'_>, shade: Option<Shade<'_>>) -> Picture {
+pub fn render(values: &Grid, ramp: Ramp, legend: &Legend<'_>, shade: Option<&Shade>) -> Picture {
     let stretch = Stretch::of(values, ramp, legend.clip_percentile);
     let lut = colour::lut(ramp);
-    let shade = shade.filter(|s| {
-        debug_assert_eq!(
-            (s.elevation.width, s.elevation.height),
-            (values.width, values.height)
-        );
-        (s.elevation.width, s.elevation.height) == (values.width, values.height)
-    });
-    let shading = shade.as_ref().map(shade::hillshade);
+    let shading = shade
+        .filter(|s| {
+            debug_assert_eq!((s.width, s.height), (values.width, values.height));
+            (s.width, s.height) == (values.width, values.height)
+        })
+        .map(|s| s.levels.as_slice());
     let long = values.width.max(values.height).max(1);
     let magnify = (MIN_MAP_SIDE / long).max(1);
     let (map_w, map_h) = (values.width * magnify, values.height * magnify);
@@ -122,7 +120,7 @@ pub fn render(values: &Grid, ramp: Ramp, legend: &Legend<'_>, shade: Option<Shad
     let paint = Paint {
         stretch: &stretch,
         lut: &lut,
-        shading: shading.as_deref(),
+        shading,
         magnify,
     };
     paint.map(&mut picture, values);

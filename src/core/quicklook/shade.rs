@@ -9,24 +9,35 @@ pub const SUN_AZIMUTH_DEG: f64 = 315.0;
 /// The sun's altitude above the horizon, degrees.
 pub const SUN_ALTITUDE_DEG: f64 = 45.0;
 
-/// Elevations to shade a quick look with.
-#[derive(Debug, Clone, Copy)]
-pub struct Shade<'a> {
-    /// Elevations on the same grid as the values (the same thumbnail size), north-up, NaN for
-    /// no data.
-    pub elevation: &'a Grid,
-    /// The side of a pixel of that grid, in the units of the elevations (the raster's cell
-    /// size times [`super::Thumbnail::factor`]).
-    pub cell: f64,
+/// The hillshade of an elevation grid, made once for all the quick looks over it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shade {
+    /// Columns and rows of the elevation grid (a quick look's values must have the same).
+    pub(super) width: u32,
+    pub(super) height: u32,
+    /// The shade of every pixel, 0 (facing away from the sun) to 1 (facing it), row-major.
+    pub(super) levels: Vec<f32>,
 }
 
-/// The shade of every pixel, 0 (facing away from the sun) to 1 (facing it); a pixel without
-/// elevation is shaded as flat ground, and a missing neighbour takes the centre's elevation so
-/// that the edges of the data and of the grid do not draw false cliffs.
-pub(super) fn hillshade(shade: &Shade<'_>) -> Vec<f32> {
-    let g = shade.elevation;
-    let cell = if shade.cell.is_finite() && shade.cell > 0.0 {
-        shade.cell
+impl Shade {
+    /// The shade of `elevation` (north-up, NaN for no data) whose pixels are `cell` wide in
+    /// the units of the elevations (the raster's cell size times
+    /// [`super::Thumbnail::factor`]). A pixel without elevation is shaded as flat ground, and
+    /// a missing neighbour takes the centre's elevation so that the edges of the data and of
+    /// the grid do not draw false cliffs.
+    pub fn of(elevation: &Grid, cell: f64) -> Shade {
+        Shade {
+            width: elevation.width,
+            height: elevation.height,
+            levels: hillshade(elevation, cell),
+        }
+    }
+}
+
+/// The shade of every pixel of `g` (see [`Shade::of`]).
+fn hillshade(g: &Grid, cell: f64) -> Vec<f32> {
+    let cell = if cell.is_finite() && cell > 0.0 {
+        cell
     } else {
         1.0
     };

@@ -1,5 +1,4 @@
 use super::colour::{self, oklab_lightness, Stretch};
-use super::shade::hillshade;
 use super::*;
 
 const NAN: f32 = f32::NAN;
@@ -187,6 +186,22 @@ fn clip_limits_are_exact_percentiles_and_values_beyond_saturate() {
 }
 
 #[test]
+fn percentiles_of_shuffled_integers_interpolate_between_ranks() {
+    // 0..n in a scrambled order: the p-th percentile is p/100 * (n - 1), between two integers.
+    let n = 1001u32;
+    let mut values: Vec<f32> = (0..n).map(|i| ((i * 389) % n) as f32).collect();
+    for p in [0.0, 2.0, 37.25, 50.0, 98.0, 99.95, 100.0] {
+        let want = p / 100.0 * f64::from(n - 1);
+        assert!(
+            (colour::percentile(&mut values, p) - want).abs() < 1e-9,
+            "{p}"
+        );
+    }
+    assert_eq!(colour::percentile(&mut [], 50.0), 0.0);
+    assert_eq!(colour::percentile(&mut [3.5], 98.0), 3.5);
+}
+
+#[test]
 fn no_data_is_transparent_and_degenerate_grids_render() {
     let g = grid(2, 2, vec![1.0, NAN, -1.0, 0.5]);
     let p = render(&g, Ramp::Diverging, &legend(), None);
@@ -240,30 +255,19 @@ fn a_plane_facing_the_sun_is_brighter_than_one_facing_away() {
     let facing = plane(g, g);
     let away = plane(-g, -g);
     let flat = plane(0.0, 0.0);
-    let shade = |e: &Grid| {
-        hillshade(&Shade {
-            elevation: e,
-            cell: 1.0,
-        })[40]
-    };
+    let shade = |e: &Grid| Shade::of(e, 1.0).levels[40];
     assert!((shade(&facing) - 1.0).abs() < 1e-5, "{}", shade(&facing));
     // Facing away at 45 degrees: the normal is 90 degrees from the sun.
     assert!(shade(&away).abs() < 1e-5, "{}", shade(&away));
     assert!((shade(&flat) - g).abs() < 1e-5, "flat: sin 45");
     // The cell size scales the slope: the same plane with 2 m cells is 26.6 degrees steep.
-    let half = hillshade(&Shade {
-        elevation: &facing,
-        cell: 2.0,
-    })[40];
+    let half = Shade::of(&facing, 2.0).levels[40];
     assert!(
         (half - (45f32 - 26.565).to_radians().cos()).abs() < 1e-4,
         "{half}"
     );
     // Edges and holes are shaded as their neighbourhood, not as cliffs.
-    let edge = hillshade(&Shade {
-        elevation: &facing,
-        cell: 1.0,
-    })[0];
+    let edge = Shade::of(&facing, 1.0).levels[0];
     assert!(edge > 0.9, "{edge}");
     // In the picture the shaded colours darken in the same order.
     let values = grid(9, 9, vec![1.0; 81]);
@@ -272,20 +276,14 @@ fn a_plane_facing_the_sun_is_brighter_than_one_facing_away() {
             &values,
             Ramp::Diverging,
             &legend(),
-            Some(Shade {
-                elevation: e,
-                cell: 1.0,
-            }),
+            Some(&Shade::of(e, 1.0)),
         );
         oklab_lightness(pixel(&p, 240, 240)[..3].try_into().unwrap())
     };
     assert!(look(&facing) > look(&flat) && look(&flat) > look(&away));
     // Level ground keeps the legend's colours: 0 stays white under the shade.
     let zero = grid(9, 9, vec![0.0; 81]);
-    let shade = Some(Shade {
-        elevation: &flat,
-        cell: 1.0,
-    });
-    let p = render(&zero, Ramp::Diverging, &legend(), shade);
+    let shade = Shade::of(&flat, 1.0);
+    let p = render(&zero, Ramp::Diverging, &legend(), Some(&shade));
     assert_eq!(pixel(&p, 240, 240), [255, 255, 255, 255]);
 }

@@ -66,22 +66,27 @@ impl ScalarType {
         }
     }
 
-    /// Decodes one value of this type from little-endian bytes.
+    /// Decodes one value of this type from the first bytes of `b`, little-endian (`b` holds at
+    /// least [`ScalarType::size`] bytes). Each type reads its own fixed width: the raster tap
+    /// decodes every column of every output record here.
     pub fn decode(self, b: &[u8]) -> f64 {
         use ScalarType::*;
-        let mut a = [0u8; 8];
-        a[..self.size()].copy_from_slice(&b[..self.size()]);
+        fn le<const N: usize>(b: &[u8]) -> [u8; N] {
+            let mut a = [0u8; N];
+            a.copy_from_slice(&b[..N]);
+            a
+        }
         match self {
-            U8 => a[0] as f64,
-            I8 => a[0] as i8 as f64,
-            U16 => u16::from_le_bytes([a[0], a[1]]) as f64,
-            I16 => i16::from_le_bytes([a[0], a[1]]) as f64,
-            U32 => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            I32 => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            U64 => u64::from_le_bytes(a) as f64,
-            I64 => i64::from_le_bytes(a) as f64,
-            F32 => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            F64 => f64::from_le_bytes(a),
+            U8 => b[0] as f64,
+            I8 => b[0] as i8 as f64,
+            U16 => u16::from_le_bytes(le(b)) as f64,
+            I16 => i16::from_le_bytes(le(b)) as f64,
+            U32 => u32::from_le_bytes(le(b)) as f64,
+            I32 => i32::from_le_bytes(le(b)) as f64,
+            U64 => u64::from_le_bytes(le(b)) as f64,
+            I64 => i64::from_le_bytes(le(b)) as f64,
+            F32 => f32::from_le_bytes(le(b)) as f64,
+            F64 => f64::from_le_bytes(le(b)),
         }
     }
 

@@ -252,6 +252,7 @@ fn quick_looks(
     let Some(elevation) = looks.pop() else {
         return Ok(Vec::new());
     };
+    let shade = Shade::of(&elevation, pixel);
     let mut files = Vec::new();
     for (c, g) in columns.iter().zip(&looks) {
         let ramp = if c.signed {
@@ -264,12 +265,8 @@ fn quick_looks(
             unit: &c.unit,
             clip_percentile: DEFAULT_CLIP_PERCENTILE,
         };
-        let shade = Shade {
-            elevation: &elevation,
-            cell: pixel,
-        };
         let path = dir.join(format!("{}.png", c.name));
-        write_png(&path, &render(g, ramp, &legend, Some(shade)))?;
+        write_png(&path, &render(g, ramp, &legend, Some(&shade)))?;
         files.push(path);
     }
     Ok(files)

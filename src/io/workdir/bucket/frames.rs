@@ -239,7 +239,7 @@ pub(super) fn encode_frame(points: &Points, grids: &Grids) -> std::io::Result<Ve
     for (range, input) in runs {
         put_run(&mut raw, points, range, grids, input);
     }
-    crate::io::pack::compress(&raw)
+    crate::io::pack::compress(&raw, crate::io::pack::Effort::Small)
 }
 
 /// Decodes every frame of a bucket file (`bytes`, read from `path`). A damaged or truncated

@@ -20,7 +20,9 @@ use crate::core::quantize::CurvatureStats;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnSet, Value};
 use crate::io::durable::tmp_name;
-use crate::io::pack::{compress, decompress_into, get_planes, put_planes, put_varint, Cursor};
+use crate::io::pack::{
+    compress, decompress_into, get_planes, put_planes, put_varint, Cursor, Effort,
+};
 
 /// The first bytes of a result file: its format and version.
 const MAGIC: &[u8; 8] = b"TCRES005";
@@ -204,7 +206,7 @@ impl ResultWriter {
         self.raw.clear();
         self.raw.extend_from_slice(&self.ids);
         put_planes(&mut self.raw, &self.rows, self.row);
-        let frame = compress(&self.raw).map_err(|e| Error::write(&self.tmp, e))?;
+        let frame = compress(&self.raw, Effort::Fast).map_err(|e| Error::write(&self.tmp, e))?;
         let head = [n as u32, self.raw.len() as u32, frame.len() as u32];
         let head: Vec<u8> = head.iter().flat_map(|v| v.to_le_bytes()).collect();
         self.w

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use crate::core::plan::TileKey;
 use crate::error::{Error, Result};
 use crate::io::durable::tmp_name;
-use crate::io::pack::{compress, decompress_into, get_planes, put_planes, Cursor};
+use crate::io::pack::{compress, decompress_into, get_planes, put_planes, Cursor, Effort};
 
 const ORIENT_MAGIC: &[u8; 8] = b"TCORI003";
 
@@ -61,7 +61,7 @@ pub(super) fn write_sidecar(path: &Path, s: &TileSidecar) -> Result<PathBuf> {
     raw.extend_from_slice(&(s.shared.len() as u64).to_le_bytes());
     put_planes(&mut raw, &anchors, ANCHOR_BYTES);
     put_planes(&mut raw, &shared, SHARED_BYTES);
-    let frame = compress(&raw).map_err(|e| Error::write(&tmp, e))?;
+    let frame = compress(&raw, Effort::Small).map_err(|e| Error::write(&tmp, e))?;
     let b = [&ORIENT_MAGIC[..], &(raw.len() as u64).to_le_bytes(), &frame].concat();
     std::fs::write(&tmp, &b).map_err(|e| Error::write(&tmp, e))?;
     Ok(tmp)
