@@ -2,6 +2,7 @@
 //! channel or a clock (rayon's data parallelism inside one call is the one exception), and
 //! nothing imports from `io` or `run`, so every piece is tested on numbers alone.
 
+pub mod angle;
 pub mod compute;
 pub mod estimate;
 pub mod geometry;

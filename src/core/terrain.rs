@@ -5,6 +5,7 @@
 //! derivatives of a height field (algorithms.md 10.4), the truth of `generate terrain`, written
 //! independently of the shape operator the estimator route goes through. Pure numbers.
 
+use crate::core::angle::atan2;
 use crate::core::estimate::Curvature;
 use crate::core::geometry::{dot, V3};
 
@@ -86,14 +87,14 @@ impl TerrainValues {
             (normal, *c)
         };
         let sin_s = (n[0] * n[0] + n[1] * n[1]).sqrt();
-        let slope_deg = sin_s.atan2(n[2]).to_degrees();
+        let slope_deg = atan2(sin_s, n[2]).to_degrees();
         let flat = slope_deg < FLAT_SLOPE_DEG;
         let mut t = TerrainValues {
             slope_deg,
             aspect_deg: if flat {
                 f64::NAN
             } else {
-                azimuth_deg(n[0], n[1])
+                azimuth_deg(atan2(n[0], n[1]))
             },
             flags: if flat { terrain_flags::FLAT } else { 0 },
             ..TerrainValues::undefined(0)
@@ -108,7 +109,7 @@ impl TerrainValues {
         if mean == 0.0 && half_gap == 0.0 {
             t.flags |= terrain_flags::PLANAR;
         } else {
-            t.shape_index = std::f64::consts::FRAC_2_PI * mean.atan2(half_gap);
+            t.shape_index = std::f64::consts::FRAC_2_PI * atan2(mean, half_gap);
         }
         if !flat {
             // c = (n x z)/|n x z| along the contour, g = c x n up the slope line (10.2).
@@ -170,15 +171,16 @@ impl TerrainValues {
         v.profile = -(p * p * r + 2.0 * p * q * s + q * q * t) / (g2 * w2 * w);
         v.tangential = -across / (g2 * w);
         v.plan = -across / (g2 * g);
-        v.aspect_deg = azimuth_deg(-p, -q);
+        // The library's arctangent: the truth does not share the estimate's.
+        v.aspect_deg = azimuth_deg((-p).atan2(-q));
         v
     }
 }
 
-/// The azimuth of the horizontal vector (east, north) in degrees clockwise from north, in
-/// [0, 360).
-fn azimuth_deg(east: f64, north: f64) -> f64 {
-    let a = east.atan2(north).to_degrees();
+/// The azimuth in degrees clockwise from north, in [0, 360), of a horizontal vector (east,
+/// north) whose `atan2(east, north)` is `angle` (radians).
+fn azimuth_deg(angle: f64) -> f64 {
+    let a = angle.to_degrees();
     // -1e-15 + 360 rounds to 360, which is north again.
     match a < 0.0 {
         true if a + 360.0 < 360.0 => a + 360.0,

@@ -93,7 +93,7 @@ fn a_sphere_seen_from_above() {
         close(v.shape_index, 1.0, 1e-7, "shape index");
         close(v.curvedness, 1.0 / radius, 1e-12, "curvedness");
         // Downslope points away from the top: the azimuth of (x, y).
-        close(v.aspect_deg, azimuth_deg(x, y), 1e-12, "aspect");
+        close(v.aspect_deg, azimuth_deg(x.atan2(y)), 1e-12, "aspect");
         let (n, c) = exact(p, q, r, s, t);
         let got = TerrainValues::of(n, &c);
         close(
