@@ -51,7 +51,9 @@ pub(crate) fn unzigzag(v: u64) -> i64 {
 }
 
 /// Appends the byte planes of `rows`, records of `width` bytes: byte 0 of every record, then
-/// byte 1, and so on. `rows.len()` must be a multiple of `width`.
+/// byte 1, and so on. `rows.len()` must be a multiple of `width`. Groups of 8 records are
+/// moved 8 bytes at a time ([`transpose8`]): byte by byte, the result files' planes took 2% of
+/// a run with the terrain columns.
 pub(crate) fn put_planes(out: &mut Vec<u8>, rows: &[u8], width: usize) {
     if width == 0 {
         return;
@@ -60,9 +62,49 @@ pub(crate) fn put_planes(out: &mut Vec<u8>, rows: &[u8], width: usize) {
     let start = out.len();
     out.resize(start + n * width, 0);
     let planes = &mut out[start..];
+    let (groups, chunks) = (n / 8, width / 8);
+    for i in (0..groups).map(|g| 8 * g) {
+        for j in (0..chunks).map(|c| 8 * c) {
+            let mut w = [0u64; 8];
+            for (r, w) in w.iter_mut().enumerate() {
+                *w = word(&rows[(i + r) * width + j..]);
+            }
+            transpose8(&mut w);
+            for (k, w) in w.iter().enumerate() {
+                let at = (j + k) * n + i;
+                planes[at..at + 8].copy_from_slice(&w.to_le_bytes());
+            }
+        }
+    }
+    // The bytes past the whole chunks of the grouped records, and every byte of the others.
     for (i, row) in rows.chunks_exact(width).enumerate() {
-        for (j, &b) in row.iter().enumerate() {
+        let done = if i < 8 * groups { 8 * chunks } else { 0 };
+        for (j, &b) in row.iter().enumerate().skip(done) {
             planes[j * n + i] = b;
+        }
+    }
+}
+
+/// The little-endian word of the first 8 bytes of `b`.
+fn word(b: &[u8]) -> u64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[..8]);
+    u64::from_le_bytes(a)
+}
+
+/// Transposes the 8x8 bytes of `w` (byte k of word r is byte r of word k afterwards): blocks of
+/// 4, then 2, then 1 byte swapped across the diagonal.
+fn transpose8(w: &mut [u64; 8]) {
+    const STAGES: [(usize, u64); 3] = [
+        (4, 0x0000_0000_ffff_ffff),
+        (2, 0x0000_ffff_0000_ffff),
+        (1, 0x00ff_00ff_00ff_00ff),
+    ];
+    for (d, mask) in STAGES {
+        for r in (0..8).filter(|r| r & d == 0) {
+            let t = ((w[r] >> (8 * d)) ^ w[r + d]) & mask;
+            w[r] ^= t << (8 * d);
+            w[r + d] ^= t;
         }
     }
 }
@@ -98,8 +140,23 @@ pub(crate) fn get_planes(out: &mut Vec<u8>, planes: &[u8], n: usize, width: usiz
     let start = out.len();
     out.resize(start + n * width, 0);
     let rows = &mut out[start..];
+    let (groups, chunks) = (n / 8, width / 8);
+    for i in (0..groups).map(|g| 8 * g) {
+        for j in (0..chunks).map(|c| 8 * c) {
+            let mut w = [0u64; 8];
+            for (k, w) in w.iter_mut().enumerate() {
+                *w = word(&planes[(j + k) * n + i..]);
+            }
+            transpose8(&mut w);
+            for (r, w) in w.iter().enumerate() {
+                let at = (i + r) * width + j;
+                rows[at..at + 8].copy_from_slice(&w.to_le_bytes());
+            }
+        }
+    }
     for (j, plane) in planes.chunks_exact(n.max(1)).take(width).enumerate() {
-        for (i, &b) in plane.iter().enumerate() {
+        let done = if j < 8 * chunks { 8 * groups } else { 0 };
+        for (i, &b) in plane.iter().enumerate().skip(done) {
             rows[i * width + j] = b;
         }
     }
@@ -303,6 +360,28 @@ mod tests {
         let mut back = vec![42];
         get_planes(&mut back, &planes, 10, 3);
         assert_eq!(back[1..], rows[..]);
+    }
+
+    /// The blocked transposition against the definition, byte by byte, for every shape around
+    /// the blocks' edges.
+    #[test]
+    fn planes_are_byte_j_of_every_record_for_any_width_and_count() {
+        for width in 0..20usize {
+            for n in 0..27usize {
+                let rows: Vec<u8> = (0..n * width).map(|v| (v * 7 + 3) as u8).collect();
+                let mut planes = vec![9];
+                put_planes(&mut planes, &rows, width);
+                assert_eq!(planes.len(), 1 + n * width);
+                for i in 0..n {
+                    for j in 0..width {
+                        assert_eq!(planes[1 + j * n + i], rows[i * width + j], "{width} {n}");
+                    }
+                }
+                let mut back = vec![5];
+                get_planes(&mut back, &planes[1..], n, width);
+                assert_eq!(back[1..], rows[..], "{width} {n}");
+            }
+        }
     }
 
     #[test]

@@ -5,14 +5,16 @@
 //! encoding, which is chosen when the outputs are written ([`output`]: scaled integers, f32 or
 //! f64).
 
+mod layout;
 pub(crate) mod output;
 mod terrain;
 
+pub(crate) use layout::ResultLayout;
+use layout::MAX_STORED;
 pub(crate) use terrain::TerrainValue;
 
-use crate::core::compute::{PointResult, NO_PATCH};
-use crate::core::estimate::{Curvature, EstimatorKind, EstimatorParams, ExtraColumn, MAX_EXTRA};
-use crate::core::terrain::TerrainValues;
+use crate::core::compute::PointResult;
+use crate::core::estimate::{EstimatorKind, EstimatorParams, ExtraColumn, MAX_EXTRA};
 
 /// Name of the quality-flag column.
 pub(crate) const FLAGS_NAME: &str = "CurvatureFlags";
@@ -280,6 +282,15 @@ impl Value {
         }
     }
 
+    /// Whether a result file stores this value as a byte after the curvature flags (it is a
+    /// set of flags, below 256), not as a number.
+    pub fn is_flag_byte(self) -> bool {
+        matches!(
+            self,
+            Value::ScaleFlags | Value::Flags | Value::Terrain(TerrainValue::Flags)
+        )
+    }
+
     /// The `--columns` group of the column holding this value.
     pub fn group(self) -> Group {
         match self {
@@ -455,8 +466,8 @@ impl ColumnSet {
             .filter(move |t| t.group().map_or(any, |g| self.choice.has(g)))
     }
 
-    /// The values a result file stores (as f64, the flags byte after them): those of the
-    /// columns written, with k1 and k2 both when either is written (the flip of `--orient
+    /// The values a result file stores (as f64 or f32, the flag bytes after them: the
+    /// curvature flags, then [`Value::is_flag_byte`] ones): those of the columns written, with k1 and k2 both when either is written (the flip of `--orient
     /// propagate` makes each from the other). An iterator, so that no point allocates.
     fn stored(&self) -> impl Iterator<Item = Value> + '_ {
         let on = |g| self.choice.has(g);
@@ -488,87 +499,41 @@ impl ColumnSet {
 
     /// Bytes per point of a result file's columns.
     pub fn result_size(&self) -> usize {
-        self.value_size() * self.stored().count() + 1
+        let bytes = self.stored().filter(|v| v.is_flag_byte()).count();
+        let numbers = self.stored().count() - bytes;
+        self.value_size() * numbers + 1 + bytes
     }
 
-    /// Where the stored value `v` starts in a record of [`ResultLayout::encode`], if it is
-    /// stored (the result files' H prediction reads k1 and k2 there).
+    /// Where the stored number `v` starts in a record of [`ResultLayout::encode`], if it is
+    /// stored and not a flag byte (the result files' H prediction reads k1 and k2 there).
     pub fn stored_offset(&self, v: Value) -> Option<usize> {
-        self.stored()
+        (self.stored().filter(|s| !s.is_flag_byte()))
             .position(|s| s == v)
             .map(|i| i * self.value_size())
     }
 
     /// The order and width of the stored values, for decoding records
-    /// ([`ResultLayout::decode`]).
+    /// ([`ResultLayout::decode`]): the numbers, then the flag bytes.
     pub fn layout(&self) -> ResultLayout {
         let mut values = [Value::H; MAX_STORED];
         let mut len = 0;
-        for (slot, v) in values.iter_mut().zip(self.stored()) {
+        let numbers = self.stored().filter(|v| !v.is_flag_byte());
+        for (slot, v) in values.iter_mut().zip(numbers) {
+            *slot = v;
+            len += 1;
+        }
+        let numbers = len;
+        let bytes = self.stored().filter(|v| v.is_flag_byte());
+        for (slot, v) in values[numbers..].iter_mut().zip(bytes) {
             *slot = v;
             len += 1;
         }
         ResultLayout {
             values,
+            numbers,
             len,
             width: self.value_size(),
         }
-    }
-}
-
-/// The most values [`ColumnSet::stored`] lists: the normal (3), H, K, k1, k2, the two
-/// directions (6), the extra values, the scale and its flags, the terrain values and flags.
-const MAX_STORED: usize = 3 + 4 + 6 + MAX_EXTRA + 2 + TerrainValue::ALL.len();
-
-/// The values of a result record in their order and their width ([`ColumnSet::layout`]):
-/// found once rather than per record (the chain of optional groups was half the cost of a
-/// decode). No allocation, so that it can be made for each piece of an output.
-#[derive(Debug, Clone, Copy)]
-pub struct ResultLayout {
-    values: [Value; MAX_STORED],
-    len: usize,
-    width: usize,
-}
-
-impl ResultLayout {
-    /// Appends the stored values of one point to `out` (f64 or f32 little-endian, then the
-    /// flags; a caller encoding many points makes the layout once: walking the chain of optional
-    /// groups for every value of every point cost 5% of a run with the terrain columns).
-    pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
-        for v in &self.values[..self.len] {
-            match self.width {
-                8 => out.extend_from_slice(&v.get(r).to_le_bytes()),
-                _ => out.extend_from_slice(&(v.get(r) as f32).to_le_bytes()),
-            }
-        }
-        out.push(r.curvature.flags);
-    }
-
-    /// Decodes one point's stored values (as [`ResultLayout::encode`] wrote them) into a
-    /// result with id 0 and no patch; values not stored are NaN (directions zero).
-    pub fn decode(&self, rec: &[u8]) -> PointResult {
-        let mut r = PointResult {
-            id: 0,
-            normal: [f64::NAN; 3],
-            curvature: Curvature::undefined(0),
-            extra: [f64::NAN; MAX_EXTRA],
-            patch: NO_PATCH,
-            scale: 0,
-            scale_flags: 0,
-            terrain: TerrainValues::NONE,
-        };
-        let (mut at, w) = (0, self.width);
-        for v in &self.values[..self.len] {
-            let value = match rec.get(at..at + w) {
-                Some(b) if w == 8 => b.try_into().map(f64::from_le_bytes).ok(),
-                Some(b) => b.try_into().map(|b| f32::from_le_bytes(b) as f64).ok(),
-                None => None,
-            };
-            v.set(&mut r, value.unwrap_or(f64::NAN));
-            at += w;
-        }
-        r.curvature.flags = rec.get(at).copied().unwrap_or(0);
-        r
     }
 }
 

@@ -1,7 +1,8 @@
 //! Tests of the column definitions (mod.rs).
 
 use super::*;
-use crate::core::estimate::{EstimatorKind, EstimatorParams};
+use crate::core::compute::NO_PATCH;
+use crate::core::estimate::{Curvature, EstimatorKind, EstimatorParams};
 
 pub(super) fn vcm_columns() -> ColumnSet {
     let vcm = EstimatorKind::Vcm.build(&EstimatorParams::default());
@@ -88,7 +89,30 @@ fn the_layout_holds_the_fullest_column_set() {
     let layout = cols.layout();
     let stored: Vec<Value> = cols.stored().collect();
     assert_eq!(stored.len(), MAX_STORED);
-    assert_eq!(layout.values[..layout.len], stored[..]);
+    // The numbers in their order, then the flag bytes in theirs.
+    let (bytes, numbers): (Vec<Value>, Vec<Value>) = stored.iter().partition(|v| v.is_flag_byte());
+    assert_eq!(layout.values[..layout.numbers], numbers[..]);
+    assert_eq!(layout.values[layout.numbers..layout.len], bytes[..]);
+    assert_eq!(
+        bytes,
+        [Value::ScaleFlags, Value::Terrain(TerrainValue::Flags)]
+    );
+    // Every value comes back from a record whose bytes are all distinct from the next.
+    let mut r = crate::core::compute::PointResult::not_computed(0);
+    r.scale_flags = 3;
+    r.terrain.flags = 9;
+    r.curvature.flags = 16;
+    r.curvature.h = 0.25;
+    let mut rec = Vec::new();
+    layout.encode(&r, &mut rec);
+    assert_eq!(rec.len(), cols.result_size());
+    assert_eq!(rec[rec.len() - 3..], [16, 3, 9]);
+    let back = layout.decode(&rec);
+    assert_eq!(
+        (back.scale_flags, back.terrain.flags, back.curvature.flags),
+        (3, 9, 16)
+    );
+    assert_eq!(back.curvature.h, 0.25);
 }
 
 /// The one flip, on decoded results: normal, H and the VCM normal negated, k1' = -k2,

@@ -25,7 +25,7 @@ use crate::io::pack::{
 };
 
 /// The first bytes of a result file: its format and version.
-const MAGIC: &[u8; 8] = b"TCRES005";
+const MAGIC: &[u8; 8] = b"TCRES006";
 
 /// Bytes of the header before the statistics: magic, count, column bytes, patches stored,
 /// statistics' length.
