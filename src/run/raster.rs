@@ -102,8 +102,9 @@ fn make_rasters(
         columns,
     };
     let scratch = scratch_dir(&job.dir);
-    let mut rasterizer = Rasterizer::new(request, &scratch, binning_budget(memory_bytes, 2));
     let total = sources.iter().map(|s| s.len()).sum();
+    let budget = binning_budget(memory_bytes, 2);
+    let mut rasterizer = Rasterizer::new(request, &scratch, budget, total);
     reporter.phase("bin", total);
     for s in &sources {
         bin_source(s.as_ref(), &mut rasterizer, chunk, reporter, cancel)?;
@@ -383,8 +384,10 @@ impl OutputRasters {
             columns,
         };
         let scratch = scratch_dir(&dir);
+        let points = sources.iter().map(|s| s.len()).sum();
+        let budget = binning_budget(memory_bytes, 4);
         Ok(OutputRasters {
-            rasterizer: Rasterizer::new(request, &scratch, binning_budget(memory_bytes, 4)),
+            rasterizer: Rasterizer::new(request, &scratch, budget, points),
             crs: source_crs(first),
         })
     }

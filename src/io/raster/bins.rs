@@ -45,14 +45,17 @@ fn record_bytes(columns: usize) -> usize {
 
 impl Bins {
     /// Bins for records of `columns` values, keeping at most `budget` bytes of them in memory;
-    /// run files go to `dir` (made when the first run is written).
-    pub(crate) fn new(dir: &Path, columns: usize, budget: u64) -> Bins {
+    /// run files go to `dir` (made when the first run is written). Room for `expected` records
+    /// (at most what the budget holds) is made at once: grown by doubling, the records were
+    /// copied and their pages touched twice over.
+    pub(crate) fn new(dir: &Path, columns: usize, budget: u64, expected: u64) -> Bins {
         let capacity = (budget as usize / record_bytes(columns)).clamp(1 << 12, u32::MAX as usize);
+        let room = usize::try_from(expected).map_or(capacity, |e| e.min(capacity));
         Bins {
             dir: dir.to_path_buf(),
             columns,
-            keys: Vec::new(),
-            values: Vec::new(),
+            keys: Vec::with_capacity(room),
+            values: Vec::with_capacity(room * columns),
             capacity,
             runs: Vec::new(),
             written: 0,
@@ -340,7 +343,7 @@ mod tests {
         let record = |i: u64| ((i * 7919) % n, [i as f32, -(i as f32)]);
         for (budget, runs) in [(1u64 << 30, false), (4096 * 24, true)] {
             let dir = tmp.path().join(format!("b{budget}"));
-            let mut bins = Bins::new(&dir, 2, budget);
+            let mut bins = Bins::new(&dir, 2, budget, 1000);
             for i in 0..n {
                 let (p, v) = record(i);
                 bins.push(p % 997, &v).expect("push");
@@ -373,7 +376,7 @@ mod tests {
     fn many_runs_are_merged_in_passes() {
         let tmp = tempfile::tempdir().expect("temp dir");
         let dir = tmp.path().join("runs");
-        let mut bins = Bins::new(&dir, 1, 0);
+        let mut bins = Bins::new(&dir, 1, 0, 0);
         let n = (MAX_FAN_IN as u64 + 40) * 4096;
         for i in 0..n {
             bins.push(n - 1 - i, &[i as f32]).expect("push");

@@ -117,10 +117,15 @@ pub(crate) struct Rasterizer {
 
 impl Rasterizer {
     /// A rasterizer for `request` whose temporary run files go to `scratch`, keeping at most
-    /// `budget` bytes of points in memory.
-    pub(crate) fn new(request: RasterRequest, scratch: &Path, budget: u64) -> Rasterizer {
+    /// `budget` bytes of points in memory, for about `points` points.
+    pub(crate) fn new(
+        request: RasterRequest,
+        scratch: &Path,
+        budget: u64,
+        points: u64,
+    ) -> Rasterizer {
         // One more value per point: its z, whose cell means shade the quick looks.
-        let bins = Bins::new(scratch, request.columns.len() + 1, budget);
+        let bins = Bins::new(scratch, request.columns.len() + 1, budget, points);
         Rasterizer {
             request,
             bins,
