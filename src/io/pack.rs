@@ -63,24 +63,41 @@ pub(crate) fn put_planes(out: &mut Vec<u8>, rows: &[u8], width: usize) {
     out.resize(start + n * width, 0);
     let planes = &mut out[start..];
     let (groups, chunks) = (n / 8, width / 8);
-    for i in (0..groups).map(|g| 8 * g) {
-        for j in (0..chunks).map(|c| 8 * c) {
-            let mut w = [0u64; 8];
-            for (r, w) in w.iter_mut().enumerate() {
-                *w = word(&rows[(i + r) * width + j..]);
-            }
-            transpose8(&mut w);
-            for (k, w) in w.iter().enumerate() {
-                let at = (j + k) * n + i;
-                planes[at..at + 8].copy_from_slice(&w.to_le_bytes());
-            }
-        }
-    }
+    let record = |i: usize, j: usize, d: usize| (i + d) * width + j;
+    let plane = |i: usize, j: usize, d: usize| (j + d) * n + i;
+    transpose_blocks(rows, planes, (groups, chunks), record, plane);
     // The bytes past the whole chunks of the grouped records, and every byte of the others.
     for (i, row) in rows.chunks_exact(width).enumerate() {
         let done = if i < 8 * groups { 8 * chunks } else { 0 };
         for (j, &b) in row.iter().enumerate().skip(done) {
             planes[j * n + i] = b;
+        }
+    }
+}
+
+/// The whole 8x8 blocks of a transposition between records and planes. The block of records
+/// `i..i + 8` and bytes `j..j + 8` (for `groups` groups and `chunks` chunks) is 8 lines of 8
+/// contiguous bytes on either side: line `d` starts at `from(i, j, d)` in `src` and, once
+/// transposed, at `to(i, j, d)` in `dst` (records: `(i + d) * width + j`; planes:
+/// `(j + d) * n + i`).
+fn transpose_blocks(
+    src: &[u8],
+    dst: &mut [u8],
+    (groups, chunks): (usize, usize),
+    from: impl Fn(usize, usize, usize) -> usize,
+    to: impl Fn(usize, usize, usize) -> usize,
+) {
+    for i in (0..groups).map(|g| 8 * g) {
+        for j in (0..chunks).map(|c| 8 * c) {
+            let mut w = [0u64; 8];
+            for (d, w) in w.iter_mut().enumerate() {
+                *w = word(&src[from(i, j, d)..]);
+            }
+            transpose8(&mut w);
+            for (d, w) in w.iter().enumerate() {
+                let at = to(i, j, d);
+                dst[at..at + 8].copy_from_slice(&w.to_le_bytes());
+            }
         }
     }
 }
@@ -141,19 +158,9 @@ pub(crate) fn get_planes(out: &mut Vec<u8>, planes: &[u8], n: usize, width: usiz
     out.resize(start + n * width, 0);
     let rows = &mut out[start..];
     let (groups, chunks) = (n / 8, width / 8);
-    for i in (0..groups).map(|g| 8 * g) {
-        for j in (0..chunks).map(|c| 8 * c) {
-            let mut w = [0u64; 8];
-            for (k, w) in w.iter_mut().enumerate() {
-                *w = word(&planes[(j + k) * n + i..]);
-            }
-            transpose8(&mut w);
-            for (r, w) in w.iter().enumerate() {
-                let at = (i + r) * width + j;
-                rows[at..at + 8].copy_from_slice(&w.to_le_bytes());
-            }
-        }
-    }
+    let record = |i: usize, j: usize, d: usize| (i + d) * width + j;
+    let plane = |i: usize, j: usize, d: usize| (j + d) * n + i;
+    transpose_blocks(planes, rows, (groups, chunks), plane, record);
     for (j, plane) in planes.chunks_exact(n.max(1)).take(width).enumerate() {
         let done = if j < 8 * chunks { 8 * groups } else { 0 };
         for (i, &b) in plane.iter().enumerate().skip(done) {
