@@ -152,7 +152,7 @@ impl Stat {
     /// NaN when none is defined. `circular` takes the values as angles in degrees (aspect):
     /// the mean is the direction of the mean unit vector, in [0, 360), and the median, min and
     /// max are those of the plain values. The result does not depend on the values' order: a mean
-    /// whose f64 sum is exact in any order takes it as it comes ([`exact_mean`]), other means
+    /// whose f64 sum is exact in any order takes it as it comes, other means
     /// and the median sort the values first (NaN last); the min and max compare by total order
     /// (-0 below +0).
     pub fn reduce(self, values: &mut [f32], circular: bool) -> f32 {

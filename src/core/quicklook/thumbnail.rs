@@ -49,7 +49,7 @@ impl Thumbnail {
     }
 
     /// Raster cells per thumbnail pixel along each axis: a thumbnail pixel is `factor` times
-    /// the raster's cell size (what [`super::Shade::cell`] wants).
+    /// the raster's cell size (the `cell` of [`super::Shade::of`]).
     pub fn factor(&self) -> u32 {
         self.factor
     }
