@@ -35,6 +35,11 @@ pub trait Reporter: Sync {
     fn phase(&self, name: &str, total: u64);
     /// `n` more units of the current phase are done.
     fn advance(&self, n: u64);
+    /// `n` units of the current phase were done before it started (a resumed run's finished
+    /// tiles): done, but not part of the phase's rate.
+    fn resumed(&self, n: u64) {
+        self.advance(n);
+    }
     /// The current phase is over.
     fn finish_phase(&self);
     /// An informational message (suppressed by `--quiet`).
@@ -57,6 +62,8 @@ impl Reporter for Silent {
 struct Phase {
     name: String,
     total: u64,
+    /// Units done before the phase started ([`Reporter::resumed`]).
+    resumed: u64,
     started: Instant,
     last_line: Instant,
 }
@@ -67,14 +74,17 @@ struct Phase {
 const PHASE_WEIGHTS: [(&str, f64); 3] = [("scan", 8.0), ("curvature", 33.8), ("write", 5.9)];
 
 /// Seconds left in the whole run, from phase `p` with `done` of its points done: none until the
-/// phase is 1% and 2 s in (a rate from its first moments is noise).
+/// phase is 1% and 2 s in (a rate from its first moments is noise). The rate is that of the
+/// points done in the phase, not of those it resumed.
 fn run_eta(p: &Phase, done: u64) -> Option<f64> {
     let elapsed = p.started.elapsed().as_secs_f64();
+    let worked = done.saturating_sub(p.resumed) as f64;
     let f = done as f64 / p.total.max(1) as f64;
-    if f < 0.01 || elapsed < 2.0 {
+    if worked < 0.01 * p.total as f64 || elapsed < 2.0 {
         return None;
     }
-    let phase_total = elapsed / f;
+    // The phase's time at this rate as if none had been resumed: the later phases scale with it.
+    let phase_total = elapsed * p.total as f64 / worked;
     let at = PHASE_WEIGHTS.iter().position(|(n, _)| *n == p.name);
     let later: f64 = at
         .map(|i| PHASE_WEIGHTS[i + 1..].iter().map(|w| w.1).sum::<f64>() / PHASE_WEIGHTS[i].1)
@@ -176,7 +186,7 @@ impl TermReporter {
             return;
         }
         let elapsed = p.started.elapsed();
-        let r = rate(done, elapsed);
+        let r = rate(done.saturating_sub(p.resumed), elapsed);
         let eta = |v: Option<f64>| {
             v.map(|s| format!("{s:.1}"))
                 .unwrap_or_else(|| "null".into())
@@ -220,11 +230,44 @@ impl TermReporter {
     }
 }
 
+/// The line that ends phase `p`: its points, time and rate, the rate of the points it did
+/// itself when some were resumed.
+fn end_line(p: &Phase) -> String {
+    let t = p.started.elapsed();
+    let worked = p.total.saturating_sub(p.resumed);
+    match p.resumed {
+        0 => format!(
+            "{}: {} points in {:.1} s ({})",
+            p.name,
+            p.total,
+            t.as_secs_f64(),
+            human_rate(rate(p.total, t))
+        ),
+        r if worked == 0 => format!("{}: {} points, all {r} resumed", p.name, p.total),
+        r => format!(
+            "{}: {} points, {r} of them resumed, the other {worked} in {:.1} s ({})",
+            p.name,
+            p.total,
+            t.as_secs_f64(),
+            human_rate(rate(worked, t))
+        ),
+    }
+}
+
 fn rate(n: u64, d: Duration) -> f64 {
     n as f64 / d.as_secs_f64().max(1e-9)
 }
 
 impl Reporter for TermReporter {
+    fn resumed(&self, n: u64) {
+        if let Ok(mut guard) = self.phase.lock() {
+            if let Some(p) = guard.as_mut() {
+                p.resumed += n;
+            }
+        }
+        self.advance(n);
+    }
+
     fn phase(&self, name: &str, total: u64) {
         self.done.store(0, Ordering::Relaxed);
         if let Some(b) = &self.bar {
@@ -237,6 +280,7 @@ impl Reporter for TermReporter {
             let p = Phase {
                 name: name.into(),
                 total,
+                resumed: 0,
                 started: Instant::now(),
                 last_line: Instant::now(),
             };
@@ -255,7 +299,7 @@ impl Reporter for TermReporter {
         };
         let Some(p) = guard.as_mut() else { return };
         self.json_line("progress", p, done);
-        let r = rate(done, p.started.elapsed());
+        let r = rate(done.saturating_sub(p.resumed), p.started.elapsed());
         let eta = run_eta(p, done)
             .map(|s| format!("run ETA {}", human_secs(s)))
             .unwrap_or_else(|| "run ETA ...".into());
@@ -285,14 +329,7 @@ impl Reporter for TermReporter {
         let Some(p) = guard.take() else { return };
         self.json_line("phase_end", &p, self.done.load(Ordering::Relaxed));
         if !self.quiet {
-            let t = p.started.elapsed();
-            self.line(&format!(
-                "{}: {} points in {:.1} s ({})",
-                p.name,
-                p.total,
-                t.as_secs_f64(),
-                human_rate(rate(p.total, t))
-            ));
+            self.line(&end_line(&p));
         }
     }
 
@@ -318,6 +355,7 @@ mod tests {
         Phase {
             name: name.into(),
             total,
+            resumed: 0,
             started,
             last_line: started,
         }
@@ -334,6 +372,20 @@ mod tests {
         assert!((last - 10.0).abs() < 0.5, "{last}");
         assert_eq!(run_eta(&phase("scan", 1000, 10), 5), None);
         assert_eq!(run_eta(&phase("scan", 1000, 0), 500), None);
+        // 900 of 1000 resumed and 50 done in 10 s: 5 points/s, so 50 more take 10 s.
+        let mut resumed = phase("curvature", 1000, 10);
+        resumed.resumed = 900;
+        let eta = run_eta(&resumed, 950).expect("an ETA");
+        let want = 10.0 + 200.0 * 5.9 / 33.8;
+        assert!((eta - want).abs() < 0.5, "{eta} vs {want}");
+        assert!(end_line(&resumed)
+            .starts_with("curvature: 1000 points, 900 of them resumed, the other 100 in 10.0 s ("));
+        resumed.resumed = 1000;
+        assert_eq!(
+            end_line(&resumed),
+            "curvature: 1000 points, all 1000 resumed"
+        );
+        assert_eq!(run_eta(&resumed, 1000), None);
         assert_eq!(human_rate(591_234.567), "591k points/s");
         assert_eq!(human_rate(1_213_000.0), "1.21M points/s");
         assert_eq!(human_secs(725.0), "12 min 5 s");

@@ -182,6 +182,13 @@ fn released_buckets_resume_without_a_scan_or_scan_again_for_a_missing_tile() {
             .and_then(|head| head.rsplit('(').next())
             .and_then(|n| n.trim().parse().ok());
         assert_eq!(resumed, Some(tiles - tile_missing as usize), "{err}");
+        // The curvature line's rate is of the points computed, not of those resumed.
+        let curvature = err.lines().find(|l| l.starts_with("curvature:"));
+        let expect = match tile_missing {
+            false => ", all ",
+            true => " of them resumed, the other ",
+        };
+        assert!(curvature.is_some_and(|l| l.contains(expect)), "{err}");
         assert!(
             std::fs::read(&out).expect("output") == std::fs::read(&reference).expect("reference"),
             "tile missing {tile_missing}: the resumed output differs from a clean run's"

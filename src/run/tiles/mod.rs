@@ -82,7 +82,7 @@ pub(crate) fn tiles(
         .sum();
     let done_points: u64 = points - todo.iter().map(|t| t.count).sum::<u64>();
     exec.reporter.phase("curvature", points);
-    exec.reporter.advance(done_points);
+    exec.reporter.resumed(done_points);
     let job = TileJob {
         buckets: &scan.buckets,
         plan: &tplan,
