@@ -49,7 +49,7 @@ pub(crate) fn raster_crs<'a>(
             let ascii = find(34737)
                 .map(|v| String::from_utf8_lossy(&v.data).into_owned())
                 .unwrap_or_default();
-            from_keys(&shorts_of(&keys.data), doubles, ascii)
+            from_keys(GeoKeys::parse(&keys.data), doubles, ascii)
         }
         CrsRecord::Wkt(w) => from_wkt(&w),
         CrsRecord::None => RasterCrs {
@@ -77,9 +77,10 @@ fn directory(keys: &[(u16, u16)]) -> Vec<u16> {
     d
 }
 
-/// The input's own key directory with its raster type set to PixelIsArea.
-fn from_keys(keys: &[u16], doubles: Vec<f64>, ascii: String) -> RasterCrs {
-    let Ok(mut keys) = GeoKeys::of_shorts(keys) else {
+/// The input's own key directory (as [`GeoKeys::parse`] read it) with its raster type set to
+/// PixelIsArea.
+fn from_keys(keys: Result<GeoKeys, String>, doubles: Vec<f64>, ascii: String) -> RasterCrs {
+    let Ok(mut keys) = keys else {
         return RasterCrs {
             described: "none".into(),
             warning: Some("the input's GeoTIFF key directory is cut short, so the rasters have no CRS: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
@@ -274,12 +275,6 @@ fn bare(c: &[char], at: &mut usize) -> String {
     c[start..*at].iter().collect::<String>().trim().to_string()
 }
 
-fn shorts_of(b: &[u8]) -> Vec<u16> {
-    b.chunks_exact(2)
-        .map(|p| u16::from_le_bytes([p[0], p[1]]))
-        .collect()
-}
-
 fn doubles_of(b: &[u8]) -> Vec<f64> {
     b.chunks_exact(8)
         .map(|p| f64::from_le_bytes(p.try_into().unwrap_or([0; 8])))
@@ -344,19 +339,23 @@ mod tests {
     #[test]
     fn the_inputs_keys_are_kept_with_pixel_is_area() {
         let keys = [1, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 2, 3072, 0, 1, 32633];
-        let c = from_keys(&keys, vec![], String::new());
+        let c = from_keys(GeoKeys::of_shorts(&keys), vec![], String::new());
         assert_eq!(
             c.directory,
             vec![1, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 1, 3072, 0, 1, 32633]
         );
         let without = [1, 1, 0, 1, 3072, 0, 1, 32633];
-        let c = from_keys(&without, vec![], String::new());
+        let c = from_keys(GeoKeys::of_shorts(&without), vec![], String::new());
         assert_eq!(
             c.directory,
             vec![1, 1, 0, 2, 1025, 0, 1, 1, 3072, 0, 1, 32633]
         );
-        assert!(from_keys(&[1, 1, 0, 9, 3072], vec![], String::new())
-            .warning
-            .is_some());
+        assert!(from_keys(
+            GeoKeys::of_shorts(&[1, 1, 0, 9, 3072]),
+            vec![],
+            String::new()
+        )
+        .warning
+        .is_some());
     }
 }
