@@ -23,6 +23,19 @@ pub struct ResultLayout {
 }
 
 impl ResultLayout {
+    /// Bytes of one record: the numbers, the curvature flags and the other flag bytes.
+    pub fn size(&self) -> usize {
+        self.width * self.numbers + 1 + (self.len - self.numbers)
+    }
+
+    /// Where the stored number `v` starts in a record, if it is stored and not a flag byte
+    /// (the result files' H prediction reads k1 and k2 there).
+    pub fn offset(&self, v: Value) -> Option<usize> {
+        (self.values[..self.numbers].iter())
+            .position(|&s| s == v)
+            .map(|i| i * self.width)
+    }
+
     /// Appends the stored values of one point to `out` (the numbers as f64 or f32
     /// little-endian, then the curvature flags and the other flag bytes; a caller encoding many
     /// points makes the layout once: walking the chain of optional groups for every value of

@@ -497,19 +497,14 @@ impl ColumnSet {
         }
     }
 
-    /// Bytes per point of a result file's columns.
+    /// Bytes per point of a result file's columns ([`ResultLayout::size`]).
     pub fn result_size(&self) -> usize {
-        let bytes = self.stored().filter(|v| v.is_flag_byte()).count();
-        let numbers = self.stored().count() - bytes;
-        self.value_size() * numbers + 1 + bytes
+        self.layout().size()
     }
 
-    /// Where the stored number `v` starts in a record of [`ResultLayout::encode`], if it is
-    /// stored and not a flag byte (the result files' H prediction reads k1 and k2 there).
+    /// Where the stored number `v` starts in a record ([`ResultLayout::offset`]).
     pub fn stored_offset(&self, v: Value) -> Option<usize> {
-        (self.stored().filter(|s| !s.is_flag_byte()))
-            .position(|s| s == v)
-            .map(|i| i * self.value_size())
+        self.layout().offset(v)
     }
 
     /// The order and width of the stored values, for decoding records
