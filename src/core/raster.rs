@@ -326,6 +326,16 @@ mod tests {
             if let Some(m) = exact {
                 assert_eq!(m.to_bits(), want.to_bits(), "{v:?}");
             }
+            // Values within a factor of 2^24 of each other (12 of them need at most 4 bits
+            // more) always sum exactly: the sort-free path must answer for them.
+            let big = v.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+            let small = v
+                .iter()
+                .filter(|x| **x != 0.0)
+                .fold(f32::MAX, |m, x| m.min(x.abs()));
+            if big <= small * 2f32.powi(24) {
+                assert!(exact.is_some(), "an exact sum left to the sort: {v:?}");
+            }
             for rot in 0..n {
                 v.rotate_left(1);
                 let got = Stat::Mean.reduce(&mut v.clone(), false);
