@@ -18,7 +18,7 @@ use crate::core::plan::TilePlan;
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns, Steps};
-use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout};
+use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout, Transcoder};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::results::{record_size, scene_stats, Merger};
@@ -404,7 +404,7 @@ fn encode_piece(
 ) -> u64 {
     let (rl, size) = (m.source.record_length(), record_size(m.stored));
     // Found once a piece (thousands of records), not per record.
-    let layout = m.stored.layout();
+    let transcoder = Transcoder::new(&m.stored.layout(), m.cols, &m.stored.extra);
     let mut next = results.pieces[p];
     let mut undefined = 0;
     for (j, r) in records.chunks_exact(rl).enumerate() {
@@ -415,13 +415,21 @@ fn encode_piece(
             m.cols.encode(&PointResult::not_computed(id), out);
             continue;
         }
-        let rec = &results.bytes[next * size..(next + 1) * size];
+        let (patch, columns) = results.bytes[next * size..(next + 1) * size].split_at(8);
         next += 1;
-        let result = point_result(rec, &layout, m.stored, m.flips);
-        undefined += (result.curvature.flags & flags::UNDEFINED != 0) as u64;
-        m.cols.encode(&result, out);
+        let flags = transcoder.encode(columns, flipped(patch, m.flips), out);
+        undefined += (flags & flags::UNDEFINED != 0) as u64;
     }
     undefined
+}
+
+/// Whether the point whose global patch is `patch` (u64 LE) is written flipped: with `flips`
+/// (`--orient propagate`, per tile of the plan) marking its patch.
+fn flipped(patch: &[u8], flips: Option<&[Vec<bool>]>) -> bool {
+    let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
+    (flips.zip(patch.parts()))
+        .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
+        .unwrap_or(false)
 }
 
 /// The result of one merged record `rec` (the point's global patch, a u64, then its columns
@@ -434,10 +442,7 @@ pub(crate) fn point_result(
     flips: Option<&[Vec<bool>]>,
 ) -> PointResult {
     let (patch, columns) = rec.split_at(8);
-    let patch = GlobalPatch(u64::from_le_bytes(patch.try_into().unwrap_or([0xff; 8])));
-    let flip = (flips.zip(patch.parts()))
-        .and_then(|(f, (tile, local))| f.get(tile)?.get(local).copied())
-        .unwrap_or(false);
+    let flip = flipped(patch, flips);
     let result = layout.decode(columns);
     match flip {
         true => result.flipped(&stored.extra),

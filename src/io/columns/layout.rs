@@ -41,15 +41,19 @@ impl ResultLayout {
     /// points makes the layout once: walking the chain of optional groups for every value of
     /// every point cost 5% of a run with the terrain columns).
     pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
-        for v in &self.values[..self.numbers] {
-            match self.width {
-                8 => out.extend_from_slice(&v.get(r).to_le_bytes()),
-                _ => out.extend_from_slice(&(v.get(r) as f32).to_le_bytes()),
-            }
+        let start = out.len();
+        out.resize(start + self.size(), 0);
+        let rec = &mut out[start..];
+        let (numbers, flags) = rec.split_at_mut(self.width * self.numbers);
+        match self.width {
+            8 => (numbers.chunks_exact_mut(8).zip(&self.values))
+                .for_each(|(b, v)| b.copy_from_slice(&v.get(r).to_le_bytes())),
+            _ => (numbers.chunks_exact_mut(4).zip(&self.values))
+                .for_each(|(b, v)| b.copy_from_slice(&(v.get(r) as f32).to_le_bytes())),
         }
-        out.push(r.curvature.flags);
-        for v in &self.values[self.numbers..self.len] {
-            out.push(v.get(r) as u8);
+        flags[0] = r.curvature.flags;
+        for (b, v) in flags[1..].iter_mut().zip(&self.values[self.numbers..self.len]) {
+            *b = v.get(r) as u8;
         }
     }
 

@@ -8,10 +8,12 @@
 mod layout;
 pub(crate) mod output;
 mod terrain;
+mod transcode;
 
 pub(crate) use layout::ResultLayout;
 use layout::MAX_STORED;
 pub(crate) use terrain::TerrainValue;
+pub(crate) use transcode::Transcoder;
 
 use crate::core::compute::PointResult;
 use crate::core::estimate::{EstimatorKind, EstimatorParams, ExtraColumn, MAX_EXTRA};

@@ -76,13 +76,49 @@ impl Encoding {
 
 /// How one column is stored.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Storage {
+pub(super) enum Storage {
     /// A float of this type (F32 or F64), NaN where undefined.
     Float(ScalarType),
     /// An unsigned integer of this type (U8 or U16): the flags, the chosen scale.
     Unsigned(ScalarType),
     /// An integer of this type (I16 or I32) times `scale`; its minimum where undefined.
     Scaled(ScalarType, f64),
+}
+
+impl Storage {
+    /// Writes `v` as this storage says at the start of `out` (little-endian; at least
+    /// [`Storage::size`] bytes); returns the bytes written.
+    pub(super) fn put(self, v: f64, out: &mut [u8]) -> usize {
+        fn write<const N: usize>(out: &mut [u8], b: [u8; N]) -> usize {
+            out[..N].copy_from_slice(&b);
+            N
+        }
+        match self {
+            Storage::Float(ScalarType::F64) => write(out, v.to_le_bytes()),
+            Storage::Float(_) => write(out, (v as f32).to_le_bytes()),
+            Storage::Unsigned(ScalarType::U8) => write(out, [v as u8]),
+            Storage::Unsigned(_) => write(out, (v as u16).to_le_bytes()),
+            Storage::Scaled(ty, scale) => {
+                let raw = if v.is_nan() {
+                    no_data(ty)
+                } else {
+                    let m = max_raw(ty);
+                    (v / scale).round().clamp(-m, m)
+                };
+                match ty {
+                    ScalarType::I16 => write(out, (raw as i16).to_le_bytes()),
+                    _ => write(out, (raw as i32).to_le_bytes()),
+                }
+            }
+        }
+    }
+
+    /// Bytes of one value.
+    fn size(self) -> usize {
+        match self {
+            Storage::Float(ty) | Storage::Unsigned(ty) | Storage::Scaled(ty, _) => ty.size(),
+        }
+    }
 }
 
 /// The largest |raw| of a scaled type: its maximum (its minimum is the no-data value).
@@ -101,7 +137,9 @@ fn no_data(ty: ScalarType) -> f64 {
 /// The new columns of an output with their storage.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OutputColumns {
-    columns: Vec<(Column, Storage)>,
+    pub(super) columns: Vec<(Column, Storage)>,
+    /// Bytes per point.
+    size: usize,
 }
 
 impl OutputColumns {
@@ -139,16 +177,14 @@ impl OutputColumns {
                 _ => Storage::Scaled(ScalarType::I16, 1.0 / i16::MAX as f64),
             },
         };
-        OutputColumns {
-            columns: set
-                .columns()
-                .into_iter()
-                .map(|c| {
-                    let s = storage(&c);
-                    (c, s)
-                })
-                .collect(),
-        }
+        let columns: Vec<(Column, Storage)> = (set.columns().into_iter())
+            .map(|c| {
+                let s = storage(&c);
+                (c, s)
+            })
+            .collect();
+        let size = columns.iter().map(|(_, s)| s.size()).sum();
+        OutputColumns { columns, size }
     }
 
     /// The extra-bytes descriptors of the columns, in record order (a scaled column with its
@@ -173,31 +209,16 @@ impl OutputColumns {
 
     /// Bytes per point.
     pub fn record_size(&self) -> usize {
-        self.descriptors().iter().map(|d| d.ty.size()).sum()
+        self.size
     }
 
     /// Appends one point's columns to `out` (little-endian, record order).
     pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
+        let start = out.len();
+        out.resize(start + self.size, 0);
+        let mut at = start;
         for (c, s) in &self.columns {
-            let v = c.value.get(r);
-            match *s {
-                Storage::Float(ScalarType::F64) => out.extend_from_slice(&v.to_le_bytes()),
-                Storage::Float(_) => out.extend_from_slice(&(v as f32).to_le_bytes()),
-                Storage::Unsigned(ScalarType::U8) => out.push(v as u8),
-                Storage::Unsigned(_) => out.extend_from_slice(&(v as u16).to_le_bytes()),
-                Storage::Scaled(ty, scale) => {
-                    let raw = if v.is_nan() {
-                        no_data(ty)
-                    } else {
-                        let m = max_raw(ty);
-                        (v / scale).round().clamp(-m, m)
-                    };
-                    match ty {
-                        ScalarType::I16 => out.extend_from_slice(&(raw as i16).to_le_bytes()),
-                        _ => out.extend_from_slice(&(raw as i32).to_le_bytes()),
-                    }
-                }
-            }
+            at += s.put(c.value.get(r), &mut out[at..]);
         }
     }
 
