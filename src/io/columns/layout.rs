@@ -36,6 +36,13 @@ impl ResultLayout {
             .map(|i| i * self.width)
     }
 
+    /// The stored numbers with where each starts in a record, and their width in bytes.
+    pub fn numbers(&self) -> (impl Iterator<Item = (Value, usize)> + '_, usize) {
+        let w = self.width;
+        let numbers = self.values[..self.numbers].iter().enumerate();
+        (numbers.map(move |(i, &v)| (v, i * w)), w)
+    }
+
     /// Appends the stored values of one point to `out` (the numbers as f64 or f32
     /// little-endian, then the curvature flags and the other flag bytes; a caller encoding many
     /// points makes the layout once: walking the chain of optional groups for every value of
@@ -52,7 +59,10 @@ impl ResultLayout {
                 .for_each(|(b, v)| b.copy_from_slice(&(v.get(r) as f32).to_le_bytes())),
         }
         flags[0] = r.curvature.flags;
-        for (b, v) in flags[1..].iter_mut().zip(&self.values[self.numbers..self.len]) {
+        for (b, v) in flags[1..]
+            .iter_mut()
+            .zip(&self.values[self.numbers..self.len])
+        {
             *b = v.get(r) as u8;
         }
     }

@@ -66,14 +66,18 @@ fn result_files_round_trip_over_many_blocks() {
             TileResults::open(&path, &cols).expect("open").patched(),
             patched
         );
-        // The records repeat every 256 ids and the ids run in steps of one: compressed to
-        // well under a quarter of the raw rows (the columns, the patch if any, a varint gap).
-        let raw = cols.result_size() + if patched { 8 } else { 0 } + 1;
+        // The records repeat every 256 ids and the ids run in steps of one: the planes in the
+        // frame (the patch if any, the top bytes, H, the flags, a varint gap) compressed to
+        // well under a quarter, the plain ones (three bytes of each number but H) as they are.
+        let plain = plain_planes(&cols, patched).iter().filter(|&&p| p).count();
+        assert_eq!(plain, 6 * 3);
+        let packed = cols.result_size() + if patched { 8 } else { 0 } + 1 - plain;
         let size = std::fs::metadata(&path).expect("size").len();
+        let (at_least, under) = (ids.len() * plain, ids.len() * (plain + packed / 4));
         assert!(
-            size < (ids.len() * raw / 4) as u64,
-            "{size} bytes for {} raw",
-            ids.len() * raw
+            (at_least as u64..under as u64).contains(&size),
+            "{size} bytes: {at_least} plain, {} in the frame before compression",
+            ids.len() * packed
         );
     }
     // Empty results are a valid file.
@@ -134,8 +138,25 @@ fn damaged_truncated_and_old_result_files_are_refused() {
         bad[at] ^= 0x04;
         check(&bad, &format!("a bit flipped at {at}"));
     }
+    // The first block's plain planes and their checksum, after its frame.
+    let stats = u64::from_le_bytes(good[32..40].try_into().expect("8 bytes")) as usize;
+    let block = HEAD + stats;
+    let frame = u32::from_le_bytes(good[block + 8..block + 12].try_into().expect("4 bytes"));
+    let plain = u32::from_le_bytes(good[block + 12..block + 16].try_into().expect("4 bytes"));
+    let plain_at = block + 16 + frame as usize;
+    assert_eq!(plain as usize, 18 * (BLOCK_BYTES / cols.result_size()));
+    for (at, what) in [
+        (plain_at, "the first plain byte"),
+        (plain_at + plain as usize / 2, "a plain byte"),
+        (plain_at + plain as usize + 3, "the plain planes' checksum"),
+        (block + 12, "the plain length"),
+    ] {
+        let mut bad = good.clone();
+        bad[at] ^= 0x10;
+        check(&bad, &format!("{what} damaged"));
+    }
     let mut old = good.clone();
-    old[..8].copy_from_slice(b"TCRES004");
+    old[..8].copy_from_slice(b"TCRES006");
     check(&old, "the previous format");
 }
 
