@@ -43,14 +43,18 @@ impl ResultLayout {
         (numbers.map(move |(i, &v)| (v, i * w)), w)
     }
 
-    /// Appends the stored values of one point to `out` (the numbers as f64 or f32
-    /// little-endian, then the curvature flags and the other flag bytes; a caller encoding many
-    /// points makes the layout once: walking the chain of optional groups for every value of
-    /// every point cost 5% of a run with the terrain columns).
+    /// Appends the stored values of one point to `out` ([`ResultLayout::encode_into`]).
     pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
         let start = out.len();
         out.resize(start + self.size(), 0);
-        let rec = &mut out[start..];
+        self.encode_into(r, &mut out[start..]);
+    }
+
+    /// Writes the stored values of one point into `rec`, [`ResultLayout::size`] bytes (the
+    /// numbers as f64 or f32 little-endian, then the curvature flags and the other flag bytes;
+    /// a caller encoding many points makes the layout once: walking the chain of optional
+    /// groups for every value of every point cost 5% of a run with the terrain columns).
+    pub fn encode_into(&self, r: &PointResult, rec: &mut [u8]) {
         let (numbers, flags) = rec.split_at_mut(self.width * self.numbers);
         match self.width {
             8 => (numbers.chunks_exact_mut(8).zip(&self.values))

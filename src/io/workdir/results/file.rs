@@ -14,7 +14,7 @@
 //! ([`TileResults::verify`]).
 
 use std::fs::File;
-use std::io::{BufWriter, Read, Write};
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use super::{parse_stats, stats_bytes};
@@ -134,11 +134,29 @@ fn plain_planes(cols: &ColumnSet, patched: bool) -> Vec<bool> {
     plain
 }
 
+/// The buffers of a [`ResultWriter`], kept from one file to the next: a tile's writer
+/// allocating them afresh touched new pages for each (its records, its blocks and a
+/// megabyte of file buffer: page faults and their zeroing were a fifth of writing the
+/// terrain columns' results).
+#[derive(Default)]
+pub(crate) struct WriteBuffers {
+    ids: Vec<u8>,
+    rows: Vec<u8>,
+    planes: Vec<u8>,
+    raw: Vec<u8>,
+    plain: Vec<u8>,
+    /// Bytes of the file not yet written, at most [`FILE_BUFFER`] and a block.
+    file: Vec<u8>,
+}
+
+/// Bytes a writer gathers before a write to its file.
+const FILE_BUFFER: usize = 1 << 20;
+
 /// Writes a result file under its temporary name: records pushed in increasing id order.
-pub(super) struct ResultWriter {
+pub(super) struct ResultWriter<'b> {
     path: PathBuf,
     tmp: PathBuf,
-    w: BufWriter<File>,
+    w: File,
     /// Whether the patches are stored (else every pushed patch must be none).
     patched: bool,
     /// Bytes of a stored record (patch if stored, then the columns).
@@ -149,37 +167,36 @@ pub(super) struct ResultWriter {
     predict: Option<HPrediction>,
     /// [`plain_planes`].
     plain_planes: Vec<bool>,
-    ids: Vec<u8>,
-    rows: Vec<u8>,
-    planes: Vec<u8>,
-    raw: Vec<u8>,
-    plain: Vec<u8>,
+    b: &'b mut WriteBuffers,
 }
 
-impl ResultWriter {
+impl<'b> ResultWriter<'b> {
     /// Starts the file for `path` (under a temporary name) for `count` records of `cols`, with
-    /// the patches stored or not, and `stats` in its header.
+    /// the patches stored or not, and `stats` in its header, in the buffers `b`.
     pub(super) fn create(
         path: &Path,
         count: u64,
         cols: &ColumnSet,
         patched: bool,
         stats: &CurvatureStats,
+        b: &'b mut WriteBuffers,
     ) -> Result<Self> {
         let tmp = tmp_name(path);
-        let file = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
-        let mut w = BufWriter::with_capacity(1 << 20, file);
+        let w = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
         let stats = stats_bytes(stats);
-        let head = [
+        for v in [&mut b.ids, &mut b.rows, &mut b.file] {
+            v.clear();
+        }
+        for part in [
             &MAGIC[..],
             &count.to_le_bytes(),
             &(cols.result_size() as u64).to_le_bytes(),
             &(patched as u64).to_le_bytes(),
             &(stats.len() as u64).to_le_bytes(),
             &stats,
-        ]
-        .concat();
-        w.write_all(&head).map_err(|e| Error::write(&tmp, e))?;
+        ] {
+            b.file.extend_from_slice(part);
+        }
         Ok(ResultWriter {
             path: path.to_path_buf(),
             tmp,
@@ -191,11 +208,7 @@ impl ResultWriter {
             prev: None,
             predict: HPrediction::of(cols),
             plain_planes: plain_planes(cols, patched),
-            ids: Vec::new(),
-            rows: Vec::new(),
-            planes: Vec::new(),
-            raw: Vec::new(),
-            plain: Vec::new(),
+            b,
         })
     }
 
@@ -214,50 +227,61 @@ impl ResultWriter {
                 self.path.display()
             )));
         };
-        put_varint(&mut self.ids, gap);
-        let start = self.rows.len() + if self.patched { 8 } else { 0 };
-        self.rows
+        let b = &mut *self.b;
+        put_varint(&mut b.ids, gap);
+        let start = b.rows.len() + if self.patched { 8 } else { 0 };
+        b.rows
             .extend_from_slice(if self.patched { record } else { columns });
         if let Some(p) = &self.predict {
-            p.apply(&mut self.rows[start..]);
+            p.apply(&mut b.rows[start..]);
         }
         self.prev = Some(id);
         self.written += 1;
-        if self.rows.len() + self.row > BLOCK_BYTES {
+        if b.rows.len() + self.row > BLOCK_BYTES {
             self.flush_block()?;
         }
         Ok(())
     }
 
     fn flush_block(&mut self) -> Result<()> {
-        if self.rows.is_empty() {
+        let b = &mut *self.b;
+        if b.rows.is_empty() {
             return Ok(());
         }
-        let n = self.rows.len() / self.row;
-        self.planes.clear();
-        put_planes(&mut self.planes, &self.rows, self.row);
-        self.raw.clear();
-        self.raw.extend_from_slice(&self.ids);
-        self.plain.clear();
-        for (plane, &plain) in self.planes.chunks_exact(n).zip(&self.plain_planes) {
+        let n = b.rows.len() / self.row;
+        b.planes.clear();
+        put_planes(&mut b.planes, &b.rows, self.row);
+        b.raw.clear();
+        b.raw.extend_from_slice(&b.ids);
+        b.plain.clear();
+        for (plane, &plain) in b.planes.chunks_exact(n).zip(&self.plain_planes) {
             match plain {
-                true => self.plain.extend_from_slice(plane),
-                false => self.raw.extend_from_slice(plane),
+                true => b.plain.extend_from_slice(plane),
+                false => b.raw.extend_from_slice(plane),
             }
         }
-        let frame = compress(&self.raw, Effort::Fast).map_err(|e| Error::write(&self.tmp, e))?;
-        let head = [n, self.raw.len(), frame.len(), self.plain.len()];
-        let head: Vec<u8> = head
-            .iter()
-            .flat_map(|&v| (v as u32).to_le_bytes())
-            .collect();
-        let sum = checksum(&self.plain).to_le_bytes();
-        [&head[..], &frame, &self.plain, &sum]
-            .iter()
-            .try_for_each(|b| self.w.write_all(b))
-            .map_err(|e| Error::write(&self.tmp, e))?;
-        self.ids.clear();
-        self.rows.clear();
+        let frame = compress(&b.raw, Effort::Fast).map_err(|e| Error::write(&self.tmp, e))?;
+        for v in [n, b.raw.len(), frame.len(), b.plain.len()] {
+            b.file.extend_from_slice(&(v as u32).to_le_bytes());
+        }
+        b.file.extend_from_slice(&frame);
+        b.file.extend_from_slice(&b.plain);
+        b.file.extend_from_slice(&checksum(&b.plain).to_le_bytes());
+        b.ids.clear();
+        b.rows.clear();
+        if b.file.len() >= FILE_BUFFER {
+            self.write_out()?;
+        }
+        Ok(())
+    }
+
+    /// Writes the gathered bytes to the file.
+    fn write_out(&mut self) -> Result<()> {
+        let tmp = &self.tmp;
+        self.w
+            .write_all(&self.b.file)
+            .map_err(|e| Error::write(tmp, e))?;
+        self.b.file.clear();
         Ok(())
     }
 
@@ -272,7 +296,7 @@ impl ResultWriter {
                 self.count
             )));
         }
-        self.w.flush().map_err(|e| Error::write(&self.tmp, e))?;
+        self.write_out()?;
         Ok(self.tmp)
     }
 }

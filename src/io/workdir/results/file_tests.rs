@@ -21,8 +21,9 @@ fn record(i: u64, patch: Option<u64>, cols: &ColumnSet) -> Vec<u8> {
 fn write(path: &Path, ids: &[u64], patched: bool) {
     let cols = cols();
     let stats = CurvatureStats::default();
-    let mut w =
-        ResultWriter::create(path, ids.len() as u64, &cols, patched, &stats).expect("create");
+    let mut bufs = WriteBuffers::default();
+    let mut w = ResultWriter::create(path, ids.len() as u64, &cols, patched, &stats, &mut bufs)
+        .expect("create");
     for &id in ids {
         w.push(id, &record(id, patched.then_some(id << 32 | 3), &cols))
             .expect("push");
@@ -91,11 +92,12 @@ fn writer_refuses_unordered_ids_and_stray_patches() {
     let dir = tempfile::tempdir().expect("temp dir");
     let (cols, stats) = (cols(), CurvatureStats::default());
     let path = dir.path().join("t.res");
-    let mut w = ResultWriter::create(&path, 3, &cols, false, &stats).expect("create");
+    let mut bufs = WriteBuffers::default();
+    let mut w = ResultWriter::create(&path, 3, &cols, false, &stats, &mut bufs).expect("create");
     w.push(4, &record(4, None, &cols)).expect("first");
     assert!(w.push(4, &record(4, None, &cols)).is_err());
     assert!(w.push(9, &record(9, Some(1), &cols)).is_err());
-    let mut w = ResultWriter::create(&path, 3, &cols, false, &stats).expect("create");
+    let mut w = ResultWriter::create(&path, 3, &cols, false, &stats, &mut bufs).expect("create");
     w.push(1, &record(1, None, &cols)).expect("push");
     assert!(w.finish().is_err(), "fewer records than declared");
 }
@@ -230,8 +232,10 @@ fn the_h_prediction_is_exact_and_pays() {
         );
         let path = dir.path().join(format!("h_{wide}.res"));
         let stats = CurvatureStats::default();
-        let mut w = ResultWriter::create(&path, encoded.len() as u64, &cols, false, &stats)
-            .expect("create");
+        let mut bufs = WriteBuffers::default();
+        let mut w =
+            ResultWriter::create(&path, encoded.len() as u64, &cols, false, &stats, &mut bufs)
+                .expect("create");
         for (i, e) in encoded.iter().enumerate() {
             w.push(i as u64, e).expect("push");
         }
@@ -244,4 +248,32 @@ fn the_h_prediction_is_exact_and_pays() {
         }
         assert!(r.next(&mut rec).expect("end").is_none());
     }
+}
+
+/// Buffers kept from one file to the next write the bytes fresh ones write: after a larger
+/// file with patches, and after a writer that stopped with an error halfway through a block.
+#[test]
+fn kept_buffers_write_what_fresh_ones_write() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (cols, stats) = (cols(), CurvatureStats::default());
+    let file = |name: &str, ids: &[u64], patched: bool, bufs: &mut WriteBuffers| {
+        let path = dir.path().join(name);
+        let mut w = ResultWriter::create(&path, ids.len() as u64, &cols, patched, &stats, bufs)
+            .expect("create");
+        for &id in ids {
+            w.push(id, &record(id, patched.then_some(id << 32 | 3), &cols))
+                .expect("push");
+        }
+        std::fs::read(w.finish().expect("finish")).expect("read")
+    };
+    let small: Vec<u64> = (0..700).map(|i| 3 * i + 1).collect();
+    let large: Vec<u64> = (0..5000).collect();
+    let fresh = file("fresh.res", &small, false, &mut WriteBuffers::default());
+    let mut kept = WriteBuffers::default();
+    file("large.res", &large, true, &mut kept);
+    let path = dir.path().join("failed.res");
+    let mut w = ResultWriter::create(&path, 10, &cols, false, &stats, &mut kept).expect("create");
+    w.push(8, &record(8, None, &cols)).expect("push");
+    assert!(w.push(2, &record(2, None, &cols)).is_err(), "out of order");
+    assert_eq!(file("kept.res", &small, false, &mut kept), fresh);
 }

@@ -23,8 +23,8 @@ use crate::core::quantize::{Bin, CurvatureStats, Magnitudes};
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::pack::Cursor;
-use file::ResultWriter;
 pub(crate) use file::{record_size, TileResults};
+use file::{ResultWriter, WriteBuffers};
 use sidecar::write_sidecar;
 pub(crate) use sidecar::{orientation_path, read_sidecar, TileSidecar};
 
@@ -104,33 +104,60 @@ fn write_tile_tmp(
     tile_index: u32,
     results: &[PointResult],
     cols: &ColumnSet,
+    scratch: &mut TileScratch,
 ) -> Result<PathBuf> {
     // Sorted as (id, place) pairs rather than moving the ~160-byte results themselves (ten
     // times the bytes to move: docs/performance.md); ids are unique, so the order is the ids'.
-    let mut order: Vec<(u64, u32)> = (results.iter().enumerate())
-        .map(|(i, r)| (r.id, i as u32))
-        .collect();
-    crate::core::radix::sort_by_key(&mut order, &mut Vec::new());
+    let order = &mut scratch.order;
+    order.clear();
+    order.extend((results.iter().enumerate()).map(|(i, r)| (r.id, i as u32)));
+    crate::core::radix::sort_by_key(order, &mut scratch.sort);
     // Encoded in the results' order (one sequential pass over them, with the statistics),
     // then taken in id order from the records, a sixth of their size: reading the results
     // themselves in id order missed the cache for most of them.
     let size = record_size(cols);
-    let mut records = Vec::with_capacity(results.len() * size);
+    let records = &mut scratch.records;
+    records.clear();
+    records.resize(results.len() * size, 0);
     let mut stats = CurvatureStats::default();
     let layout = cols.layout();
-    for r in results {
+    for (r, rec) in results.iter().zip(records.chunks_exact_mut(size)) {
         stats.add(&r.curvature);
-        records.extend_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
-        layout.encode(r, &mut records);
+        let (patch, columns) = rec.split_at_mut(8);
+        patch.copy_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
+        layout.encode_into(r, columns);
     }
     let patched = results.iter().any(|r| r.patch != NO_PATCH);
     let count = results.len() as u64;
-    let mut w = ResultWriter::create(&tile_path(dir, key), count, cols, patched, &stats)?;
-    for &(id, i) in &order {
+    let path = tile_path(dir, key);
+    let mut w = ResultWriter::create(&path, count, cols, patched, &stats, &mut scratch.writer)?;
+    for &(id, i) in order.iter() {
         let at = i as usize * size;
         w.push(id, &records[at..at + size])?;
     }
-    w.finish()
+    let tmp = w.finish();
+    // A tile much larger than the others (the dense tile around a terrestrial scanner) does
+    // not leave its buffers to the rest of the run, beside the tiles being computed.
+    if records.capacity() > TileScratch::KEEP {
+        *scratch = TileScratch::default();
+    }
+    tmp
+}
+
+/// What writing a tile's result file needs besides the results, kept from one tile to the
+/// next (fresh buffers for each tile cost page faults: [`WriteBuffers`]).
+#[derive(Default)]
+struct TileScratch {
+    order: Vec<(u64, u32)>,
+    sort: Vec<(u64, u32)>,
+    records: Vec<u8>,
+    writer: WriteBuffers,
+}
+
+impl TileScratch {
+    /// The most bytes of records kept for the next tile (about 350,000 points of the terrain
+    /// columns; a 50 m tile of 8 points/m^2 holds 20,000).
+    const KEEP: usize = 16 << 20;
 }
 
 /// The resume journal: finished tiles' result files, made durable in batches. A batch is
@@ -141,6 +168,7 @@ pub(crate) struct Journal {
     dir: PathBuf,
     pending: Vec<(PathBuf, PathBuf)>,
     since: std::time::Instant,
+    scratch: TileScratch,
 }
 
 impl Journal {
@@ -150,6 +178,7 @@ impl Journal {
             dir: dir.to_path_buf(),
             pending: Vec::new(),
             since: std::time::Instant::now(),
+            scratch: TileScratch::default(),
         }
     }
 
@@ -168,7 +197,7 @@ impl Journal {
             let tmp = write_sidecar(&path, sc)?;
             self.pending.push((tmp, path));
         }
-        let tmp = write_tile_tmp(&self.dir, key, tile_index, results, cols)?;
+        let tmp = write_tile_tmp(&self.dir, key, tile_index, results, cols, &mut self.scratch)?;
         self.pending.push((tmp, tile_path(&self.dir, key)));
         if self.pending.len() >= 256 || self.since.elapsed().as_secs_f64() > 2.0 {
             self.commit()?;
@@ -250,6 +279,7 @@ impl Merger {
         let fan_in = fan_in.max(2);
         let mut files: std::collections::VecDeque<PathBuf> = files.iter().cloned().collect();
         let mut runs = std::collections::HashSet::new();
+        let mut bufs = WriteBuffers::default();
         while files.len() > fan_in {
             let take = (files.len() - fan_in + 1).min(fan_in);
             let group: Vec<PathBuf> = files.drain(..take).collect();
@@ -266,7 +296,7 @@ impl Merger {
             // Runs only serve this assemble pass: no need to make them durable, nor to hold
             // statistics (scene_stats reads the tile files).
             let stats = CurvatureStats::default();
-            let mut w = ResultWriter::create(&run, count, cols, patched, &stats)?;
+            let mut w = ResultWriter::create(&run, count, cols, patched, &stats, &mut bufs)?;
             while let Some(id) = m.next(&mut rec)? {
                 w.push(id, &rec)?;
             }
