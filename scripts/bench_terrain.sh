@@ -15,6 +15,13 @@
 # neighbours, so the least time is the least disturbed; the two summaries agreeing says the
 # rounds were enough). Environment: TILECURV_BENCH_DIR (default /tmp/tilecurv-bench),
 # K (30), THREADS (2), SEED (1), TILECURV (a binary; default: cargo build --release).
+#
+# COUNT=1 instead runs each variant once under valgrind's cachegrind and prints the user-space
+# instructions each executes and their ratios: the same within 0.1% from run to run (the
+# threads' interleaving), so they resolve the 1-2% differences the CPU times of this virtual
+# machine cannot (its speed drifts by 20-40% within an hour), but they leave out the kernel's
+# work (writing and reading the files, page faults) and what memory stalls cost, which the
+# CPU times include. About 40 times as slow as a run: 2M points take about 6 minutes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BENCH_DIR=${TILECURV_BENCH_DIR:-/tmp/tilecurv-bench}
@@ -38,6 +45,22 @@ declare -A variants=(
     [raster]="--columns H,K,flags,terrain --raster 1m"
 )
 order=(base terrain raster)
+if [ "${COUNT:-0}" = 1 ]; then
+    command -v valgrind >/dev/null || { echo "bench_terrain.sh: COUNT=1 needs valgrind (apt-get install valgrind)" >&2; exit 2; }
+    declare -A ins=()
+    for v in "${order[@]}"; do
+        out="$BENCH_DIR/bench_terrain_$v.las"
+        # shellcheck disable=SC2086
+        ins[$v]=$(valgrind --tool=cachegrind --cache-sim=no --cachegrind-out-file=/dev/null \
+            "$TILECURV" process "$in" -o "$out" -q -k "$K" --threads "$THREADS" ${variants[$v]} 2>&1 |
+            sed -n 's/.*I *refs: *//p' | tr -d ',')
+        rm -rf "$out" "${out%.las}.rasters"
+        printf '%-8s %16s instructions\n' "$v" "${ins[$v]}"
+    done
+    awk -v b="${ins[base]}" -v t="${ins[terrain]}" -v r="${ins[raster]}" 'BEGIN {
+        printf "input: %s points; instruction ratios terrain/base %.4f, raster/terrain %.4f\n", "'"$SIZE"'", t / b, r / t }'
+    exit 0
+fi
 ratios=()
 raster_ratios=()
 declare -A least=()
