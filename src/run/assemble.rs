@@ -405,21 +405,37 @@ fn encode_piece(
     let (rl, size) = (m.source.record_length(), record_size(m.stored));
     // Found once a piece (thousands of records), not per record.
     let transcoder = Transcoder::new(&m.stored.layout(), m.cols, &m.stored.extra);
+    let row = rl + m.cols.record_size();
+    let start = out.len();
+    out.resize(start + records.len() / rl * row, 0);
+    let rows = &mut out[start..];
+    let mut stored = Vec::with_capacity(records.len() / rl);
     let mut next = results.pieces[p];
     let mut undefined = 0;
-    for (j, r) in records.chunks_exact(rl).enumerate() {
-        out.extend_from_slice(r);
+    let mut not_computed = Vec::new();
+    for (j, (r, o)) in records
+        .chunks_exact(rl)
+        .zip(rows.chunks_exact_mut(row))
+        .enumerate()
+    {
+        o[..rl].copy_from_slice(r);
         if !m.select.selects(m.source.class_of(r)) {
             // Left out of the buckets by the scan: no result, NaN and flag 128.
-            let id = first_id + j as u64;
-            m.cols.encode(&PointResult::not_computed(id), out);
+            not_computed.clear();
+            m.cols.encode(
+                &PointResult::not_computed(first_id + j as u64),
+                &mut not_computed,
+            );
+            o[rl..].copy_from_slice(&not_computed);
+            stored.push(None);
             continue;
         }
         let (patch, columns) = results.bytes[next * size..(next + 1) * size].split_at(8);
         next += 1;
-        let flags = transcoder.encode(columns, flipped(patch, m.flips), out);
-        undefined += (flags & flags::UNDEFINED != 0) as u64;
+        undefined += (transcoder.flags(columns) & flags::UNDEFINED != 0) as u64;
+        stored.push(Some((columns, flipped(patch, m.flips))));
     }
+    transcoder.encode_all(&stored, rows, row, rl);
     undefined
 }
 

@@ -87,7 +87,9 @@ pub(super) enum Storage {
 
 impl Storage {
     /// Writes `v` as this storage says at the start of `out` (little-endian; at least
-    /// [`Storage::size`] bytes); returns the bytes written.
+    /// [`Storage::size`] bytes); returns the bytes written. Inlined, so that a caller's loop
+    /// over one storage compiles to its arm alone ([`super::Transcoder::encode_all`]).
+    #[inline(always)]
     pub(super) fn put(self, v: f64, out: &mut [u8]) -> usize {
         fn write<const N: usize>(out: &mut [u8], b: [u8; N]) -> usize {
             out[..N].copy_from_slice(&b);
@@ -114,7 +116,7 @@ impl Storage {
     }
 
     /// Bytes of one value.
-    fn size(self) -> usize {
+    pub(super) fn size(self) -> usize {
         match self {
             Storage::Float(ty) | Storage::Unsigned(ty) | Storage::Scaled(ty, _) => ty.size(),
         }
