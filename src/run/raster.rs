@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
 use crate::io::columns::ColumnSet;
 use crate::io::durable::{sweep_dead_temps, tmp_name};
-use crate::io::las::extra_bytes::{self, Descriptor};
+use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
 use crate::io::las::header::POINT_FORMAT_SIZES;
 use crate::io::raster::geokeys::{raster_crs, RasterCrs};
 pub use crate::io::raster::RasterSummary;
@@ -155,12 +155,47 @@ enum Reader {
 }
 
 impl Reader {
-    fn value(&self, rec: &[u8]) -> f32 {
-        match self {
-            Reader::Extra { at, d } => {
-                rec.get(*at..).and_then(|e| d.read(e)).unwrap_or(f64::NAN) as f32
+    /// The value of each record of `records` (`row` bytes each) into column `c` of `values`
+    /// (rows of `width`), NaN where it is missing or no-data.
+    fn column(&self, records: &[u8], row: usize, values: &mut [f32], (c, width): (usize, usize)) {
+        fn each(
+            records: &[u8],
+            row: usize,
+            values: &mut [f32],
+            (c, width): (usize, usize),
+            read: impl Fn(&[u8]) -> f64,
+        ) {
+            for (rec, v) in records
+                .chunks_exact(row)
+                .zip(values.chunks_exact_mut(width))
+            {
+                v[c] = read(rec) as f32;
             }
-            Reader::Property(p) => p.value(rec) as f32,
+        }
+        let place = (c, width);
+        let Reader::Extra { at, d } = self else {
+            let Reader::Property(p) = self else { return };
+            return each(records, row, values, place, |rec| p.value(rec));
+        };
+        let extra = |rec: &[u8], t| rec.get(*at..).and_then(|e| d.read_as(t, e));
+        // The type fixed in each loop (the types tilecurv writes, and f64); any other as read.
+        match d.scalar() {
+            Some(ScalarType::I32) => each(records, row, values, place, |r| {
+                extra(r, ScalarType::I32).unwrap_or(f64::NAN)
+            }),
+            Some(ScalarType::I16) => each(records, row, values, place, |r| {
+                extra(r, ScalarType::I16).unwrap_or(f64::NAN)
+            }),
+            Some(ScalarType::F32) => each(records, row, values, place, |r| {
+                extra(r, ScalarType::F32).unwrap_or(f64::NAN)
+            }),
+            Some(ScalarType::F64) => each(records, row, values, place, |r| {
+                extra(r, ScalarType::F64).unwrap_or(f64::NAN)
+            }),
+            Some(t) => each(records, row, values, place, |r| {
+                extra(r, t).unwrap_or(f64::NAN)
+            }),
+            None => each(records, row, values, place, |_| f64::NAN),
         }
     }
 }
@@ -265,54 +300,77 @@ fn bin_source(
         .collect::<Result<Vec<_>>>()?;
     let mut binner = Binner::new(readers);
     let rl = s.record_length();
+    let what = |id: u64| format!("{} point {id}", s.path().display());
     s.for_each_chunk(chunk, &mut |first, records| {
         if cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
         }
-        for (i, rec) in records.chunks_exact(rl).enumerate() {
-            let id = first + i as u64;
-            let what = || format!("{} point {id}", s.path().display());
-            binner.bin(s, id, rec, r, &what)?;
-        }
+        binner.bin_all(s, (first, records, rl), r, &what)?;
         reporter.advance((records.len() / rl) as u64);
         Ok(())
     })
 }
 
-/// Reads a point's raster values from its record and bins them: the one path of `raster`'s
+/// Reads points' raster values from their records and bins them: the one path of `raster`'s
 /// inputs and of `process --raster`'s output records.
 struct Binner {
     /// Per raster column, where its value is in a record and how it is stored.
     readers: Vec<Reader>,
-    /// The values of the point being binned: one a column, then z (for the hillshade).
+    /// The values of the points being binned, a row each: one a column, then z (for the
+    /// hillshade).
     values: Vec<f32>,
+    /// Their x and y.
+    xy: Vec<[f64; 2]>,
 }
 
 impl Binner {
     fn new(readers: Vec<Reader>) -> Self {
         Binner {
-            values: vec![0.0; readers.len() + 1],
             readers,
+            values: Vec::new(),
+            xy: Vec::new(),
         }
     }
 
-    /// Bins point `id` of `s` whose record is `rec` (the source's record first, then any
-    /// columns an output added); `what` names the point in an error.
-    fn bin(
+    /// Bins the points of `s` whose records, `row` bytes each (the source's record first, then
+    /// any columns an output added), are `records`; the first is point `first`. Column by
+    /// column over [`Binner::BATCH`] points at a time, each column in a loop made for its
+    /// stored type: point by point, choosing the type of every value again cost more than
+    /// binning it. `what` names a point in an error.
+    fn bin_all(
         &mut self,
         s: &dyn PointSource,
-        id: u64,
-        rec: &[u8],
+        (first, records, row): (u64, &[u8], usize),
         r: &mut Rasterizer,
-        what: &dyn Fn() -> String,
+        what: &dyn Fn(u64) -> String,
     ) -> Result<()> {
-        let p = s.decode(id, &rec[..s.record_length()]);
-        for (v, rd) in self.values.iter_mut().zip(&self.readers) {
-            *v = rd.value(rec);
+        let (rl, width) = (s.record_length(), self.readers.len() + 1);
+        for (b, batch) in records.chunks(Self::BATCH * row).enumerate() {
+            let first = first + (b * Self::BATCH) as u64;
+            let n = batch.len() / row;
+            self.values.resize(n * width, 0.0);
+            self.xy.clear();
+            let rows = batch
+                .chunks_exact(row)
+                .zip(self.values.chunks_exact_mut(width));
+            for (i, (rec, v)) in rows.enumerate() {
+                let p = s.decode(first + i as u64, &rec[..rl]);
+                self.xy.push([p.xyz[0], p.xyz[1]]);
+                v[width - 1] = p.xyz[2] as f32;
+            }
+            for (c, rd) in self.readers.iter().enumerate() {
+                rd.column(batch, row, &mut self.values, (c, width));
+            }
+            let points = self.xy.iter().zip(self.values.chunks_exact(width));
+            for (i, (xy, v)) in points.enumerate() {
+                r.push(xy[0], xy[1], v, &|| what(first + i as u64))?;
+            }
         }
-        self.values[self.readers.len()] = p.xyz[2] as f32;
-        r.push(p.xyz[0], p.xyz[1], &self.values, what)
+        Ok(())
     }
+
+    /// Points decoded at a time: their values stay in the cache between the columns.
+    const BATCH: usize = 4096;
 }
 
 /// The default directory of the rasters of `outputs`: beside a single output, named after it
@@ -457,10 +515,8 @@ pub(crate) struct Tap<'a> {
 impl Tap<'_> {
     /// Bins every output record in `records` (whole records, in order).
     pub(crate) fn feed(&mut self, records: &[u8]) -> Result<()> {
-        for rec in records.chunks_exact(self.row) {
-            let what = || format!("a point of {}", self.source.path().display());
-            (self.binner).bin(self.source, 0, rec, self.rasterizer, &what)?;
-        }
-        Ok(())
+        let what = |_| format!("a point of {}", self.source.path().display());
+        let records = (0, records, self.row);
+        (self.binner).bin_all(self.source, records, self.rasterizer, &what)
     }
 }

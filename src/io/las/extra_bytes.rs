@@ -69,6 +69,7 @@ impl ScalarType {
     /// Decodes one value of this type from the first bytes of `b`, little-endian (`b` holds at
     /// least [`ScalarType::size`] bytes). Each type reads its own fixed width: the raster tap
     /// decodes every column of every output record here.
+    #[inline(always)]
     pub fn decode(self, b: &[u8]) -> f64 {
         use ScalarType::*;
         fn le<const N: usize>(b: &[u8]) -> [u8; N] {
@@ -148,7 +149,14 @@ impl Descriptor {
     /// Reads this dimension's value (scale and offset applied) from a record's extra bytes;
     /// NaN when the raw value is the declared no-data value.
     pub fn read(&self, extra: &[u8]) -> Option<f64> {
-        let t = self.scalar()?;
+        self.read_as(self.scalar()?, extra)
+    }
+
+    /// [`Descriptor::read`] for a dimension of the scalar type `t` (its [`Descriptor::scalar`]):
+    /// inlined, so that a loop over many records with one known type compiles to that type's
+    /// decoding alone.
+    #[inline(always)]
+    pub fn read_as(&self, t: ScalarType, extra: &[u8]) -> Option<f64> {
         let raw = t.decode(extra.get(self.offset..self.offset + t.size())?);
         if self.no_data == Some(raw) {
             return Some(f64::NAN);
