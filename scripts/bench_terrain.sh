@@ -17,8 +17,8 @@
 # K (30), THREADS (2), SEED (1), TILECURV (a binary; default: cargo build --release).
 #
 # COUNT=1 instead runs each variant once under valgrind's cachegrind and prints the user-space
-# instructions each executes and their ratios: the same within 0.1% from run to run (the
-# threads' interleaving), so they resolve the 1-2% differences the CPU times of this virtual
+# instructions each executes and their ratios: repeated runs of 200k points agree within 0.2%
+# (the threads' interleaving), so they resolve the 1-2% differences the CPU times of this virtual
 # machine cannot (its speed drifts by 20-40% within an hour), but they leave out the kernel's
 # work (writing and reading the files, page faults) and what memory stalls cost, which the
 # CPU times include. About 40 times as slow as a run: 2M points take about 6 minutes.
