@@ -166,24 +166,18 @@ impl Transcoder {
         let pick = |a: usize, b: usize, flip: bool| if flip { b } else { a };
         let signed = |v: f64, flip: bool| if flip && negate { neg(v) } else { v };
         let place = (stride, o);
-        // A stored value and its flipped one are of one kind (a number, or a flag byte).
+        // A stored value and its flipped one are of one kind (a number, or a flag byte): the
+        // kind fixed in each loop, `value` of a known kind compiles to its arm.
         match (r.slot, r.flipped.0) {
-            (Slot::Number(a), Slot::Number(b)) if !self.wide => {
+            (Slot::Number(a), Slot::Number(b)) => {
                 let read = |cols: &[u8], flip| {
-                    let at = pick(a, b, flip);
-                    let v = cols.get(at..at + 4).map_or(f64::NAN, |b| {
-                        f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                    });
-                    signed(v, flip)
+                    signed(self.value(cols, Slot::Number(pick(a, b, flip))), flip)
                 };
                 each(stored, out, place, read, write)
             }
             (Slot::Byte(a), Slot::Byte(b)) => {
                 let read = |cols: &[u8], flip| {
-                    signed(
-                        cols.get(pick(a, b, flip)).map_or(0.0, |&b| f64::from(b)),
-                        flip,
-                    )
+                    signed(self.value(cols, Slot::Byte(pick(a, b, flip))), flip)
                 };
                 each(stored, out, place, read, write)
             }
@@ -198,6 +192,7 @@ impl Transcoder {
 
     /// The value in `slot` of `rec`, where the record is too short NaN (a number) or 0 (a
     /// byte), as [`ResultLayout::decode`] reads it.
+    #[inline(always)]
     fn value(&self, rec: &[u8], slot: Slot) -> f64 {
         let bytes = |at: usize, n: usize| rec.get(at..at + n);
         let v = match slot {

@@ -41,8 +41,8 @@ const MAX_STATS: u64 = 1 << 20;
 /// tiles of 100M points merged at once take 160 MiB).
 const BLOCK_BYTES: usize = 32 << 10;
 
-/// Largest raw or compressed block a reader accepts (a damaged length is refused before any
-/// allocation).
+/// Largest raw, compressed or plain part of a block a reader accepts (a damaged length is
+/// refused before any allocation).
 const MAX_BLOCK: usize = 16 << 20;
 
 /// Memory one result file of `cols` takes in a merge: a decoded block (at most
@@ -392,6 +392,7 @@ impl TileResults {
             || n as u64 > self.remaining
             || raw_len > MAX_BLOCK
             || frame_len > MAX_BLOCK
+            || plain_len > MAX_BLOCK
             || plain_len != n * plain_planes
         {
             return Err(bad("has a damaged block"));
