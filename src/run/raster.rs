@@ -173,28 +173,30 @@ impl Reader {
             }
         }
         let place = (c, width);
-        let Reader::Extra { at, d } = self else {
-            let Reader::Property(p) = self else { return };
-            return each(records, row, values, place, |rec| p.value(rec));
+        let (at, d) = match self {
+            Reader::Property(p) => return each(records, row, values, place, |r| p.value(r)),
+            Reader::Extra { at, d } => (*at, d),
         };
-        let extra = |rec: &[u8], t| rec.get(*at..).and_then(|e| d.read_as(t, e));
+        let extra = |r: &[u8], t| {
+            r.get(at..)
+                .and_then(|e| d.read_as(t, e))
+                .unwrap_or(f64::NAN)
+        };
         // The type fixed in each loop (the types tilecurv writes, and f64); any other as read.
         match d.scalar() {
-            Some(ScalarType::I32) => each(records, row, values, place, |r| {
-                extra(r, ScalarType::I32).unwrap_or(f64::NAN)
-            }),
-            Some(ScalarType::I16) => each(records, row, values, place, |r| {
-                extra(r, ScalarType::I16).unwrap_or(f64::NAN)
-            }),
-            Some(ScalarType::F32) => each(records, row, values, place, |r| {
-                extra(r, ScalarType::F32).unwrap_or(f64::NAN)
-            }),
-            Some(ScalarType::F64) => each(records, row, values, place, |r| {
-                extra(r, ScalarType::F64).unwrap_or(f64::NAN)
-            }),
-            Some(t) => each(records, row, values, place, |r| {
-                extra(r, t).unwrap_or(f64::NAN)
-            }),
+            Some(ScalarType::I32) => {
+                each(records, row, values, place, |r| extra(r, ScalarType::I32))
+            }
+            Some(ScalarType::I16) => {
+                each(records, row, values, place, |r| extra(r, ScalarType::I16))
+            }
+            Some(ScalarType::F32) => {
+                each(records, row, values, place, |r| extra(r, ScalarType::F32))
+            }
+            Some(ScalarType::F64) => {
+                each(records, row, values, place, |r| extra(r, ScalarType::F64))
+            }
+            Some(t) => each(records, row, values, place, |r| extra(r, t)),
             None => each(records, row, values, place, |_| f64::NAN),
         }
     }
