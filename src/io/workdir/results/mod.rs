@@ -5,9 +5,11 @@
 //! journal. [`Merger`] reads them back in id order with a bounded fan-in. The format
 //! ([`file`]): a header with the tile's [`CurvatureStats`] (the magnitudes the outputs' scaled
 //! columns take their steps from, core::quantize, so that assemble learns them without reading
-//! every record twice), then zstd blocks of ids (varint gaps) and records (the global patch
-//! only with `--orient propagate`, the column values of [`crate::io::columns::ResultLayout::encode`]) as byte
-//! planes. The orientation sidecars are in `sidecar`.
+//! every record twice), then blocks of ids (varint gaps) and records (the global patch only
+//! with `--orient propagate`, the column values of
+//! [`crate::io::columns::ResultLayout::encode_into`]) as byte planes, the numbers' low bytes
+//! beside the zstd frame under a checksum of their own. The orientation sidecars are in
+//! `sidecar`.
 
 mod file;
 mod sidecar;
