@@ -18,7 +18,7 @@ use crate::core::plan::TilePlan;
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns, Steps};
-use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout, Transcoder};
+use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout, Stored, Transcoder};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::results::{record_size, scene_stats, Merger};
@@ -410,7 +410,8 @@ fn encode_piece(
     out.resize(start + records.len() / rl * row, 0);
     let rows = &mut out[start..];
     let mut stored = Vec::with_capacity(records.len() / rl);
-    let mut next = results.pieces[p];
+    let first = results.pieces[p];
+    let mut next = first;
     let mut undefined = 0;
     let mut not_computed = Vec::new();
     for (j, (r, o)) in records
@@ -435,7 +436,16 @@ fn encode_piece(
         undefined += (transcoder.flags(columns) & flags::UNDEFINED != 0) as u64;
         stored.push(Some((columns, flipped(patch, m.flips))));
     }
-    transcoder.encode_all(&stored, rows, row, rl);
+    // Every point with a result and none flipped: the results are one run of records.
+    let stored = match m.flips.is_none() && stored.iter().all(Option::is_some) {
+        true => Stored::Run {
+            bytes: &results.bytes[first * size..next * size],
+            size,
+            at: 8,
+        },
+        false => Stored::Each(&stored),
+    };
+    transcoder.encode_all(stored, rows, row, rl);
     undefined
 }
 

@@ -13,7 +13,7 @@ mod transcode;
 pub(crate) use layout::ResultLayout;
 use layout::MAX_STORED;
 pub(crate) use terrain::TerrainValue;
-pub(crate) use transcode::Transcoder;
+pub(crate) use transcode::{Stored, Transcoder};
 
 use crate::core::compute::PointResult;
 use crate::core::estimate::{EstimatorKind, EstimatorParams, ExtraColumn, MAX_EXTRA};
@@ -265,7 +265,9 @@ pub enum Value {
 }
 
 impl Value {
-    /// This value of `r` (the flags as a number).
+    /// This value of `r` (the flags as a number). Inlined, so that a loop over points for one
+    /// known value reads its field alone.
+    #[inline(always)]
     pub fn get(self, r: &PointResult) -> f64 {
         let c = &r.curvature;
         match self {

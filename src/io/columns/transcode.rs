@@ -21,6 +21,23 @@ enum Slot {
     Missing,
 }
 
+/// The stored records a [`Transcoder`] writes the output columns of, one for each output
+/// record.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Stored<'a> {
+    /// Records of `size` bytes one after the other, their columns `at` bytes into each, none
+    /// written flipped (every point of a piece has a result and no patch flips: the common
+    /// case, whose loops then test neither).
+    Run {
+        bytes: &'a [u8],
+        size: usize,
+        at: usize,
+    },
+    /// Each output record's stored columns and whether they are written flipped; None: no
+    /// result, nothing written.
+    Each(&'a [Option<(&'a [u8], bool)>]),
+}
+
 /// How one output column is read from a stored record.
 #[derive(Debug, Clone, Copy)]
 struct Read {
@@ -95,19 +112,12 @@ impl Transcoder {
         rec.get(self.flags_at).copied().unwrap_or(0)
     }
 
-    /// Writes the output columns of each stored record of `stored` (its bytes, and whether it
-    /// is written flipped; None: no result, nothing written) into its output record in `out`,
-    /// one every `stride` bytes, the columns `at` bytes into it. Column by column, each with a
-    /// loop made for its stored type and its storage: record by record, choosing them again
-    /// for every value was most of the cost of writing the columns (about 50 instructions a
-    /// value; the terrain columns' eight values took 3% of a run).
-    pub(crate) fn encode_all(
-        &self,
-        stored: &[Option<(&[u8], bool)>],
-        out: &mut [u8],
-        stride: usize,
-        at: usize,
-    ) {
+    /// Writes the output columns of each stored record of `stored` into its output record in
+    /// `out`, one every `stride` bytes, the columns `at` bytes into it. Column by column, each
+    /// with a loop made for its stored type and its storage: record by record, choosing them
+    /// again for every value was most of the cost of writing the columns (about 50
+    /// instructions a value; the terrain columns' eight values took 3% of a run).
+    pub(crate) fn encode_all(&self, stored: Stored<'_>, out: &mut [u8], stride: usize, at: usize) {
         let mut o = at;
         for r in &self.reads {
             // The storage fixed in each loop: `put` of a known storage compiles to its arm.
@@ -143,22 +153,32 @@ impl Transcoder {
     fn column(
         &self,
         r: &Read,
-        stored: &[Option<(&[u8], bool)>],
+        stored: Stored<'_>,
         out: &mut [u8],
         (stride, o): (usize, usize),
         write: impl Fn(f64, &mut [u8]) -> usize,
     ) {
-        // `write` of `read` of each stored record: a loop of its own for each reader.
+        // `write` of `read` of each stored record: a loop of its own for each reader (and for
+        // a run of records, one without the flip or the option).
         fn each(
-            stored: &[Option<(&[u8], bool)>],
+            stored: Stored<'_>,
             out: &mut [u8],
             (stride, o): (usize, usize),
             read: impl Fn(&[u8], bool) -> f64,
             write: impl Fn(f64, &mut [u8]) -> usize,
         ) {
-            for (s, rec) in stored.iter().zip(out.chunks_exact_mut(stride)) {
-                if let Some((cols, flip)) = *s {
-                    write(read(cols, flip), &mut rec[o..]);
+            match stored {
+                Stored::Run { bytes, size, at } => {
+                    for (cols, rec) in bytes.chunks_exact(size).zip(out.chunks_exact_mut(stride)) {
+                        write(read(&cols[at..], false), &mut rec[o..]);
+                    }
+                }
+                Stored::Each(stored) => {
+                    for (s, rec) in stored.iter().zip(out.chunks_exact_mut(stride)) {
+                        if let Some((cols, flip)) = *s {
+                            write(read(cols, flip), &mut rec[o..]);
+                        }
+                    }
                 }
             }
         }
@@ -287,7 +307,8 @@ mod tests {
                     let mut want = vec![9u8; 3];
                     out.encode(&result, &mut want);
                     let mut got = vec![9u8; 3 + out.record_size()];
-                    t.encode_all(&[Some((&rec, flip))], &mut got, 3 + out.record_size(), 3);
+                    let one = [Some((&rec[..], flip))];
+                    t.encode_all(Stored::Each(&one), &mut got, 3 + out.record_size(), 3);
                     assert_eq!(t.flags(&rec), want_flags);
                     assert_eq!(got, want, "{set:?} {encoding:?} flip {flip}");
                     flips += flip as usize;
@@ -299,7 +320,25 @@ mod tests {
                     .flat_map(|(rec, flip, _)| [Some((&rec[..], *flip)), None])
                     .collect();
                 let mut all = vec![7u8; row * stored.len()];
-                t.encode_all(&stored, &mut all, row, 3);
+                t.encode_all(Stored::Each(&stored), &mut all, row, 3);
+                // The unflipped records one after the other, behind two bytes each.
+                let unflipped: Vec<&(Vec<u8>, bool, Vec<u8>)> =
+                    batch.iter().filter(|(_, flip, _)| !flip).collect();
+                let size = 2 + layout.size();
+                let bytes: Vec<u8> = (unflipped.iter())
+                    .flat_map(|(rec, _, _)| [&[5u8, 6][..], &rec[..]].concat())
+                    .collect();
+                let mut run = vec![7u8; row * unflipped.len()];
+                let stored = Stored::Run {
+                    bytes: &bytes,
+                    size,
+                    at: 2,
+                };
+                t.encode_all(stored, &mut run, row, 3);
+                for ((_, _, want), got) in unflipped.iter().zip(run.chunks_exact(row)) {
+                    assert_eq!(got[3..], want[3..], "{set:?} {encoding:?} run");
+                    assert_eq!(got[..3], [7; 3]);
+                }
                 for (i, (_, _, want)) in batch.iter().enumerate() {
                     let (got, skipped) = all[2 * i * row..].split_at(row);
                     assert_eq!(got[3..], want[3..], "{set:?} {encoding:?} record {i}");
