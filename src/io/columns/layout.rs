@@ -13,6 +13,108 @@ pub(super) const MAX_STORED: usize = 3 + 4 + 6 + MAX_EXTRA + 2 + TerrainValue::A
 /// The values of a result record in their order and their width ([`ColumnSet::layout`]):
 /// found once rather than per record (the chain of optional groups was half the cost of a
 /// decode). No allocation, so that it can be made for each piece of an output.
+/// Runs `$body` with `$c` bound to `$v` made a constant of its variant, one copy of `$body`
+/// for each: with [`Value::get`] inlined, a loop over points in `$body` reads its field
+/// directly instead of matching the value again for every point.
+macro_rules! by_value {
+    ($v:expr, |$c:ident| $body:expr) => {
+        match $v {
+            Value::Normal(i) => {
+                let $c = Value::Normal(i);
+                $body
+            }
+            Value::H => {
+                let $c = Value::H;
+                $body
+            }
+            Value::K => {
+                let $c = Value::K;
+                $body
+            }
+            Value::K1 => {
+                let $c = Value::K1;
+                $body
+            }
+            Value::K2 => {
+                let $c = Value::K2;
+                $body
+            }
+            Value::D1(i) => {
+                let $c = Value::D1(i);
+                $body
+            }
+            Value::D2(i) => {
+                let $c = Value::D2(i);
+                $body
+            }
+            Value::Extra(i) => {
+                let $c = Value::Extra(i);
+                $body
+            }
+            Value::Terrain(t) => by_terrain!(t, |$c| $body),
+            other => {
+                let $c = other;
+                $body
+            }
+        }
+    };
+}
+
+/// `by_value` for the terrain values.
+macro_rules! by_terrain {
+    ($t:expr, |$c:ident| $body:expr) => {
+        match $t {
+            TerrainValue::Profile => {
+                let $c = Value::Terrain(TerrainValue::Profile);
+                $body
+            }
+            TerrainValue::Tangential => {
+                let $c = Value::Terrain(TerrainValue::Tangential);
+                $body
+            }
+            TerrainValue::Plan => {
+                let $c = Value::Terrain(TerrainValue::Plan);
+                $body
+            }
+            TerrainValue::ShapeIndex => {
+                let $c = Value::Terrain(TerrainValue::ShapeIndex);
+                $body
+            }
+            TerrainValue::Curvedness => {
+                let $c = Value::Terrain(TerrainValue::Curvedness);
+                $body
+            }
+            TerrainValue::Slope => {
+                let $c = Value::Terrain(TerrainValue::Slope);
+                $body
+            }
+            TerrainValue::Aspect => {
+                let $c = Value::Terrain(TerrainValue::Aspect);
+                $body
+            }
+            other => {
+                let $c = Value::Terrain(other);
+                $body
+            }
+        }
+    };
+}
+
+/// Writes `put` of value `v` of each of `results` at byte `at` of its record in `records`
+/// (one every `stride` bytes). Inlined, so that a constant `v` selects its field once.
+#[inline(always)]
+fn column(
+    results: &[PointResult],
+    records: &mut [u8],
+    (stride, at): (usize, usize),
+    v: Value,
+    put: impl Fn(f64, &mut [u8]),
+) {
+    for (r, rec) in results.iter().zip(records.chunks_exact_mut(stride)) {
+        put(v.get(r), &mut rec[at..]);
+    }
+}
+
 #[derive(Debug, Clone, Copy)]
 pub struct ResultLayout {
     /// The numbers (`values[..numbers]`), then the flag bytes after the curvature flags.
@@ -43,31 +145,41 @@ impl ResultLayout {
         (numbers.map(move |(i, &v)| (v, i * w)), w)
     }
 
-    /// Appends the stored values of one point to `out` ([`ResultLayout::encode_into`]).
+    /// Appends the stored values of one point to `out` ([`ResultLayout::encode_all`]).
     pub fn encode(&self, r: &PointResult, out: &mut Vec<u8>) {
         let start = out.len();
         out.resize(start + self.size(), 0);
-        self.encode_into(r, &mut out[start..]);
+        self.encode_all(std::slice::from_ref(r), &mut out[start..], self.size(), 0);
     }
 
-    /// Writes the stored values of one point into `rec`, [`ResultLayout::size`] bytes (the
-    /// numbers as f64 or f32 little-endian, then the curvature flags and the other flag bytes;
-    /// a caller encoding many points makes the layout once: walking the chain of optional
-    /// groups for every value of every point cost 5% of a run with the terrain columns).
-    pub fn encode_into(&self, r: &PointResult, rec: &mut [u8]) {
-        let (numbers, flags) = rec.split_at_mut(self.width * self.numbers);
-        match self.width {
-            8 => (numbers.chunks_exact_mut(8).zip(&self.values))
-                .for_each(|(b, v)| b.copy_from_slice(&v.get(r).to_le_bytes())),
-            _ => (numbers.chunks_exact_mut(4).zip(&self.values))
-                .for_each(|(b, v)| b.copy_from_slice(&(v.get(r) as f32).to_le_bytes())),
+    /// Writes the stored values of each of `results` into its record in `records`, one every
+    /// `stride` bytes, `at` bytes into it: [`ResultLayout::size`] bytes, the numbers as f64
+    /// or f32 little-endian, then the curvature flags and the other flag bytes. Value by
+    /// value, each in a loop made for it (`by_value`): point by point, choosing each value's
+    /// field again for every point was a tenth of the cost of the terrain columns. Callers
+    /// pass batches that stay in the cache (a loop a value walks the whole batch).
+    pub fn encode_all(
+        &self,
+        results: &[PointResult],
+        records: &mut [u8],
+        stride: usize,
+        at: usize,
+    ) {
+        let w = self.width;
+        for (i, &v) in self.values[..self.numbers].iter().enumerate() {
+            let place = (stride, at + i * w);
+            match w {
+                8 => by_value!(v, |c| column(results, records, place, c, |x, b| b[..8]
+                    .copy_from_slice(&x.to_le_bytes()))),
+                _ => by_value!(v, |c| column(results, records, place, c, |x, b| b[..4]
+                    .copy_from_slice(&(x as f32).to_le_bytes()))),
+            }
         }
-        flags[0] = r.curvature.flags;
-        for (b, v) in flags[1..]
-            .iter_mut()
-            .zip(&self.values[self.numbers..self.len])
-        {
-            *b = v.get(r) as u8;
+        let flags_at = at + w * self.numbers;
+        let byte = |x: f64, b: &mut [u8]| b[0] = x as u8;
+        column(results, records, (stride, flags_at), Value::Flags, byte);
+        for (j, &v) in self.values[self.numbers..self.len].iter().enumerate() {
+            column(results, records, (stride, flags_at + 1 + j), v, byte);
         }
     }
 

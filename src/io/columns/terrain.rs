@@ -75,6 +75,7 @@ impl TerrainValue {
         }
     }
 
+    #[inline(always)]
     pub(super) fn get(self, t: &TerrainValues) -> f64 {
         match self {
             TerrainValue::Profile => t.profile,

@@ -7,7 +7,7 @@
 //! columns take their steps from, core::quantize, so that assemble learns them without reading
 //! every record twice), then blocks of ids (varint gaps) and records (the global patch only
 //! with `--orient propagate`, the column values of
-//! [`crate::io::columns::ResultLayout::encode_into`]) as byte planes, the numbers' low bytes
+//! [`crate::io::columns::ResultLayout::encode_all`]) as byte planes, the numbers' low bytes
 //! beside the zstd frame under a checksum of their own. The orientation sidecars are in
 //! `sidecar`.
 
@@ -123,11 +123,14 @@ fn write_tile_tmp(
     records.resize(results.len() * size, 0);
     let mut stats = CurvatureStats::default();
     let layout = cols.layout();
-    for (r, rec) in results.iter().zip(records.chunks_exact_mut(size)) {
-        stats.add(&r.curvature);
-        let (patch, columns) = rec.split_at_mut(8);
-        patch.copy_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
-        layout.encode_into(r, columns);
+    // Batches whose results stay in the cache while each value's loop walks them.
+    const BATCH: usize = 128;
+    for (batch, recs) in results.chunks(BATCH).zip(records.chunks_mut(BATCH * size)) {
+        for (r, rec) in batch.iter().zip(recs.chunks_exact_mut(size)) {
+            stats.add(&r.curvature);
+            rec[..8].copy_from_slice(&GlobalPatch::new(tile_index, r.patch).0.to_le_bytes());
+        }
+        layout.encode_all(batch, recs, size, 8);
     }
     let patched = results.iter().any(|r| r.patch != NO_PATCH);
     let count = results.len() as u64;
