@@ -3,20 +3,22 @@
 //! patches are stored (only when some point has one: `--orient propagate`), then the tile's
 //! [`CurvatureStats`]. Then blocks of records, each `records`, `raw length`, `frame length`,
 //! `plain length` (u32 LE), a zstd frame with a checksum ([`crate::io::pack`]), the plain
-//! planes and their checksum (u64 LE, [`crate::io::pack::checksum`]). The records are cut into
-//! byte planes (the global patch as u64 if stored, then the columns, H exclusive-ored with its
-//! prediction from k1 and k2: [`HPrediction`]); the frame holds the ids as varints (the first
-//! id of the file, then each one's distance past the one before, less 1: ids strictly increase,
-//! so a tile's consecutive points take a zero byte) and the planes that compress, in plane
-//! order; the others, the low bytes of computed numbers ([`plain_planes`]), follow it as they
-//! are. Blocks hold about 32 KiB of records, the memory one reader of a merge keeps. A file is
-//! whole only if every block decodes, the ids increase and the count and the file's end agree
-//! ([`TileResults::verify`]).
+//! bytes and their checksum (u64 LE, [`crate::io::pack::checksum`]). A stored row (the global
+//! patch as u64 if stored, then the columns, H exclusive-ored with its prediction from k1 and
+//! k2: [`HPrediction`]) is split ([`RowSplit`]): its terrain numbers are kept as they are, row
+//! after row, at the end of the plain bytes; the rest is cut into byte planes. The frame holds
+//! the ids as varints (the first id of the file, then each one's distance past the one before,
+//! less 1: ids strictly increase, so a tile's consecutive points take a zero byte) and the
+//! planes that compress, in plane order; the others, the low bytes of computed numbers, start
+//! the plain bytes. Blocks hold about 32 KiB of records, the memory one reader of a merge
+//! keeps. A file is whole only if every block decodes, the ids increase and the count and the
+//! file's end agree ([`TileResults::verify`]).
 
 use std::fs::File;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
+use super::rows::RowSplit;
 use super::{parse_stats, stats_bytes};
 use crate::core::orient::GlobalPatch;
 use crate::core::quantize::CurvatureStats;
@@ -28,7 +30,7 @@ use crate::io::pack::{
 };
 
 /// The first bytes of a result file: its format and version.
-const MAGIC: &[u8; 8] = b"TCRES007";
+const MAGIC: &[u8; 8] = b"TCRES008";
 
 /// Bytes of the header before the statistics: magic, count, column bytes, patches stored,
 /// statistics' length.
@@ -113,27 +115,6 @@ impl HPrediction {
     }
 }
 
-/// Which byte planes of a block's rows (the patch if `patched`, then the columns of `cols`) are
-/// kept out of the zstd frame: all but the top byte of every computed number, whose low
-/// mantissa bytes are noise (zstd left the planes of the terrain values at 96-100% of their
-/// size and took a twentieth of a run to do it). Kept in the frame: the patch, the flag bytes,
-/// ScaleK (a small integer, whose low bytes are zero) and H where it is predicted (the
-/// prediction zeroes its low bytes for most points).
-fn plain_planes(cols: &ColumnSet, patched: bool) -> Vec<bool> {
-    let skip = if patched { 8 } else { 0 };
-    let layout = cols.layout();
-    let predicted = HPrediction::of(cols).is_some();
-    let mut plain = vec![false; skip + layout.size()];
-    let (numbers, width) = layout.numbers();
-    for (v, at) in numbers {
-        let exact = v == Value::ScaleK || (v == Value::H && predicted);
-        if !exact {
-            plain[skip + at..skip + at + width - 1].fill(true);
-        }
-    }
-    plain
-}
-
 /// The buffers of a [`ResultWriter`], kept from one file to the next: a tile's writer
 /// allocating them afresh touched new pages for each (its records, its blocks and a
 /// megabyte of file buffer: page faults and their zeroing were a fifth of writing the
@@ -141,7 +122,9 @@ fn plain_planes(cols: &ColumnSet, patched: bool) -> Vec<bool> {
 #[derive(Default)]
 pub(crate) struct WriteBuffers {
     ids: Vec<u8>,
+    /// The packed rows and the raw bytes of the block being gathered ([`RowSplit`]).
     rows: Vec<u8>,
+    raw_rows: Vec<u8>,
     planes: Vec<u8>,
     raw: Vec<u8>,
     plain: Vec<u8>,
@@ -165,8 +148,7 @@ pub(super) struct ResultWriter<'b> {
     written: u64,
     prev: Option<u64>,
     predict: Option<HPrediction>,
-    /// [`plain_planes`].
-    plain_planes: Vec<bool>,
+    split: RowSplit,
     b: &'b mut WriteBuffers,
 }
 
@@ -184,7 +166,7 @@ impl<'b> ResultWriter<'b> {
         let tmp = tmp_name(path);
         let w = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
         let stats = stats_bytes(stats);
-        for v in [&mut b.ids, &mut b.rows, &mut b.file] {
+        for v in [&mut b.ids, &mut b.rows, &mut b.raw_rows, &mut b.file] {
             v.clear();
         }
         for part in [
@@ -207,7 +189,7 @@ impl<'b> ResultWriter<'b> {
             written: 0,
             prev: None,
             predict: HPrediction::of(cols),
-            plain_planes: plain_planes(cols, patched),
+            split: RowSplit::of(cols, patched, HPrediction::of(cols).is_some()),
             b,
         })
     }
@@ -230,14 +212,15 @@ impl<'b> ResultWriter<'b> {
         let b = &mut *self.b;
         put_varint(&mut b.ids, gap);
         let start = b.rows.len() + if self.patched { 8 } else { 0 };
-        b.rows
-            .extend_from_slice(if self.patched { record } else { columns });
+        let row = if self.patched { record } else { columns };
+        self.split.push(row, &mut b.rows, &mut b.raw_rows);
         if let Some(p) = &self.predict {
+            // H, k1 and k2 precede the raw terrain numbers: at their offsets in a packed row.
             p.apply(&mut b.rows[start..]);
         }
         self.prev = Some(id);
         self.written += 1;
-        if b.rows.len() + self.row > BLOCK_BYTES {
+        if b.rows.len() + b.raw_rows.len() + self.row > BLOCK_BYTES {
             self.flush_block()?;
         }
         Ok(())
@@ -248,18 +231,19 @@ impl<'b> ResultWriter<'b> {
         if b.rows.is_empty() {
             return Ok(());
         }
-        let n = b.rows.len() / self.row;
+        let n = b.rows.len() / self.split.packed();
         b.planes.clear();
-        put_planes(&mut b.planes, &b.rows, self.row);
+        put_planes(&mut b.planes, &b.rows, self.split.packed());
         b.raw.clear();
         b.raw.extend_from_slice(&b.ids);
         b.plain.clear();
-        for (plane, &plain) in b.planes.chunks_exact(n).zip(&self.plain_planes) {
+        for (plane, &plain) in b.planes.chunks_exact(n).zip(self.split.plain_planes()) {
             match plain {
                 true => b.plain.extend_from_slice(plane),
                 false => b.raw.extend_from_slice(plane),
             }
         }
+        b.plain.extend_from_slice(&b.raw_rows);
         let frame = compress(&b.raw, Effort::Fast).map_err(|e| Error::write(&self.tmp, e))?;
         for v in [n, b.raw.len(), frame.len(), b.plain.len()] {
             b.file.extend_from_slice(&(v as u32).to_le_bytes());
@@ -269,6 +253,7 @@ impl<'b> ResultWriter<'b> {
         b.file.extend_from_slice(&checksum(&b.plain).to_le_bytes());
         b.ids.clear();
         b.rows.clear();
+        b.raw_rows.clear();
         if b.file.len() >= FILE_BUFFER {
             self.write_out()?;
         }
@@ -313,13 +298,14 @@ pub(crate) struct TileResults {
     /// Column bytes a record.
     columns: usize,
     predict: Option<HPrediction>,
-    /// [`plain_planes`].
-    plain_planes: Vec<bool>,
+    split: RowSplit,
     /// The statistics of the file's points.
     pub stats: CurvatureStats,
-    /// The current block: ids, records as stored, and the next one to return.
+    /// The current block: ids, packed rows and raw bytes ([`RowSplit`]), and the next row to
+    /// return.
     ids: Vec<u64>,
     rows: Vec<u8>,
+    raw_rows: Vec<u8>,
     next: usize,
     prev: Option<u64>,
 }
@@ -362,10 +348,11 @@ impl TileResults {
             patched: word(24) == 1,
             columns,
             predict: HPrediction::of(cols),
-            plain_planes: plain_planes(cols, word(24) == 1),
+            split: RowSplit::of(cols, word(24) == 1, HPrediction::of(cols).is_some()),
             stats,
             ids: Vec::new(),
             rows: Vec::new(),
+            raw_rows: Vec::new(),
             next: 0,
             prev: None,
         })
@@ -387,13 +374,13 @@ impl TileResults {
         read_exact(&mut self.file, &self.path, &mut head)?;
         let word = |i: usize| u32::from_le_bytes(head[i..i + 4].try_into().unwrap_or([0; 4]));
         let [n, raw_len, frame_len, plain_len] = [0, 4, 8, 12].map(|i| word(i) as usize);
-        let plain_planes = self.plain_planes.iter().filter(|&&p| p).count();
+        let plain_planes = self.split.plain_count();
         if n == 0
             || n as u64 > self.remaining
             || raw_len > MAX_BLOCK
             || frame_len > MAX_BLOCK
             || plain_len > MAX_BLOCK
-            || plain_len != n * plain_planes
+            || plain_len != self.split.plain_len(n)
         {
             return Err(bad("has a damaged block"));
         }
@@ -417,24 +404,27 @@ impl TileResults {
             self.ids.push(id);
             self.prev = Some(id);
         }
-        let row = self.row();
-        let packed = c.take(n * (row - plain_planes)).filter(|_| c.is_done());
-        let packed = packed.ok_or_else(|| bad("has a damaged block"))?;
+        let width = self.split.packed();
+        let framed = c.take(n * (width - plain_planes)).filter(|_| c.is_done());
+        let framed = framed.ok_or_else(|| bad("has a damaged block"))?;
+        let (plain, raw_rows) = plain.split_at(n * plain_planes);
         // The planes back in their order, from the frame or the plain bytes.
-        let (mut packed, mut plain) = (packed.chunks_exact(n), plain.chunks_exact(n));
-        let mut planes = Vec::with_capacity(n * row);
-        for &p in &self.plain_planes {
-            let plane = if p { plain.next() } else { packed.next() };
+        let (mut framed, mut plain) = (framed.chunks_exact(n), plain.chunks_exact(n));
+        let mut planes = Vec::with_capacity(n * width);
+        for &p in self.split.plain_planes() {
+            let plane = if p { plain.next() } else { framed.next() };
             planes.extend_from_slice(plane.unwrap_or_default());
         }
         self.rows.clear();
-        get_planes(&mut self.rows, &planes, n, row);
+        get_planes(&mut self.rows, &planes, n, width);
         if let Some(p) = &self.predict {
-            let skip = row - self.columns;
+            let skip = self.row() - self.columns;
             self.rows
-                .chunks_exact_mut(row)
+                .chunks_exact_mut(width)
                 .for_each(|r| p.apply(&mut r[skip..]));
         }
+        self.raw_rows.clear();
+        self.raw_rows.extend_from_slice(raw_rows);
         self.next = 0;
         Ok(())
     }
@@ -448,13 +438,16 @@ impl TileResults {
         if self.next == self.ids.len() {
             self.refill()?;
         }
-        let row = self.row();
-        let stored = &self.rows[self.next * row..(self.next + 1) * row];
+        let (i, width, raw) = (self.next, self.split.packed(), self.split.raw_width());
         record.clear();
         if !self.patched {
             record.extend_from_slice(&GlobalPatch::NONE.0.to_le_bytes());
         }
-        record.extend_from_slice(stored);
+        self.split.join(
+            &self.rows[i * width..(i + 1) * width],
+            &self.raw_rows[i * raw..(i + 1) * raw],
+            record,
+        );
         let id = self.ids[self.next];
         self.next += 1;
         self.remaining -= 1;

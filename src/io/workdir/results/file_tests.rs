@@ -2,8 +2,12 @@ use super::*;
 use crate::io::columns::ColumnChoice;
 
 fn cols() -> ColumnSet {
+    cols_of("normals,H,K,k1,k2,flags")
+}
+
+fn cols_of(list: &str) -> ColumnSet {
     ColumnSet {
-        choice: ColumnChoice::parse("normals,H,K,k1,k2,flags").expect("valid"),
+        choice: ColumnChoice::parse(list).expect("valid"),
         extra: Vec::new(),
         unit: "m".into(),
         wide: false,
@@ -19,13 +23,17 @@ fn record(i: u64, patch: Option<u64>, cols: &ColumnSet) -> Vec<u8> {
 
 /// Writes `ids` (with patches when `patched`) to `path`, renamed into place.
 fn write(path: &Path, ids: &[u64], patched: bool) {
-    let cols = cols();
+    write_cols(path, ids, patched, &cols())
+}
+
+/// [`write`] with the columns `cols`.
+fn write_cols(path: &Path, ids: &[u64], patched: bool, cols: &ColumnSet) {
     let stats = CurvatureStats::default();
     let mut bufs = WriteBuffers::default();
-    let mut w = ResultWriter::create(path, ids.len() as u64, &cols, patched, &stats, &mut bufs)
+    let mut w = ResultWriter::create(path, ids.len() as u64, cols, patched, &stats, &mut bufs)
         .expect("create");
     for &id in ids {
-        w.push(id, &record(id, patched.then_some(id << 32 | 3), &cols))
+        w.push(id, &record(id, patched.then_some(id << 32 | 3), cols))
             .expect("push");
     }
     let tmp = w.finish().expect("finish");
@@ -33,7 +41,12 @@ fn write(path: &Path, ids: &[u64], patched: bool) {
 }
 
 fn read_all(path: &Path) -> Result<Vec<(u64, Vec<u8>)>> {
-    let mut r = TileResults::open(path, &cols())?;
+    read_cols(path, &cols())
+}
+
+/// [`read_all`] with the columns `cols`.
+fn read_cols(path: &Path, cols: &ColumnSet) -> Result<Vec<(u64, Vec<u8>)>> {
+    let mut r = TileResults::open(path, cols)?;
     let mut out = Vec::new();
     let mut rec = Vec::new();
     while let Some(id) = r.next(&mut rec)? {
@@ -70,7 +83,7 @@ fn result_files_round_trip_over_many_blocks() {
         // The records repeat every 256 ids and the ids run in steps of one: the planes in the
         // frame (the patch if any, the top bytes, H, the flags, a varint gap) compressed to
         // well under a quarter, the plain ones (three bytes of each number but H) as they are.
-        let plain = plain_planes(&cols, patched).iter().filter(|&&p| p).count();
+        let plain = RowSplit::of(&cols, patched, true).plain_count();
         assert_eq!(plain, 6 * 3);
         let packed = cols.result_size() + if patched { 8 } else { 0 } + 1 - plain;
         let size = std::fs::metadata(&path).expect("size").len();
@@ -85,6 +98,44 @@ fn result_files_round_trip_over_many_blocks() {
     let empty = dir.path().join("empty.res");
     write(&empty, &[], false);
     assert!(read_all(&empty).expect("read").is_empty());
+}
+
+/// The terrain numbers, kept as they are at the end of each block's plain bytes: records go
+/// through a file unchanged with and without patches over several blocks, the file holds at
+/// least their bytes (they are not compressed), and a byte flipped among them is refused.
+#[test]
+fn terrain_numbers_are_kept_as_they_are_and_checked() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let cols = cols_of("H,K,flags,terrain");
+    let ids: Vec<u64> = (0..5000u64).map(|i| 3 * i + 1).collect();
+    for patched in [false, true] {
+        let path = dir.path().join(format!("terrain_{patched}.res"));
+        write_cols(&path, &ids, patched, &cols);
+        let back = read_cols(&path, &cols).expect("read");
+        assert_eq!(back.len(), ids.len());
+        for ((id, rec), &want) in back.iter().zip(&ids) {
+            assert_eq!(*id, want);
+            assert_eq!(*rec, record(want, patched.then_some(want << 32 | 3), &cols));
+        }
+        let size = std::fs::metadata(&path).expect("size").len() as usize;
+        // Seven f32 numbers and the low bytes of H and K (not predicted without k1 and k2),
+        // whatever the frame compresses to.
+        assert!(size >= ids.len() * (7 * 4 + 2 * 3), "{size} bytes");
+        assert!(super::super::is_complete(&path, ids.len() as u64, &cols));
+        // The last raw byte of the first block, just before its plain bytes' checksum.
+        let good = std::fs::read(&path).expect("read");
+        let stats = u64::from_le_bytes(good[32..40].try_into().expect("8 bytes")) as usize;
+        let block = HEAD + stats;
+        let word = |at: usize| u32::from_le_bytes(good[at..at + 4].try_into().expect("4")) as usize;
+        let (n, frame, plain) = (word(block), word(block + 8), word(block + 12));
+        assert_eq!(plain, n * (2 * 3 + 7 * 4));
+        let mut bad = good.clone();
+        bad[block + 16 + frame + plain - 1] ^= 0x01;
+        std::fs::write(&path, &bad).expect("write");
+        assert!(!super::super::is_complete(&path, ids.len() as u64, &cols));
+        let e = read_cols(&path, &cols).expect_err("a raw byte damaged");
+        assert!(e.to_string().contains("damaged block"), "{e}");
+    }
 }
 
 #[test]
@@ -158,7 +209,7 @@ fn damaged_truncated_and_old_result_files_are_refused() {
         check(&bad, &format!("{what} damaged"));
     }
     let mut old = good.clone();
-    old[..8].copy_from_slice(b"TCRES006");
+    old[..8].copy_from_slice(b"TCRES007");
     check(&old, "the previous format");
 }
 

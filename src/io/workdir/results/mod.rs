@@ -12,6 +12,7 @@
 //! `sidecar`.
 
 mod file;
+mod rows;
 mod sidecar;
 
 use std::cmp::Reverse;
