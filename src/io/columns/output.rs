@@ -101,13 +101,15 @@ impl Storage {
             Storage::Unsigned(ScalarType::U8) => write(out, [v as u8]),
             Storage::Unsigned(_) => write(out, (v as u16).to_le_bytes()),
             Storage::Scaled(ty, scale) => {
-                let raw = match v.is_nan() {
-                    true => no_data(ty) as i32,
-                    false => round_clamped(v / scale, max_raw(ty)),
+                let raw = if v.is_nan() {
+                    no_data(ty)
+                } else {
+                    let m = max_raw(ty);
+                    (v / scale).round().clamp(-m, m)
                 };
                 match ty {
                     ScalarType::I16 => write(out, (raw as i16).to_le_bytes()),
-                    _ => write(out, raw.to_le_bytes()),
+                    _ => write(out, (raw as i32).to_le_bytes()),
                 }
             }
         }
@@ -119,18 +121,6 @@ impl Storage {
             Storage::Float(ty) | Storage::Unsigned(ty) | Storage::Scaled(ty, _) => ty.size(),
         }
     }
-}
-
-/// `x.round().clamp(-m, m)` as an integer, for `x` not NaN and a whole `m` below 2^31: the
-/// value clamped, truncated, and moved one away from zero where the part cut off is at least a
-/// half (exact: that part is a difference of floats within a factor of two). `f64::round` is a
-/// call into the C library on x86-64 without SSE4.1, a tenth of writing the terrain columns.
-#[inline(always)]
-fn round_clamped(x: f64, m: f64) -> i32 {
-    let c = x.max(-m).min(m);
-    let t = c as i32;
-    let cut = c - t as f64;
-    t + i32::from(cut >= 0.5) - i32::from(cut <= -0.5)
 }
 
 /// The largest |raw| of a scaled type: its maximum (its minimum is the no-data value).
@@ -299,38 +289,6 @@ mod tests {
                 aspect_deg: 359.99,
                 flags: 2,
             },
-        }
-    }
-
-    /// Rounding to the nearest integer, halves away from zero, and clamping as `f64::round`
-    /// and `clamp` do, over halves, near-halves, huge and infinite values and random ones.
-    #[test]
-    fn round_clamped_is_round_then_clamp() {
-        let mut rng = crate::core::rng::Rng::new(3);
-        let mut xs = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, f64::INFINITY];
-        xs.extend([
-            f64::NEG_INFINITY,
-            1e300,
-            -1e300,
-            32767.5,
-            -32768.5,
-            2147483647.5,
-        ]);
-        xs.extend([
-            0.49999999999999994,
-            -0.49999999999999994,
-            4503599627370497.0,
-        ]);
-        for k in 0..5000 {
-            let h = (k as f64 - 2500.0) + 0.5;
-            xs.extend([h, h.next_up(), h.next_down(), (rng.uniform() - 0.5) * 1e10]);
-            xs.push((rng.uniform() - 0.5) * 70000.0);
-        }
-        for m in [32767.0, 2147483647.0] {
-            for &x in &xs {
-                let want = x.round().clamp(-m, m);
-                assert_eq!(round_clamped(x, m) as f64, want, "{x} within {m}");
-            }
         }
     }
 
