@@ -243,14 +243,18 @@ impl<'b> ResultWriter<'b> {
                 false => b.raw.extend_from_slice(plane),
             }
         }
-        b.plain.extend_from_slice(&b.raw_rows);
         let frame = compress(&b.raw, Effort::Fast).map_err(|e| Error::write(&self.tmp, e))?;
-        for v in [n, b.raw.len(), frame.len(), b.plain.len()] {
+        let plain = b.plain.len() + b.raw_rows.len();
+        for v in [n, b.raw.len(), frame.len(), plain] {
             b.file.extend_from_slice(&(v as u32).to_le_bytes());
         }
         b.file.extend_from_slice(&frame);
+        // The plain planes, then the raw bytes, summed where they are in the file buffer.
+        let start = b.file.len();
         b.file.extend_from_slice(&b.plain);
-        b.file.extend_from_slice(&checksum(&b.plain).to_le_bytes());
+        b.file.extend_from_slice(&b.raw_rows);
+        let sum = checksum(&b.file[start..]);
+        b.file.extend_from_slice(&sum.to_le_bytes());
         b.ids.clear();
         b.rows.clear();
         b.raw_rows.clear();
@@ -432,26 +436,45 @@ impl TileResults {
     /// Reads the next record's id, with its patch (u64 LE, none if not stored) and column bytes
     /// in `record` ([`record_size`] bytes); None at the end.
     pub(crate) fn next(&mut self, record: &mut Vec<u8>) -> Result<Option<u64>> {
+        record.clear();
+        let id = self.advance()?;
+        if id.is_some() {
+            self.append_current(record);
+        }
+        Ok(id)
+    }
+
+    /// Moves to the next record and returns its id (None at the end); its bytes stay in the
+    /// block for [`TileResults::append_current`], which a merge calls without copying them
+    /// anywhere else first.
+    pub(crate) fn advance(&mut self) -> Result<Option<u64>> {
         if self.remaining == 0 {
             return Ok(None);
         }
         if self.next == self.ids.len() {
             self.refill()?;
         }
-        let (i, width, raw) = (self.next, self.split.packed(), self.split.raw_width());
-        record.clear();
-        if !self.patched {
-            record.extend_from_slice(&GlobalPatch::NONE.0.to_le_bytes());
-        }
-        self.split.join(
-            &self.rows[i * width..(i + 1) * width],
-            &self.raw_rows[i * raw..(i + 1) * raw],
-            record,
-        );
         let id = self.ids[self.next];
         self.next += 1;
         self.remaining -= 1;
         Ok(Some(id))
+    }
+
+    /// Appends the record [`TileResults::advance`] last moved to (its patch, none if not
+    /// stored, and its column bytes: [`record_size`] bytes) to `out`; nothing before the first.
+    pub(crate) fn append_current(&self, out: &mut Vec<u8>) {
+        let Some(i) = self.next.checked_sub(1) else {
+            return;
+        };
+        let (width, raw) = (self.split.packed(), self.split.raw_width());
+        if !self.patched {
+            out.extend_from_slice(&GlobalPatch::NONE.0.to_le_bytes());
+        }
+        self.split.join(
+            &self.rows[i * width..(i + 1) * width],
+            &self.raw_rows[i * raw..(i + 1) * raw],
+            out,
+        );
     }
 
     /// Reads every record, checking that the file is whole: every block decodes with its

@@ -251,8 +251,8 @@ pub(crate) fn scene_stats(files: &[PathBuf], cols: &ColumnSet) -> Result<Curvatu
 
 /// A k-way merge of result files by point id.
 pub(crate) struct Merger {
+    /// The files, each at the record whose id the heap holds for it.
     readers: Vec<TileResults>,
-    heads: Vec<Vec<u8>>,
     heap: BinaryHeap<Reverse<(u64, usize)>>,
     /// The result directory, named when the files do not hold what the run needs.
     dir: PathBuf,
@@ -323,16 +323,14 @@ impl Merger {
             .iter()
             .map(|p| TileResults::open(p, cols))
             .collect::<Result<Vec<_>>>()?;
-        let mut heads = vec![Vec::new(); readers.len()];
         let mut heap = BinaryHeap::new();
         for (i, r) in readers.iter_mut().enumerate() {
-            if let Some(id) = r.next(&mut heads[i])? {
+            if let Some(id) = r.advance()? {
                 heap.push(Reverse((id, i)));
             }
         }
         Ok(Merger {
             readers,
-            heads,
             heap,
             dir: dir.to_path_buf(),
             last: None,
@@ -371,8 +369,8 @@ impl Merger {
             ));
         }
         self.last = Some(id);
-        out.extend_from_slice(&self.heads[i]);
-        match self.readers[i].next(&mut self.heads[i])? {
+        self.readers[i].append_current(out);
+        match self.readers[i].advance()? {
             Some(next) => *top = Reverse((next, i)),
             None => {
                 std::collections::binary_heap::PeekMut::pop(top);
