@@ -86,7 +86,8 @@ impl TerrainValues {
         } else {
             (normal, *c)
         };
-        let sin_s = (n[0] * n[0] + n[1] * n[1]).sqrt();
+        let s2 = n[0] * n[0] + n[1] * n[1];
+        let sin_s = s2.sqrt();
         let slope_deg = atan2(sin_s, n[2]).to_degrees();
         let flat = slope_deg < FLAT_SLOPE_DEG;
         let mut t = TerrainValues {
@@ -112,20 +113,17 @@ impl TerrainValues {
             t.shape_index = std::f64::consts::FRAC_2_PI * atan2(mean, half_gap);
         }
         if !flat {
-            // c = (n x z)/|n x z| along the contour, g = c x n up the slope line (10.2).
-            let contour = [n[1] / sin_s, -n[0] / sin_s, 0.0];
-            let up = [
-                contour[1] * n[2] - contour[2] * n[1],
-                contour[2] * n[0] - contour[0] * n[2],
-                contour[0] * n[1] - contour[1] * n[0],
-            ];
+            // c = n x z along the contour and g = c x n up the slope line (10.2), both of
+            // length sin(slope), which the ratio of squares below does not need divided out.
+            let contour = [n[1], -n[0], 0.0];
+            let up = [-n[0] * n[2], -n[1] * n[2], s2];
             // The normal curvature along a unit tangent u is k1 + (k2 - k1) sin^2(u, d1), with
             // sin^2 = (d2.u)^2 read in the (g, c) frame and normalised, so that profile +
             // tangential = k1 + k2 even when d2 leans off the tangent plane. Without directions
             // (zero: an umbilic, where every direction is principal) both are the mean.
             let (a, b) = (dot(c.d2, up), dot(c.d2, contour));
             let w = a * a + b * b;
-            let along_slope = if w > 0.5 { a * a / w } else { 0.5 };
+            let along_slope = if w > 0.5 * s2 { a * a / w } else { 0.5 };
             t.profile = k1 + (k2 - k1) * along_slope;
             t.tangential = k1 + (k2 - k1) * (1.0 - along_slope);
             t.plan = t.tangential / sin_s;
