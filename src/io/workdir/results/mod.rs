@@ -7,9 +7,9 @@
 //! columns take their steps from, core::quantize, so that assemble learns them without reading
 //! every record twice), then blocks of ids (varint gaps) and records (the global patch only
 //! with `--orient propagate`, the column values of
-//! [`crate::io::columns::ResultLayout::encode_all`]) as byte planes, the numbers' low bytes
-//! beside the zstd frame under a checksum of their own. The orientation sidecars are in
-//! `sidecar`.
+//! [`crate::io::columns::ResultLayout::encode_all`]): the terrain numbers as they are, the
+//! rest as byte planes, the numbers' low bytes beside the zstd frame with the terrain numbers
+//! under a checksum of their own (`rows`). The orientation sidecars are in `sidecar`.
 
 mod file;
 mod rows;
