@@ -19,11 +19,16 @@ impl Picture {
 
     /// Fills the rectangle at (`x`, `y`) of `w` x `h` pixels with `colour`.
     pub(super) fn fill(&mut self, x: u32, y: u32, w: u32, h: u32, colour: Rgba) {
-        let x_end = x.saturating_add(w).min(self.width);
+        let (from, to) = (
+            x.min(self.width) as usize,
+            x.saturating_add(w).min(self.width),
+        );
+        let width = self.width as usize;
         for row in y..y.saturating_add(h).min(self.height) {
-            for col in x..x_end {
-                let i = (row as usize * self.width as usize + col as usize) * 4;
-                self.rgba[i..i + 4].copy_from_slice(&colour);
+            let start = row as usize * width;
+            let pixels = &mut self.rgba[(start + from) * 4..(start + to as usize) * 4];
+            for p in pixels.chunks_exact_mut(4) {
+                p.copy_from_slice(&colour);
             }
         }
     }
@@ -59,17 +64,31 @@ impl Picture {
     pub(super) fn outline_transparent(&mut self, w: u32, h: u32, reach: u32, colour: Rgba) {
         let (w, h) = (w.min(self.width) as usize, h.min(self.height) as usize);
         let stride = self.width as usize;
-        let clear = |x: usize, y: usize| self.rgba[(y * stride + x) * 4 + 3] == 0;
+        // The rectangle's transparency as one flag a pixel, read once: looking up each
+        // neighbour's alpha in the picture took most of a quick look's rendering.
+        let mut clear = Vec::with_capacity(w * h);
+        for row in self.rgba.chunks_exact(stride * 4).take(h) {
+            clear.extend(row.chunks_exact(4).take(w).map(|p| p[3] == 0));
+        }
+        let reach = reach as usize;
         let mut edge = Vec::new();
         for y in 0..h {
             for x in 0..w {
-                let touches = (1..=reach as usize).any(|d| {
-                    (x >= d && clear(x - d, y))
-                        || (x + d < w && clear(x + d, y))
-                        || (y >= d && clear(x, y - d))
-                        || (y + d < h && clear(x, y + d))
-                });
-                if !clear(x, y) && touches {
+                let i = y * w + x;
+                if clear[i] {
+                    continue;
+                }
+                let mut touches = false;
+                for d in 1..reach + 1 {
+                    touches = (x >= d && clear[i - d])
+                        || (x + d < w && clear[i + d])
+                        || (y >= d && clear[i - d * w])
+                        || (y + d < h && clear[i + d * w]);
+                    if touches {
+                        break;
+                    }
+                }
+                if touches {
                     edge.push((y * stride + x) * 4);
                 }
             }
