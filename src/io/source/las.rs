@@ -167,8 +167,17 @@ impl LasSource {
 
     /// The coordinates of a raw record (stored or trimmed: the point format's fields stay).
     fn xyz(&self, rec: &[u8]) -> [f64; 3] {
-        let c = |o: usize| i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as i64;
-        [0, 1, 2].map(|a| self.grid[a].value(c(4 * a)))
+        // The three integers from one 12-byte array: one bounds check, not twelve.
+        let head: [u8; 12] = rec[..12].try_into().unwrap_or([0; 12]);
+        let c = |a: usize| {
+            i32::from_le_bytes([
+                head[4 * a],
+                head[4 * a + 1],
+                head[4 * a + 2],
+                head[4 * a + 3],
+            ])
+        };
+        [0, 1, 2].map(|a| self.grid[a].value(i64::from(c(a))))
     }
 }
 
