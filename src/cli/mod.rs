@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use clap::{Parser, Subcommand};
 
 use crate::error::{Error, ExitClass};
-use crate::progress::TermReporter;
+use crate::progress::{human_rate, TermReporter};
 use args::{AssembleArgs, BucketArgs, InfoArgs, PlanArgs, ProcessArgs, RunTileArgs, StatusArgs};
 use generate::GenerateArgs;
 
@@ -191,11 +191,16 @@ fn process(args: ProcessArgs) -> Result<i32, i32> {
         reporter.summary(&s.json_fields(), s.seconds);
     }
     if !quiet && !job.dry_run {
+        // A rate over every point would count the resumed tiles' points, computed by an
+        // earlier run, as this one's: given only when none were resumed.
+        let rate = match s.tiles_resumed {
+            0 => format!(" ({})", human_rate(s.points as f64 / s.seconds.max(1e-9))),
+            _ => String::new(),
+        };
         say!(
-            "done: {} points in {:.1} s ({}), {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
+            "done: {} points in {:.1} s{rate}, {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
             s.points,
             s.seconds,
-            crate::progress::human_rate(s.points as f64 / s.seconds.max(1e-9)),
             s.tiles,
             s.tiles_resumed,
             s.undefined,

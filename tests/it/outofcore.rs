@@ -315,6 +315,12 @@ fn killed_runs_resume_to_a_byte_identical_output() {
         resumed >= last,
         "{resumed} tiles resumed, {last} were done: {err}"
     );
+    // The resumed tiles' points were computed by the runs before: no rate over them.
+    let done = err
+        .lines()
+        .find(|l| l.starts_with("done:"))
+        .expect("a done line");
+    assert!(!done.contains("points/s"), "a rate after a resume: {done}");
     assert!(
         std::fs::read(&out).expect("output") == std::fs::read(&reference).expect("reference"),
         "the resumed output differs from the uninterrupted run's"
