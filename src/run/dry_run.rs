@@ -14,6 +14,7 @@ use crate::core::tasks::TaskLayout;
 use crate::core::tile::Part;
 use crate::error::Result;
 use crate::io::workdir::bucket::load_tile;
+use crate::io::workdir::results::estimated_point_bytes;
 use crate::io::workdir::WorkDir;
 use crate::run::bucket::bucket_all;
 use crate::run::spec::RunSpec;
@@ -91,10 +92,9 @@ fn estimate(run: &Run, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
         m.bucket_cache_bytes + tiles_mem
     };
     // Spilled buckets of LAS input take about 5 bytes a point (integer coordinates, zstd; raw
-    // f64 float inputs up to 25); result files about 3/4 of their f32 columns (the values'
-    // low bits are noise; ids and the flags compress to almost nothing).
+    // f64 float inputs up to 25).
     let bucket_bytes = if in_memory { 0.0 } else { 5.0 };
-    let result_bytes = 0.75 * spec.cols.result_size() as f64;
+    let result_bytes = estimated_point_bytes(&spec.cols);
     let disk = n * (bucket_bytes + result_bytes);
     let est = 2.0 * scan_s + n * us_per_point * 1e-6;
     out!("plan: {} points in {} tiles of {:.3} (file units); points per tile: min {}, median {median}, max {}", scan.stats.count, tplan.tiles.len(), spec.grid.size, counts[0], counts[counts.len() - 1]);

@@ -94,6 +94,15 @@ pub(crate) fn fan_in(memory_bytes: usize, cols: &ColumnSet) -> usize {
     (soft.saturating_sub(in_use).saturating_sub(reserve)).clamp(2, by_memory as u64) as usize
 }
 
+/// About how many bytes a point takes in the result files with the columns `cols` (for the
+/// plan's estimate of the work directory's disk): its terrain numbers as they are, about 3/4 of
+/// its other column bytes (their values' low bits are noise; ids and flag bytes compress to
+/// almost nothing).
+pub(crate) fn estimated_point_bytes(cols: &ColumnSet) -> f64 {
+    let raw = rows::RowSplit::of(cols, false, false).raw_width();
+    raw as f64 + 0.75 * (cols.result_size() - raw) as f64
+}
+
 /// The result file of a tile.
 pub(crate) fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
     crate::io::workdir::names::tile_result(dir, key)
@@ -410,6 +419,61 @@ mod tests {
             scale: 0,
             scale_flags: 0,
             terrain: crate::core::terrain::TerrainValues::NONE,
+        }
+    }
+
+    /// The disk estimate of the results against the bytes a tile's results take, for
+    /// curvatures and normals of noisy magnitudes and their true terrain values: within a
+    /// sixth for the default columns, the terrain columns and normals with k1 and k2.
+    #[test]
+    fn the_disk_estimate_is_within_a_sixth_of_the_files() {
+        use crate::core::rng::Rng;
+        use crate::core::terrain::TerrainValues;
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut rng = Rng::new(5);
+        let n = 20_000u64;
+        let results: Vec<PointResult> = (0..n)
+            .map(|i| {
+                let (k1, k2) = (0.05 * rng.normal(), 0.05 * rng.normal());
+                let (k1, k2) = (k1.min(k2), k1.max(k2));
+                let t = [rng.normal() * 0.3, rng.normal() * 0.3, 1.0];
+                let len = (t[0] * t[0] + t[1] * t[1] + 1.0).sqrt();
+                let normal = t.map(|v| v / len);
+                let curvature = Curvature {
+                    h: (k1 + k2) / 2.0,
+                    k: k1 * k2,
+                    k1,
+                    k2,
+                    d1: [1.0, 0.0, 0.0],
+                    d2: [0.0, normal[2], -normal[1]],
+                    flags: 0,
+                };
+                PointResult {
+                    normal,
+                    curvature,
+                    terrain: TerrainValues::of(normal, &curvature),
+                    ..result(i, 0.0)
+                }
+            })
+            .collect();
+        for list in ["H,K,flags", "H,K,flags,terrain", "normals,H,K,k1,k2,flags"] {
+            let cols = ColumnSet {
+                wide: false,
+                ..columns(list)
+            };
+            let mut journal = Journal::new(dir.path());
+            journal
+                .add((0, 0), 0, &results, None, &cols)
+                .expect("write");
+            journal.commit().expect("commit");
+            let path = tile_path(dir.path(), (0, 0));
+            let bytes = std::fs::metadata(&path).expect("size").len() as f64 / n as f64;
+            let estimate = estimated_point_bytes(&cols);
+            assert!(
+                (estimate / bytes - 1.0).abs() < 1.0 / 6.0,
+                "{list}: estimated {estimate:.2} bytes a point, the file holds {bytes:.2}"
+            );
+            std::fs::remove_file(&path).expect("remove");
         }
     }
 
