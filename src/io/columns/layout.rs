@@ -10,90 +10,28 @@ use crate::core::terrain::TerrainValues;
 /// directions (6), the extra values, the scale and its flags, the terrain values and flags.
 pub(super) const MAX_STORED: usize = 3 + 4 + 6 + MAX_EXTRA + 2 + TerrainValue::ALL.len();
 
-/// The values of a result record in their order and their width ([`ColumnSet::layout`]):
-/// found once rather than per record (the chain of optional groups was half the cost of a
-/// decode). No allocation, so that it can be made for each piece of an output.
-/// Runs `$body` with `$c` bound to `$v` made a constant of its variant, one copy of `$body`
-/// for each: with [`Value::get`] inlined, a loop over points in `$body` reads its field
-/// directly instead of matching the value again for every point.
+/// Runs `$body` with `$c` bound to `$v`, in one copy of `$body` for each value listed, where
+/// `$c` is that value as a constant: with [`Value::get`] inlined, a loop over points in `$body`
+/// reads its field directly instead of matching the value again for every point. A value not
+/// listed (an extra value, ScaleK) shares one copy that matches it at run time.
 macro_rules! by_value {
     ($v:expr, |$c:ident| $body:expr) => {
+        by_value!(@each $v, |$c| $body; Value::H, Value::K, Value::K1, Value::K2,
+            Value::Normal(0), Value::Normal(1), Value::Normal(2),
+            Value::D1(0), Value::D1(1), Value::D1(2), Value::D2(0), Value::D2(1), Value::D2(2),
+            Value::Terrain(TerrainValue::Profile), Value::Terrain(TerrainValue::Tangential),
+            Value::Terrain(TerrainValue::Plan), Value::Terrain(TerrainValue::ShapeIndex),
+            Value::Terrain(TerrainValue::Curvedness), Value::Terrain(TerrainValue::Slope),
+            Value::Terrain(TerrainValue::Aspect))
+    };
+    (@each $v:expr, |$c:ident| $body:expr; $($k:expr),*) => {
         match $v {
-            Value::Normal(i) => {
-                let $c = Value::Normal(i);
+            $(v if v == $k => {
+                let $c = $k;
                 $body
-            }
-            Value::H => {
-                let $c = Value::H;
-                $body
-            }
-            Value::K => {
-                let $c = Value::K;
-                $body
-            }
-            Value::K1 => {
-                let $c = Value::K1;
-                $body
-            }
-            Value::K2 => {
-                let $c = Value::K2;
-                $body
-            }
-            Value::D1(i) => {
-                let $c = Value::D1(i);
-                $body
-            }
-            Value::D2(i) => {
-                let $c = Value::D2(i);
-                $body
-            }
-            Value::Extra(i) => {
-                let $c = Value::Extra(i);
-                $body
-            }
-            Value::Terrain(t) => by_terrain!(t, |$c| $body),
+            })*
             other => {
                 let $c = other;
-                $body
-            }
-        }
-    };
-}
-
-/// `by_value` for the terrain values.
-macro_rules! by_terrain {
-    ($t:expr, |$c:ident| $body:expr) => {
-        match $t {
-            TerrainValue::Profile => {
-                let $c = Value::Terrain(TerrainValue::Profile);
-                $body
-            }
-            TerrainValue::Tangential => {
-                let $c = Value::Terrain(TerrainValue::Tangential);
-                $body
-            }
-            TerrainValue::Plan => {
-                let $c = Value::Terrain(TerrainValue::Plan);
-                $body
-            }
-            TerrainValue::ShapeIndex => {
-                let $c = Value::Terrain(TerrainValue::ShapeIndex);
-                $body
-            }
-            TerrainValue::Curvedness => {
-                let $c = Value::Terrain(TerrainValue::Curvedness);
-                $body
-            }
-            TerrainValue::Slope => {
-                let $c = Value::Terrain(TerrainValue::Slope);
-                $body
-            }
-            TerrainValue::Aspect => {
-                let $c = Value::Terrain(TerrainValue::Aspect);
-                $body
-            }
-            other => {
-                let $c = Value::Terrain(other);
                 $body
             }
         }
@@ -115,6 +53,9 @@ fn column(
     }
 }
 
+/// The values of a result record in their order and their width ([`ColumnSet::layout`]):
+/// found once rather than per record (the chain of optional groups was half the cost of a
+/// decode). No allocation, so that it can be made for each piece of an output.
 #[derive(Debug, Clone, Copy)]
 pub struct ResultLayout {
     /// The numbers (`values[..numbers]`), then the flag bytes after the curvature flags.
