@@ -179,6 +179,7 @@ impl<'b> ResultWriter<'b> {
         ] {
             b.file.extend_from_slice(part);
         }
+        let predict = HPrediction::of(cols);
         Ok(ResultWriter {
             path: path.to_path_buf(),
             tmp,
@@ -188,8 +189,8 @@ impl<'b> ResultWriter<'b> {
             count,
             written: 0,
             prev: None,
-            predict: HPrediction::of(cols),
-            split: RowSplit::of(cols, patched, HPrediction::of(cols).is_some()),
+            split: RowSplit::of(cols, patched, predict.is_some()),
+            predict,
             b,
         })
     }
@@ -344,15 +345,16 @@ impl TileResults {
         let mut stats = vec![0u8; stats_len as usize];
         read_exact(&mut file, path, &mut stats)?;
         let stats = parse_stats(&stats).ok_or_else(|| bad("has damaged statistics".into()))?;
+        let (predict, patched) = (HPrediction::of(cols), word(24) == 1);
         Ok(TileResults {
             path: path.to_path_buf(),
             file,
             remaining: word(8),
             count: word(8),
-            patched: word(24) == 1,
+            patched,
             columns,
-            predict: HPrediction::of(cols),
-            split: RowSplit::of(cols, word(24) == 1, HPrediction::of(cols).is_some()),
+            split: RowSplit::of(cols, patched, predict.is_some()),
+            predict,
             stats,
             ids: Vec::new(),
             rows: Vec::new(),
