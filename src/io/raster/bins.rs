@@ -265,29 +265,12 @@ enum Source {
     Runs(Merge),
 }
 
-impl Source {
-    fn next_record(&mut self, columns: usize, out: &mut [f32]) -> Result<Option<u64>> {
-        match self {
-            Source::Memory { keys, values, next } => {
-                let Some(&(key, i)) = keys.get(*next) else {
-                    return Ok(None);
-                };
-                *next += 1;
-                let i = i as usize * columns;
-                out.copy_from_slice(&values[i..i + columns]);
-                Ok(Some(key))
-            }
-            Source::Runs(m) => m.next_record(out),
-        }
-    }
-}
-
 /// The cells in key order, each with its points' values per column.
 pub(crate) struct Cells {
     /// Kept so that the run files live until the cells are read.
     bins: Bins,
     source: Source,
-    /// The record read past the last cell: the first of the next one.
+    /// From runs: the record read past the last cell, the first of the next one.
     pending: Option<u64>,
     pending_values: Vec<f32>,
     started: bool,
@@ -308,20 +291,37 @@ impl Cells {
     /// The next cell's key, its values column by column in `out` (cleared first: `out[c]`
     /// holds column `c`'s values of the cell's points); None after the last cell.
     pub(crate) fn next_cell(&mut self, out: &mut [Vec<f32>]) -> Result<Option<u64>> {
+        out.iter_mut().for_each(Vec::clear);
         let n = self.bins.columns;
+        let merge = match &mut self.source {
+            Source::Memory { keys, values, next } => {
+                // The cell's records are the next run of its key: each column gathered in one
+                // loop, without a copy of every record and a push of every value.
+                let Some(&(key, _)) = keys.get(*next) else {
+                    return Ok(None);
+                };
+                let len = keys[*next..].iter().take_while(|r| r.0 == key).count();
+                let cell = &keys[*next..*next + len];
+                for (c, o) in out.iter_mut().take(n).enumerate() {
+                    o.extend(cell.iter().map(|&(_, i)| values[i as usize * n + c]));
+                }
+                *next += len;
+                return Ok(Some(key));
+            }
+            Source::Runs(m) => m,
+        };
         if !self.started {
             self.started = true;
-            self.pending = self.source.next_record(n, &mut self.pending_values)?;
+            self.pending = merge.next_record(&mut self.pending_values)?;
         }
         let Some(key) = self.pending else {
             return Ok(None);
         };
-        out.iter_mut().for_each(Vec::clear);
         loop {
             for (o, &v) in out.iter_mut().zip(&self.pending_values) {
                 o.push(v);
             }
-            self.pending = self.source.next_record(n, &mut self.pending_values)?;
+            self.pending = merge.next_record(&mut self.pending_values)?;
             if self.pending != Some(key) {
                 return Ok(Some(key));
             }
