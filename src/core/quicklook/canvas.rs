@@ -33,6 +33,14 @@ impl Picture {
         }
     }
 
+    /// Sets the pixel at (`x`, `y`) to `colour` (nothing outside the picture).
+    pub(super) fn set(&mut self, x: u32, y: u32, colour: Rgba) {
+        if x < self.width && y < self.height {
+            let i = (y as usize * self.width as usize + x as usize) * 4;
+            self.rgba[i..i + 4].copy_from_slice(&colour);
+        }
+    }
+
     /// The outline of the rectangle at (`x`, `y`) of `w` x `h` pixels, one pixel wide.
     pub(super) fn frame(&mut self, x: u32, y: u32, w: u32, h: u32, colour: Rgba) {
         self.fill(x, y, w, 1, colour);
