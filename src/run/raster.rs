@@ -321,8 +321,8 @@ struct Binner {
     /// The values of the points being binned, a row each: one a column, then z (for the
     /// hillshade).
     values: Vec<f32>,
-    /// Their x and y.
-    xy: Vec<[f64; 2]>,
+    /// Their coordinates.
+    xyz: Vec<[f64; 3]>,
 }
 
 impl Binner {
@@ -330,7 +330,7 @@ impl Binner {
         Binner {
             readers,
             values: Vec::new(),
-            xy: Vec::new(),
+            xyz: Vec::new(),
         }
     }
 
@@ -346,26 +346,22 @@ impl Binner {
         r: &mut Rasterizer,
         what: &dyn Fn(u64) -> String,
     ) -> Result<()> {
-        let (rl, width) = (s.record_length(), self.readers.len() + 1);
+        let width = self.readers.len() + 1;
         for (b, batch) in records.chunks(Self::BATCH * row).enumerate() {
             let first = first + (b * Self::BATCH) as u64;
             let n = batch.len() / row;
             self.values.resize(n * width, 0.0);
-            self.xy.clear();
-            let rows = batch
-                .chunks_exact(row)
-                .zip(self.values.chunks_exact_mut(width));
-            for (i, (rec, v)) in rows.enumerate() {
-                let p = s.decode(first + i as u64, &rec[..rl]);
-                self.xy.push([p.xyz[0], p.xyz[1]]);
-                v[width - 1] = p.xyz[2] as f32;
+            self.xyz.clear();
+            s.coordinates(first, batch, row, &mut self.xyz);
+            for (p, v) in self.xyz.iter().zip(self.values.chunks_exact_mut(width)) {
+                v[width - 1] = p[2] as f32;
             }
             for (c, rd) in self.readers.iter().enumerate() {
                 rd.column(batch, row, &mut self.values, (c, width));
             }
-            let points = self.xy.iter().zip(self.values.chunks_exact(width));
-            for (i, (xy, v)) in points.enumerate() {
-                r.push(xy[0], xy[1], v, &|| what(first + i as u64))?;
+            let points = self.xyz.iter().zip(self.values.chunks_exact(width));
+            for (i, (p, v)) in points.enumerate() {
+                r.push(p[0], p[1], v, &|| what(first + i as u64))?;
             }
         }
         Ok(())

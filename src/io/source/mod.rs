@@ -88,6 +88,16 @@ pub trait PointSource: Send + Sync {
     }
     /// Decodes one raw record.
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint;
+    /// Appends to `out` the coordinates of the raw records in `records`, one every `stride`
+    /// bytes (each this source's record, then anything a caller added), the first being point
+    /// `first`: what [`PointSource::decode`] gives of each, in one call for a batch (a raster
+    /// reads only the coordinates, and a call per point cost more than decoding them).
+    fn coordinates(&self, first: u64, records: &[u8], stride: usize, out: &mut Vec<[f64; 3]>) {
+        let rl = self.record_length();
+        for (i, rec) in records.chunks_exact(stride.max(1)).enumerate() {
+            out.push(self.decode(first + i as u64, &rec[..rl.min(rec.len())]).xyz);
+        }
+    }
     /// The scale and offset of x, y and z when [`PointSource::decode`] gives every coordinate
     /// as the [`crate::core::grid::AxisGrid`] value of a stored integer (LAS records), None
     /// otherwise: the buckets then store the integers (the f64 bits they give back are checked
