@@ -223,8 +223,17 @@ fn every_object_file_runs_to_ply_and_las_with_its_properties() {
             .iter()
             .map(|c| inp.names.iter().position(|n| n == c).expect("xyz"))
             .collect();
+        // The batch read of the coordinates (the raster tap's) gives what decode gives.
+        let mut batch = Vec::new();
+        src.coordinates(0, &all, h.record_length as usize, &mut batch);
+        assert_eq!(batch.len(), inp.rows.len(), "{name}: coordinates");
         for (i, rec) in all.chunks_exact(h.record_length as usize).enumerate() {
             let p = src.decode(i as u64, rec);
+            assert_eq!(
+                batch[i].map(f64::to_bits),
+                p.xyz.map(f64::to_bits),
+                "{name}: {i}"
+            );
             for (a, &col) in xyz.iter().enumerate() {
                 let want = inp.rows[i][col];
                 assert!(
