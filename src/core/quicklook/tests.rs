@@ -201,6 +201,41 @@ fn percentiles_of_shuffled_integers_interpolate_between_ranks() {
     assert_eq!(colour::percentile(&mut [3.5], 98.0), 3.5);
 }
 
+/// Against the percentile of the sorted values, to the bit, on values of every sign and
+/// magnitude (zeros of both signs, subnormals, repeats, huge and tiny), at ranks throughout.
+#[test]
+fn percentiles_are_those_of_the_sorted_values() {
+    let mut rng = crate::core::rng::Rng::new(5);
+    for n in [1usize, 2, 3, 17, 1000, 5000] {
+        let values: Vec<f32> = (0..n)
+            .map(|i| match rng.below(6) {
+                0 => 0.0,
+                1 => -0.0,
+                2 => {
+                    f32::from_bits(1 + rng.below(1000) as u32) * if i % 2 == 0 { 1.0 } else { -1.0 }
+                }
+                3 => (rng.below(7) as f32 - 3.0) * 0.25,
+                4 => ((rng.uniform() - 0.5) * 1e30) as f32,
+                _ => (rng.normal() * 1e-3) as f32,
+            })
+            .collect();
+        let mut sorted = values.clone();
+        sorted.sort_by(f32::total_cmp);
+        for p in [0.0, 0.1, 2.0, 25.0, 50.0, 73.3, 98.0, 99.99, 100.0] {
+            let rank = p / 100.0 * (n - 1) as f64;
+            let i = (rank.floor() as usize).min(n - 1);
+            let (a, b) = (f64::from(sorted[i]), f64::from(sorted[(i + 1).min(n - 1)]));
+            let want = a + (rank - i as f64) * (b - a);
+            let got = colour::percentile(&mut values.clone(), p);
+            assert_eq!(
+                got.to_bits(),
+                want.to_bits(),
+                "n {n}, p {p}: {got} vs {want}"
+            );
+        }
+    }
+}
+
 #[test]
 fn no_data_is_transparent_and_degenerate_grids_render() {
     let g = grid(2, 2, vec![1.0, NAN, -1.0, 0.5]);
