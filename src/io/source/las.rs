@@ -379,11 +379,13 @@ impl PointSource for LasSource {
         })
     }
 
-    /// Decodes one raw record into a [`SourcePoint`].
+    /// The coordinates of a batch of records: `LasSource::xyz` of each, which is what
+    /// `decode` reads them with.
     fn coordinates(&self, _first: u64, records: &[u8], stride: usize, out: &mut Vec<[f64; 3]>) {
         out.extend(records.chunks_exact(stride.max(1)).map(|r| self.xyz(r)));
     }
 
+    /// Decodes one raw record into a [`SourcePoint`].
     fn decode(&self, id: u64, rec: &[u8]) -> SourcePoint {
         let xyz = self.xyz(rec);
         let normal = self.normal_dims.as_ref().and_then(|d| {
