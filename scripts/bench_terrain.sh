@@ -13,7 +13,8 @@
 # and raster/terrain; then the median ratios over the rounds, and the ratios of the least CPU
 # time of each variant (on a shared virtual machine a run is only ever slowed by its
 # neighbours, so the least time is the least disturbed; the two summaries agreeing says the
-# rounds were enough). Environment: TILECURV_BENCH_DIR (default /tmp/tilecurv-bench),
+# rounds were enough), and each variant's median system time (the kernel's part: files and
+# page faults). Environment: TILECURV_BENCH_DIR (default /tmp/tilecurv-bench),
 # K (30), THREADS (2), SEED (1), TILECURV (a binary; default: cargo build --release).
 #
 # COUNT=1 instead runs each variant once under valgrind's cachegrind and prints the user-space
@@ -39,6 +40,7 @@ mkdir -p "$BENCH_DIR"
 in="$BENCH_DIR/terrain_${SIZE}_seed${SEED}.las"
 [ -f "$in" ] || "$TILECURV" generate terrain -q -o "$in" --points "$SIZE" --seed "$SEED"
 cpu_s() { awk -F': ' '/User time|System time/ { s += $2 } END { printf "%.2f", s }' "$1"; }
+sys_s() { awk -F': ' '/System time/ { printf "%.2f", $2 }' "$1"; }
 declare -A variants=(
     [base]="--columns H,K,flags"
     [terrain]="--columns H,K,flags,terrain"
@@ -63,7 +65,7 @@ if [ "${COUNT:-0}" = 1 ]; then
 fi
 ratios=()
 raster_ratios=()
-declare -A least=()
+declare -A least=() sys_times=()
 printf '%-6s %10s %12s %11s %8s %8s\n' round "base (s)" "terrain (s)" "raster (s)" terrain raster
 for r in $(seq 1 "$ROUNDS"); do
     declare -A cpu=()
@@ -74,6 +76,7 @@ for r in $(seq 1 "$ROUNDS"); do
         /usr/bin/time -v -o "$BENCH_DIR/time_$v.txt" "$TILECURV" process "$in" -o "$out" -q \
             -k "$K" --threads "$THREADS" ${variants[$v]}
         cpu[$v]=$(cpu_s "$BENCH_DIR/time_$v.txt")
+        sys_times[$v]="${sys_times[$v]:-} $(sys_s "$BENCH_DIR/time_$v.txt")"
         least[$v]=$(awk -v a="${cpu[$v]}" -v b="${least[$v]:-}" 'BEGIN { print (b == "" || a < b) ? a : b }')
         rm -rf "$out" "${out%.las}.rasters"
     done
@@ -87,3 +90,7 @@ med() { printf '%s\n' "$@" | sort -n | awk '{ v[NR] = $1 } END { print v[int((NR
 echo "input: $in ($SIZE points), -k $K, --threads $THREADS; median CPU ratios over $ROUNDS rounds: terrain/base $(med "${ratios[@]}"), raster/terrain $(med "${raster_ratios[@]}")"
 awk -v b="${least[base]}" -v t="${least[terrain]}" -v r="${least[raster]}" 'BEGIN {
     printf "least CPU time: base %.2f s, terrain %.2f s, raster %.2f s; ratios terrain/base %.3f, raster/terrain %.3f\n", b, t, r, t / b, r / t }'
+# The kernel's part of the CPU time (writing and reading files, page faults), which the
+# instruction counts of COUNT=1 leave out.
+# shellcheck disable=SC2086
+echo "median system time: base $(med ${sys_times[base]}) s, terrain $(med ${sys_times[terrain]}) s, raster $(med ${sys_times[raster]}) s"
