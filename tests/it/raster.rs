@@ -295,3 +295,26 @@ fn process_rasters_equal_the_rasters_of_its_output() {
         .collect();
     assert!(leftovers.is_empty(), "scratch left: {leftovers:?}");
 }
+
+/// A text input's points are binned from their own records (the sources' shared way of reading
+/// a batch's coordinates, not the LAS one): `process --raster` on an XYZ file gives, byte for
+/// byte, the rasters `tilecurv raster` makes of its LAS output.
+#[test]
+fn rasters_of_a_text_input_equal_those_of_its_output() {
+    let Some(input) = shared("objects/kitten.xyz") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("kitten.las");
+    let r = dir.path().join("beside");
+    process(&input, &out, &["--raster", "0.5", "--raster-dir", s(&r)]);
+    let again = dir.path().join("again");
+    raster(&[s(&out), "--cell", "0.5", "-o", s(&again)]);
+    for name in ["H", "K", "PointCount"] {
+        let tif = |d: &Path| std::fs::read(d.join(format!("{name}.tif"))).expect("raster");
+        assert!(
+            tif(&r) == tif(&again),
+            "{name}: process --raster of the text input differs from raster of its output"
+        );
+    }
+}
