@@ -127,7 +127,6 @@ pub(crate) struct WriteBuffers {
     raw_rows: Vec<u8>,
     planes: Vec<u8>,
     raw: Vec<u8>,
-    plain: Vec<u8>,
     /// Bytes of the file not yet written, at most [`FILE_BUFFER`] and a block.
     file: Vec<u8>,
 }
@@ -237,22 +236,21 @@ impl<'b> ResultWriter<'b> {
         put_planes(&mut b.planes, &b.rows, self.split.packed());
         b.raw.clear();
         b.raw.extend_from_slice(&b.ids);
-        b.plain.clear();
-        for (plane, &plain) in b.planes.chunks_exact(n).zip(self.split.plain_planes()) {
-            match plain {
-                true => b.plain.extend_from_slice(plane),
-                false => b.raw.extend_from_slice(plane),
-            }
+        let planes = || b.planes.chunks_exact(n).zip(self.split.plain_planes());
+        for (plane, _) in planes().filter(|(_, &plain)| !plain) {
+            b.raw.extend_from_slice(plane);
         }
         let frame = compress(&b.raw, Effort::Fast).map_err(|e| Error::write(&self.tmp, e))?;
-        let plain = b.plain.len() + b.raw_rows.len();
-        for v in [n, b.raw.len(), frame.len(), plain] {
+        for v in [n, b.raw.len(), frame.len(), self.split.plain_len(n)] {
             b.file.extend_from_slice(&(v as u32).to_le_bytes());
         }
         b.file.extend_from_slice(&frame);
-        // The plain planes, then the raw bytes, summed where they are in the file buffer.
+        // The plain planes, then the raw bytes, straight into the file buffer after the frame
+        // and summed there.
         let start = b.file.len();
-        b.file.extend_from_slice(&b.plain);
+        for (plane, _) in planes().filter(|(_, &plain)| plain) {
+            b.file.extend_from_slice(plane);
+        }
         b.file.extend_from_slice(&b.raw_rows);
         let sum = checksum(&b.file[start..]);
         b.file.extend_from_slice(&sum.to_le_bytes());
