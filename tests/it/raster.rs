@@ -36,6 +36,11 @@ fn raster(args: &[&str]) {
     );
 }
 
+/// The bytes of the GeoTIFF of `name` in the raster directory `dir`.
+fn tif(dir: &Path, name: &str) -> Vec<u8> {
+    std::fs::read(dir.join(format!("{name}.tif"))).expect("raster")
+}
+
 /// `scripts/raster_check.py` on `points` and the rasters in `dir`, which must pass; returns
 /// its report.
 fn check(points: &Path, dir: &Path, cell: f64, stat: &str, columns: &str) -> String {
@@ -163,9 +168,7 @@ fn rasters_do_not_depend_on_order_offsets_or_memory() {
         ]);
     }
     for name in ["H", "ProfileCurvature", "Aspect", "PointCount"] {
-        let file = |d: &str| {
-            std::fs::read(dir.path().join(d).join(format!("{name}.tif"))).expect("raster")
-        };
+        let file = |d: &str| tif(&dir.path().join(d), name);
         let base = file("base");
         assert!(base.len() > 1000, "{name}");
         assert!(
@@ -278,10 +281,9 @@ fn process_rasters_equal_the_rasters_of_its_output() {
         "z",
     ];
     for name in names {
-        let tif = |d: &Path| std::fs::read(d.join(format!("{name}.tif"))).expect("raster");
         let other = if name == "z" { &again_z } else { &again };
         assert!(
-            tif(&r) == tif(other),
+            tif(&r, name) == tif(other, name),
             "{name}: process --raster differs from raster"
         );
         let png = std::fs::read(r.join(format!("{name}.png"))).expect("quick look");
@@ -311,9 +313,8 @@ fn rasters_of_a_text_input_equal_those_of_its_output() {
     let again = dir.path().join("again");
     raster(&[s(&out), "--cell", "0.5", "-o", s(&again)]);
     for name in ["H", "K", "PointCount"] {
-        let tif = |d: &Path| std::fs::read(d.join(format!("{name}.tif"))).expect("raster");
         assert!(
-            tif(&r) == tif(&again),
+            tif(&r, name) == tif(&again, name),
             "{name}: process --raster of the text input differs from raster of its output"
         );
     }
