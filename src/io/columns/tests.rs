@@ -175,3 +175,29 @@ fn flipping_decoded_results_is_exact() {
     assert_eq!(d.normal, r.normal.map(|v| v as f32 as f64));
     assert!(d.extra[1].is_nan() && d.curvature.flags == 16);
 }
+
+/// `encode_all` writes every byte of a record, whatever the column set: a tile's records are
+/// encoded over the previous tile's without being zeroed first (results::write_tile_tmp).
+#[test]
+fn encoding_writes_every_byte_of_a_record() {
+    let mut cols = vcm_columns();
+    let all: Vec<&str> = Group::ALL.iter().map(|g| g.name()).collect();
+    for (list, wide) in [
+        (all.join(","), true),
+        (all.join(","), false),
+        ("H".into(), false),
+    ] {
+        cols.choice = ColumnChoice::parse(&list).expect("valid");
+        cols.wide = wide;
+        let layout = cols.layout();
+        let mut r = crate::core::compute::PointResult::not_computed(0);
+        r.curvature.h = 0.25;
+        r.terrain.slope_deg = 3.0;
+        let results = [r, crate::core::compute::PointResult::not_computed(1)];
+        let size = layout.size();
+        let [mut zeros, mut ones] = [0u8, 0xff].map(|b| vec![b; 2 * size]);
+        layout.encode_all(&results, &mut zeros, size, 0);
+        layout.encode_all(&results, &mut ones, size, 0);
+        assert_eq!(zeros, ones, "{list}, wide {wide}");
+    }
+}

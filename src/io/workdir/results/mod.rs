@@ -128,8 +128,9 @@ fn write_tile_tmp(
     // then taken in id order from the records, a sixth of their size: reading the results
     // themselves in id order missed the cache for most of them.
     let size = record_size(cols);
+    // Not cleared first: every byte of a record is written below (the patch here, the rest by
+    // `encode_all`), so the previous tile's bytes need no zeroing.
     let records = &mut scratch.records;
-    records.clear();
     records.resize(results.len() * size, 0);
     let mut stats = CurvatureStats::default();
     let layout = cols.layout();
