@@ -247,30 +247,84 @@ impl<'a> Cursor<'a> {
 /// unseen with a chance of about 2^-64; several times zstd's speed on the same bytes. Not a
 /// defence against deliberate forgery.
 pub(crate) fn checksum(bytes: &[u8]) -> u64 {
-    const P1: u64 = 0x9e37_79b1_85eb_ca87;
-    const P2: u64 = 0xc2b2_ae3d_27d4_eb4f;
-    const P3: u64 = 0x1656_67b1_9e37_79f9;
-    let step = |lane: u64, w: u64| {
-        lane.wrapping_add(w.wrapping_mul(P2))
-            .rotate_left(31)
-            .wrapping_mul(P1)
-    };
-    let mut lanes = [P1, P2, P3, P1 ^ P2];
-    let mut blocks = bytes.chunks_exact(32);
-    for b in &mut blocks {
-        for (i, lane) in lanes.iter_mut().enumerate() {
+    let mut c = Checksum::new();
+    c.update(bytes);
+    c.finish()
+}
+
+const P1: u64 = 0x9e37_79b1_85eb_ca87;
+const P2: u64 = 0xc2b2_ae3d_27d4_eb4f;
+const P3: u64 = 0x1656_67b1_9e37_79f9;
+
+/// One lane's step over a word ([`checksum`]).
+fn step(lane: u64, w: u64) -> u64 {
+    lane.wrapping_add(w.wrapping_mul(P2))
+        .rotate_left(31)
+        .wrapping_mul(P1)
+}
+
+/// [`checksum`] of bytes given in parts: the same sum as of the parts joined, for bytes read
+/// into more than one buffer.
+pub(crate) struct Checksum {
+    lanes: [u64; 4],
+    len: u64,
+    /// The bytes of an unfinished 32-byte block.
+    tail: [u8; 32],
+    tail_len: usize,
+}
+
+impl Checksum {
+    pub(crate) fn new() -> Self {
+        Checksum {
+            lanes: [P1, P2, P3, P1 ^ P2],
+            len: 0,
+            tail: [0; 32],
+            tail_len: 0,
+        }
+    }
+
+    fn block(&mut self, b: &[u8]) {
+        for (i, lane) in self.lanes.iter_mut().enumerate() {
             *lane = step(*lane, word(&b[8 * i..]));
         }
     }
-    for (i, w) in blocks.remainder().chunks(8).enumerate() {
-        let mut a = [0u8; 8];
-        a[..w.len()].copy_from_slice(w);
-        lanes[i] = step(lanes[i], u64::from_le_bytes(a));
+
+    /// Adds the next part.
+    pub(crate) fn update(&mut self, mut bytes: &[u8]) {
+        self.len += bytes.len() as u64;
+        if self.tail_len > 0 {
+            let take = (32 - self.tail_len).min(bytes.len());
+            self.tail[self.tail_len..self.tail_len + take].copy_from_slice(&bytes[..take]);
+            self.tail_len += take;
+            bytes = &bytes[take..];
+            if self.tail_len < 32 {
+                return;
+            }
+            let tail = self.tail;
+            self.block(&tail);
+            self.tail_len = 0;
+        }
+        let mut blocks = bytes.chunks_exact(32);
+        for b in &mut blocks {
+            self.block(b);
+        }
+        let rest = blocks.remainder();
+        self.tail[..rest.len()].copy_from_slice(rest);
+        self.tail_len = rest.len();
     }
-    let h = lanes.into_iter().fold(bytes.len() as u64, step);
-    let h = (h ^ (h >> 33)).wrapping_mul(P2);
-    let h = (h ^ (h >> 29)).wrapping_mul(P3);
-    h ^ (h >> 32)
+
+    /// The checksum of every part added.
+    pub(crate) fn finish(mut self) -> u64 {
+        for (i, w) in self.tail[..self.tail_len].chunks(8).enumerate() {
+            let mut a = [0u8; 8];
+            a[..w.len()].copy_from_slice(w);
+            self.lanes[i] = step(self.lanes[i], u64::from_le_bytes(a));
+        }
+        let h = self.lanes.into_iter().fold(self.len, step);
+        let h = (h ^ (h >> 33)).wrapping_mul(P2);
+        let h = (h ^ (h >> 29)).wrapping_mul(P3);
+        h ^ (h >> 32)
+    }
 }
 
 thread_local! {
@@ -429,6 +483,49 @@ mod tests {
 
     /// Every single flipped bit of a 101-byte buffer (whole blocks, whole words and a tail)
     /// changes the checksum, as do a byte more or less.
+    /// A checksum of bytes given in parts, cut anywhere, is the checksum of the whole: against
+    /// a reference written word by word from the definition.
+    #[test]
+    fn a_checksum_in_parts_is_the_checksum_of_the_whole() {
+        fn reference(bytes: &[u8]) -> u64 {
+            let mut lanes = [P1, P2, P3, P1 ^ P2];
+            let mut words = Vec::new();
+            for c in bytes.chunks(8) {
+                let mut a = [0u8; 8];
+                a[..c.len()].copy_from_slice(c);
+                words.push(u64::from_le_bytes(a));
+            }
+            for (i, &w) in words.iter().enumerate() {
+                lanes[i % 4] = step(lanes[i % 4], w);
+            }
+            let h = lanes.into_iter().fold(bytes.len() as u64, step);
+            let h = (h ^ (h >> 33)).wrapping_mul(P2);
+            let h = (h ^ (h >> 29)).wrapping_mul(P3);
+            h ^ (h >> 32)
+        }
+        let bytes: Vec<u8> = (0..300u32).map(|i| (i * 131 % 251) as u8).collect();
+        for len in [0, 1, 7, 8, 31, 32, 33, 64, 100, 300] {
+            let whole = &bytes[..len];
+            assert_eq!(checksum(whole), reference(whole), "{len}");
+            for cuts in [
+                [0, 0],
+                [1, 5],
+                [3, 40],
+                [31, 33],
+                [32, 64],
+                [10, 10],
+                [50, 299],
+            ] {
+                let [a, b] = cuts.map(|c| c.min(len));
+                let mut c = Checksum::new();
+                for part in [&whole[..a], &whole[a..b.max(a)], &whole[b.max(a)..]] {
+                    c.update(part);
+                }
+                assert_eq!(c.finish(), checksum(whole), "{len} cut at {cuts:?}");
+            }
+        }
+    }
+
     #[test]
     fn the_checksum_sees_every_flipped_bit_and_the_length() {
         let bytes: Vec<u8> = (0..101u32).map(|i| (i * 37 + 11) as u8).collect();

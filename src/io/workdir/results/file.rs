@@ -15,7 +15,7 @@
 //! file's end agree ([`TileResults::verify`]).
 
 use std::fs::File;
-use std::io::{Read, Write};
+use std::io::{IoSliceMut, Read, Write};
 use std::path::{Path, PathBuf};
 
 use super::rows::RowSplit;
@@ -26,7 +26,8 @@ use crate::error::{Error, Result};
 use crate::io::columns::{ColumnSet, Value};
 use crate::io::durable::tmp_name;
 use crate::io::pack::{
-    checksum, compress, decompress_into, get_planes, put_planes, put_varint, Cursor, Effort,
+    checksum, compress, decompress_into, get_planes, put_planes, put_varint, Checksum, Cursor,
+    Effort,
 };
 
 /// The first bytes of a result file: its format and version.
@@ -388,12 +389,21 @@ impl TileResults {
         {
             return Err(bad("has a damaged block"));
         }
-        let mut frame = vec![0u8; frame_len + plain_len + 8];
-        read_exact(&mut self.file, &self.path, &mut frame)?;
+        // The raw bytes go straight into the block's buffer, kept from block to block (the
+        // terrain numbers: most of a row's bytes, which a buffer of their own per block zeroed
+        // and then copied).
+        let planes_len = n * plain_planes;
+        let mut frame = vec![0u8; frame_len + planes_len];
+        self.raw_rows.resize(plain_len - planes_len, 0);
+        let mut sum = [0u8; 8];
+        let parts = [&mut frame[..], &mut self.raw_rows[..], &mut sum[..]];
+        read_parts(&mut self.file, &self.path, parts)?;
         let (frame, plain) = frame.split_at(frame_len);
-        let (plain, sum) = plain.split_at(plain_len);
+        let mut summed = Checksum::new();
+        summed.update(plain);
+        summed.update(&self.raw_rows);
         let mut raw = Vec::new();
-        if checksum(plain).to_le_bytes() != sum || !decompress_into(frame, raw_len, &mut raw) {
+        if summed.finish().to_le_bytes() != sum || !decompress_into(frame, raw_len, &mut raw) {
             return Err(bad("has a damaged block"));
         }
         let mut c = Cursor::new(&raw);
@@ -411,7 +421,6 @@ impl TileResults {
         let width = self.split.packed();
         let framed = c.take(n * (width - plain_planes)).filter(|_| c.is_done());
         let framed = framed.ok_or_else(|| bad("has a damaged block"))?;
-        let (plain, raw_rows) = plain.split_at(n * plain_planes);
         // The planes back in their order, from the frame or the plain bytes.
         let (mut framed, mut plain) = (framed.chunks_exact(n), plain.chunks_exact(n));
         let mut planes = Vec::with_capacity(n * width);
@@ -427,8 +436,6 @@ impl TileResults {
                 .chunks_exact_mut(width)
                 .for_each(|r| p.apply(&mut r[skip..]));
         }
-        self.raw_rows.clear();
-        self.raw_rows.extend_from_slice(raw_rows);
         self.next = 0;
         Ok(())
     }
@@ -492,6 +499,23 @@ impl TileResults {
             Err(e) => Err(Error::read_work(&self.path, e)),
         }
     }
+}
+
+/// `read_exact` into each of `parts` in turn, with as few reads as the system allows; a short
+/// file is damage.
+fn read_parts<const N: usize>(file: &mut File, path: &Path, parts: [&mut [u8]; N]) -> Result<()> {
+    let mut slices = parts.map(IoSliceMut::new);
+    let mut left = &mut slices[..];
+    IoSliceMut::advance_slices(&mut left, 0);
+    while !left.is_empty() {
+        match file.read_vectored(left) {
+            Ok(0) => return Err(Error::damaged_work(path, "result file ends early")),
+            Ok(k) => IoSliceMut::advance_slices(&mut left, k),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(Error::read_work(path, e)),
+        }
+    }
+    Ok(())
 }
 
 /// `read_exact`, a short file being damage (not an I/O failure).
