@@ -22,6 +22,7 @@ const ATAN_EIGHTHS: [f64; 9] = [
 
 /// The angle of the vector (x, y) from +x, in (-pi, pi], as `f64::atan2` (the same signs of
 /// zero and quadrants; NaN, infinite and (0, 0) arguments are passed to it).
+#[inline(always)]
 pub fn atan2(y: f64, x: f64) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
     if !(ax.is_finite() && ay.is_finite()) || (ax == 0.0 && ay == 0.0) {
@@ -39,6 +40,7 @@ pub fn atan2(y: f64, x: f64) -> f64 {
 /// nearest lo/hi (found by comparisons, without dividing) and u = (lo - c hi) / (hi + c lo)
 /// = (t - c) / (1 + t c), |u| <= 1/16, one division. The odd series of atan(u) up to u^13
 /// leaves an error below u^15/15 < 2^-63.
+#[inline(always)]
 fn atan_ratio(lo: f64, hi: f64) -> f64 {
     // k = round(8 lo / hi): the count of the midpoints (2j + 1)/16 that lo / hi passes.
     let k = (0..8)
