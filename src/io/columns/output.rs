@@ -101,15 +101,10 @@ impl Storage {
             Storage::Unsigned(ScalarType::U8) => write(out, [v as u8]),
             Storage::Unsigned(_) => write(out, (v as u16).to_le_bytes()),
             Storage::Scaled(ty, scale) => {
-                let raw = if v.is_nan() {
-                    no_data(ty)
-                } else {
-                    let m = max_raw(ty);
-                    (v / scale).round().clamp(-m, m)
-                };
+                let raw = scaled_raw(v, scale, max_raw(ty));
                 match ty {
                     ScalarType::I16 => write(out, (raw as i16).to_le_bytes()),
-                    _ => write(out, (raw as i32).to_le_bytes()),
+                    _ => write(out, raw.to_le_bytes()),
                 }
             }
         }
@@ -123,8 +118,17 @@ impl Storage {
     }
 }
 
+/// The integer of a scaled type whose largest |raw| is `m` ([`max_raw`]) that holds `v` at
+/// `scale`: the nearest step, clamped to +-m; its minimum, -m - 1, where `v` is NaN. Without
+/// branches, so that a loop over values compiles to vector instructions.
+#[inline(always)]
+pub(super) fn scaled_raw(v: f64, scale: f64, m: f64) -> i32 {
+    let raw = (v / scale).round().clamp(-m, m);
+    (if v.is_nan() { -m - 1.0 } else { raw }) as i32
+}
+
 /// The largest |raw| of a scaled type: its maximum (its minimum is the no-data value).
-fn max_raw(ty: ScalarType) -> f64 {
+pub(super) fn max_raw(ty: ScalarType) -> f64 {
     match ty {
         ScalarType::I16 => i16::MAX as f64,
         _ => i32::MAX as f64,
