@@ -78,14 +78,16 @@ impl RowSplit {
         n * (self.plain_count() + self.raw_width())
     }
 
-    /// Appends a stored `row`: its packed bytes to `packed`, its raw bytes to `raw`.
+    /// Appends a stored `row`: its packed bytes to `packed`, its raw bytes to `raw`. The
+    /// bytes after the raw ones are the flag bytes, one to three: moved one by one rather than
+    /// by a third call to copy (which, for a few bytes, costs more than the bytes).
     pub(super) fn push(&self, row: &[u8], packed: &mut Vec<u8>, raw: &mut Vec<u8>) {
         if self.raw.is_empty() {
             return packed.extend_from_slice(row);
         }
         packed.extend_from_slice(&row[..self.raw.start]);
         raw.extend_from_slice(&row[self.raw.clone()]);
-        packed.extend_from_slice(&row[self.raw.end..]);
+        row[self.raw.end..].iter().for_each(|&b| packed.push(b));
     }
 
     /// Appends the stored row of a packed row and its raw bytes to `out` (the inverse of
@@ -97,7 +99,7 @@ impl RowSplit {
         let (head, tail) = packed.split_at(self.raw.start.min(packed.len()));
         out.extend_from_slice(head);
         out.extend_from_slice(raw);
-        out.extend_from_slice(tail);
+        tail.iter().for_each(|&b| out.push(b));
     }
 }
 
