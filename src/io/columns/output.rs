@@ -124,7 +124,11 @@ impl Storage {
 #[inline(always)]
 pub(super) fn scaled_raw(v: f64, scale: f64, m: f64) -> i32 {
     let raw = (v / scale).round().clamp(-m, m);
-    (if v.is_nan() { -m - 1.0 } else { raw }) as i32
+    let raw = if v.is_nan() { -m - 1.0 } else { raw };
+    // An integer of at most 2^31 in magnitude plus 1.5 * 2^52 is exact, and its low 32 bits
+    // are the integer's two's complement: the conversion without the checks of `as i32`
+    // (which saturates and maps NaN to 0: neither can happen here), which do not vectorise.
+    (raw + 6_755_399_441_055_744.0).to_bits() as u32 as i32
 }
 
 /// The largest |raw| of a scaled type: its maximum (its minimum is the no-data value).
@@ -259,6 +263,32 @@ mod tests {
     use crate::core::terrain::TerrainValues;
     use crate::io::columns::tests::vcm_columns;
     use crate::io::columns::{ColumnChoice, Group};
+
+    /// The integer of a scaled value is the one `as` gives of the rounded, clamped value, for
+    /// both types, their bounds, halves, signed zeros, NaN and values far out of range.
+    #[test]
+    fn scaled_integers_are_the_rounded_clamped_values() {
+        for ty in [ScalarType::I16, ScalarType::I32] {
+            let m = max_raw(ty);
+            for scale in [1.0, 0.5, 1.0 / 4096.0, 90.0 / 32767.0] {
+                let mut values = vec![f64::NAN, 0.0, -0.0, f64::INFINITY, f64::NEG_INFINITY];
+                for x in [0.5, 1.5, 2.5, 0.49999999999999994, 1e-300, 1e300, 123.456] {
+                    values.extend([x, -x, x * scale, -x * scale]);
+                }
+                for b in [m, m + 1.0, m - 0.5, m + 0.5, 2.0 * m] {
+                    values.extend([b * scale, -b * scale]);
+                }
+                for v in values {
+                    let want = match (v.is_nan(), ty) {
+                        (true, ScalarType::I16) => i16::MIN as i64,
+                        (true, _) => i32::MIN as i64,
+                        (false, _) => (v / scale).round().clamp(-m, m) as i64,
+                    };
+                    assert_eq!(scaled_raw(v, scale, m) as i64, want, "{v:e} at {scale:e}");
+                }
+            }
+        }
+    }
 
     const STEPS: Steps = Steps {
         h: 1.0 / 1024.0,
