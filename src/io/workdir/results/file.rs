@@ -374,6 +374,10 @@ impl TileResults {
 
     /// Reads and decodes the next block.
     fn refill(&mut self) -> Result<()> {
+        // No row of the last block stays current: a block that fails to read leaves nothing
+        // to return (its raw bytes are read over the last block's before they are checked).
+        self.ids.clear();
+        self.next = 0;
         let bad = |what: &str| Error::damaged_work(&self.path, &format!("result file {what}"));
         let mut head = [0u8; 16];
         read_exact(&mut self.file, &self.path, &mut head)?;
@@ -407,7 +411,6 @@ impl TileResults {
             return Err(bad("has a damaged block"));
         }
         let mut c = Cursor::new(&raw);
-        self.ids.clear();
         for _ in 0..n {
             let gap = c.varint().ok_or_else(|| bad("has damaged ids"))?;
             let id = match self.prev {
@@ -436,7 +439,6 @@ impl TileResults {
                 .chunks_exact_mut(width)
                 .for_each(|r| p.apply(&mut r[skip..]));
         }
-        self.next = 0;
         Ok(())
     }
 
