@@ -113,6 +113,28 @@ fn the_layout_holds_the_fullest_column_set() {
         (3, 9, 16)
     );
     assert_eq!(back.curvature.h, 0.25);
+    // The terrain numbers, written in one block when all seven are stored, come back each in
+    // its place, narrow and wide, and so does each alone.
+    let t = &mut r.terrain;
+    (t.profile, t.tangential, t.plan, t.shape_index) = (0.1, -0.2, 0.3, -0.4);
+    (t.curvedness, t.slope_deg, t.aspect_deg) = (0.5, 6.0, 270.0);
+    for wide in [false, true] {
+        for list in ["H,terrain", "slope", "H,plan,aspect"] {
+            let mut cols = cols.clone();
+            (cols.choice, cols.wide) = (ColumnChoice::parse(list).expect("valid"), wide);
+            let layout = cols.layout();
+            let mut rec = Vec::new();
+            layout.encode(&r, &mut rec);
+            let back = layout.decode(&rec).terrain;
+            for v in TerrainValue::ALL.iter().filter(|v| v.group().is_some()) {
+                let want = v.get(&r.terrain);
+                let want = if wide { want } else { want as f32 as f64 };
+                let stored = cols.choice.has(Group::Terrain(*v));
+                let got = v.get(&back);
+                assert!(got == want || !stored && got.is_nan(), "{list} {v:?}");
+            }
+        }
+    }
 }
 
 /// The one flip, on decoded results: normal, H and the VCM normal negated, k1' = -k2,
