@@ -51,7 +51,6 @@ pub(super) fn compute_auto(
     };
     neighbour_lists(&q, &[SMOOTH, k], bufs, None, cancel);
     stop()?;
-    let mut done = std::mem::take(&mut bufs.spare);
     let bufs = &*bufs;
     let normals = rung_normals(t, p, ladder, bufs, cancel);
     stop()?;
@@ -71,6 +70,7 @@ pub(super) fn compute_auto(
     let rungs = rung_results(t, p, ladder, bufs, &normals, &compared, cancel);
     stop()?;
     let todo: Vec<usize> = (0..n_core).filter(|&i| verified[i]).collect();
+    let mut done = Vec::with_capacity(todo.len());
     todo.par_iter()
         .map(|&i| {
             let c: Vec<f64> = (0..ladder.rungs() - 1)

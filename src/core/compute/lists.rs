@@ -26,10 +26,6 @@ pub(super) struct ListInfo {
 pub struct TileBuffers {
     pub(super) lists: Vec<u32>,
     pub(super) info: Vec<ListInfo>,
-    /// A results vector whose tile was written, for the next tile's results to be collected
-    /// into ([`TileBuffers::recycle`]): a fresh one per tile faulted in a page per 18 results
-    /// (a quarter of a run's page faults).
-    pub(super) spare: Vec<PointResult>,
 }
 
 /// How far a tile's neighbour lists reach.
@@ -141,7 +137,7 @@ pub(super) fn lists_for(
             Vec::new(),
         )
     };
-    let TileBuffers { lists, info, .. } = bufs;
+    let TileBuffers { lists, info } = bufs;
     let chunks = info.len().div_ceil(LIST_CHUNK);
     // The normals each task finds (none: an empty slice per task).
     let (p, mut outs): (_, Vec<&mut [Option<V3>]>) = match normals {
@@ -225,20 +221,6 @@ pub(super) fn neighbour_lists(
 }
 
 impl TileBuffers {
-    /// Gives back the results vector of a tile that was written, for the next tile's results;
-    /// one that grew past [`TileBuffers::KEEP_RESULTS`] bytes (the dense tile around a
-    /// terrestrial scanner) is dropped instead.
-    pub fn recycle(&mut self, mut results: Vec<PointResult>) {
-        results.clear();
-        let bytes = results.capacity() * std::mem::size_of::<PointResult>();
-        if bytes <= Self::KEEP_RESULTS && results.capacity() > self.spare.capacity() {
-            self.spare = results;
-        }
-    }
-
-    /// The largest results vector kept for the next tile (about 290,000 results).
-    const KEEP_RESULTS: usize = 64 << 20;
-
     /// The neighbour list of point `i` (empty if none was computed).
     pub(super) fn list(&self, i: usize, k: usize) -> &[u32] {
         &self.lists[i * k..i * k + self.info[i].len as usize]

@@ -268,12 +268,13 @@ fn estimate_one(
 fn estimate_points(
     t: &TilePoints,
     p: &ComputeParams<'_>,
-    (bufs, mut done): (&TileBuffers, Vec<PointResult>),
+    bufs: &TileBuffers,
     normals: &[Option<V3>],
     todo: &[usize],
     patch_of: &(dyn Fn(usize) -> u32 + Sync),
     cancel: &AtomicBool,
 ) -> Vec<PointResult> {
+    let mut done: Vec<PointResult> = Vec::with_capacity(todo.len());
     todo.par_iter()
         .map_init(
             || NeighbourhoodBuf::with_capacity(p.k),
@@ -350,7 +351,6 @@ pub fn compute_tile(
     };
     neighbour_lists(&q, &[k], bufs, Some(out), cancel);
     stop()?;
-    let done = std::mem::take(&mut bufs.spare);
     let bufs = &*bufs;
     // 3b. `--orient propagate`: one consistent orientation per connected patch of the tile.
     let orientation = p.propagate.filter(|_| !p.use_file_normals).map(|centre| {
@@ -381,7 +381,7 @@ pub fn compute_tile(
         .map(|i| t.ids[i])
         .collect();
     stop()?;
-    let done = estimate_points(t, p, (bufs, done), &normals, &todo, &patch_of, cancel);
+    let done = estimate_points(t, p, bufs, &normals, &todo, &patch_of, cancel);
     stop()?;
     Ok(TileOutcome {
         done,

@@ -40,10 +40,9 @@ pub(super) fn drive(
     let left = AtomicU64::new(todo.iter().map(|t| t.count).sum());
     std::thread::scope(|s| -> Result<Tally> {
         let (tx, rx) = bounded::<Result<Finished>>(1);
-        let (spare_tx, spare_rx) = bounded(drivers);
         let (mut started, mut refused) = (0, None);
         for _ in 0..drivers {
-            let (tx, spare) = (tx.clone(), spare_rx.clone());
+            let tx = tx.clone();
             let (next, stop, left) = (&next, &stop, &left);
             let driver = std::thread::Builder::new().name("tile driver".into());
             let spawned = driver.spawn_scoped(s, move || {
@@ -55,9 +54,6 @@ pub(super) fn drive(
                     };
                     let before = left.fetch_sub(spec.count, Ordering::Relaxed);
                     let pool = pool_for(own.as_ref(), &exec.pool, spec.count, before, drivers);
-                    if let Ok(results) = spare.try_recv() {
-                        bufs.recycle(results);
-                    }
                     let msg = if exec.cancel.load(Ordering::Relaxed) {
                         Err(Error::Interrupted)
                     } else {
@@ -95,8 +91,7 @@ pub(super) fn drive(
                 "could not start every tile driver ({e}): computing with {started}"
             ));
         }
-        drop(spare_rx);
-        let tally = write_results(rx, spare_tx, journal, cols, &stop)?;
+        let tally = write_results(rx, journal, cols, &stop)?;
         if exec.cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
         }

@@ -33,11 +33,9 @@ pub(super) struct Finished {
 /// The result writer: journals each finished tile. The first error (a driver's, or the
 /// journal's) sets `stop`, so no driver starts another tile; tiles that were already being
 /// computed are still journalled, and everything journalled is committed, so the same command
-/// resumes after them. Each written tile's results vector goes back to the drivers through
-/// `spare`, for a later tile's results ([`crate::core::compute::TileBuffers::recycle`]).
+/// resumes after them.
 pub(super) fn write_results(
     rx: crossbeam_channel::Receiver<Result<Finished>>,
-    spare: crossbeam_channel::Sender<Vec<PointResult>>,
     mut journal: Journal,
     cols: &ColumnSet,
     stop: &AtomicBool,
@@ -52,16 +50,13 @@ pub(super) fn write_results(
                 .filter(|r| r.curvature.flags & flags::UNDEFINED != 0)
                 .count() as u64;
             retried += f.retried;
-            let added = journal.add(
+            journal.add(
                 f.spec.key,
                 f.spec.index,
                 &f.results,
                 f.sidecar.as_ref(),
                 cols,
-            );
-            // None is waiting for it when every driver holds one already: dropped.
-            let _ = spare.try_send(f.results);
-            added
+            )
         });
         if let Err(e) = added {
             stop.store(true, Ordering::Relaxed);
