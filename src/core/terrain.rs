@@ -54,6 +54,21 @@ pub struct TerrainValues {
 }
 
 impl TerrainValues {
+    /// The seven numbers in their record order: profile, tangential, plan, shape index,
+    /// curvedness, slope, aspect.
+    #[inline(always)]
+    pub fn numbers(&self) -> [f64; 7] {
+        [
+            self.profile,
+            self.tangential,
+            self.plan,
+            self.shape_index,
+            self.curvedness,
+            self.slope_deg,
+            self.aspect_deg,
+        ]
+    }
+
     /// The values of a point without a normal or curvature (undefined, or terrain values not
     /// asked for): every value NaN.
     pub const NONE: TerrainValues =

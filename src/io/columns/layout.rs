@@ -54,16 +54,16 @@ fn column(
 }
 
 /// The seven terrain numbers in the order a record stores them when every terrain group is
-/// written ([`TerrainValue::ALL`] but the flags).
-const TERRAIN_NUMBERS: [Value; 7] = [
-    Value::Terrain(TerrainValue::Profile),
-    Value::Terrain(TerrainValue::Tangential),
-    Value::Terrain(TerrainValue::Plan),
-    Value::Terrain(TerrainValue::ShapeIndex),
-    Value::Terrain(TerrainValue::Curvedness),
-    Value::Terrain(TerrainValue::Slope),
-    Value::Terrain(TerrainValue::Aspect),
-];
+/// written: [`TerrainValue::ALL`] but the flags, the order of [`TerrainValues::numbers`].
+const TERRAIN_NUMBERS: [Value; 7] = {
+    let mut v = [Value::H; 7];
+    let mut i = 0;
+    while i < v.len() {
+        v[i] = Value::Terrain(TerrainValue::ALL[i]);
+        i += 1;
+    }
+    v
+};
 
 /// The seven terrain numbers of each of `results` as f32, one after the other at byte `at` of
 /// its record (one every `stride` bytes): in one loop, whose conversions the compiler does
@@ -71,16 +71,7 @@ const TERRAIN_NUMBERS: [Value; 7] = [
 /// columns' cost).
 fn terrain_block(results: &[PointResult], records: &mut [u8], (stride, at): (usize, usize)) {
     for (r, rec) in results.iter().zip(records.chunks_exact_mut(stride)) {
-        let t = &r.terrain;
-        let values = [
-            t.profile,
-            t.tangential,
-            t.plan,
-            t.shape_index,
-            t.curvedness,
-            t.slope_deg,
-            t.aspect_deg,
-        ];
+        let values = r.terrain.numbers();
         if let Some(out) = rec.get_mut(at..at + 28) {
             for (b, v) in out.chunks_exact_mut(4).zip(values) {
                 b.copy_from_slice(&(v as f32).to_le_bytes());

@@ -86,14 +86,5 @@ pub(super) fn truth_descriptors(truth: Truth) -> Vec<u8> {
 /// The terrain truth at a point of the height field: profile, tangential, plan, shape index,
 /// curvedness, slope, aspect (NaN where undefined).
 pub(super) fn terrain_truth(j: &HeightJet) -> [f64; 7] {
-    let t = TerrainValues::from_derivatives(j.hx, j.hy, j.hxx, j.hxy, j.hyy);
-    [
-        t.profile,
-        t.tangential,
-        t.plan,
-        t.shape_index,
-        t.curvedness,
-        t.slope_deg,
-        t.aspect_deg,
-    ]
+    TerrainValues::from_derivatives(j.hx, j.hy, j.hxx, j.hxy, j.hyy).numbers()
 }
