@@ -161,11 +161,20 @@ impl Transcoder {
     fn encode_batch(&self, stored: Stored<'_>, out: &mut [u8], stride: usize, at: usize) {
         let mut o = at;
         for r in &self.reads {
-            if let (Stored::Run { bytes, size, at }, Slot::Number(a), Storage::Scaled(ty, s)) =
-                (stored, r.slot, r.storage)
+            // A scaled number of unflipped narrow records: its loop of its own, vectorised.
+            let run = (stored, r.slot, r.storage);
+            if let (
+                Stored::Run {
+                    bytes,
+                    size,
+                    at: from,
+                },
+                Slot::Number(a),
+                Storage::Scaled(ty, s),
+            ) = run
             {
                 if !self.wide {
-                    scaled_run((bytes, size, at + a), (ty, s), out, (stride, o));
+                    scaled_run((bytes, size, from + a), (ty, s), out, (stride, o));
                     o += r.storage.size();
                     continue;
                 }
@@ -279,8 +288,8 @@ impl Transcoder {
     }
 }
 
-/// One scaled column of a batch of narrow records one after the other (none flipped: the
-/// common case): the f32 at byte `at` of each `size`-byte record in `bytes` as the integer
+/// One scaled column of a batch (at most [`BATCH`] records) of narrow records one after the
+/// other (none flipped: the common case): the f32 at byte `at` of each `size`-byte record in `bytes` as the integer
 /// [`Storage::put`] writes for `ty` at `scale`, at byte `o` of its output record (one every
 /// `stride` bytes of `out`). The values are gathered first, so that the loop making the
 /// integers has nothing else in it and compiles to vector instructions (four at a time): a
