@@ -19,6 +19,15 @@ impl Picture {
 
     /// Fills the rectangle at (`x`, `y`) of `w` x `h` pixels with `colour`.
     pub(super) fn fill(&mut self, x: u32, y: u32, w: u32, h: u32, colour: Rgba) {
+        if (w, h) == (1, 1) {
+            // One pixel (a map's value at 480 pixels or more): set directly, without slicing
+            // rows, which was most of painting a map.
+            if x < self.width && y < self.height {
+                let i = (y as usize * self.width as usize + x as usize) * 4;
+                self.rgba[i..i + 4].copy_from_slice(&colour);
+            }
+            return;
+        }
         let (from, to) = (
             x.min(self.width) as usize,
             x.saturating_add(w).min(self.width),
@@ -30,14 +39,6 @@ impl Picture {
             for p in pixels.chunks_exact_mut(4) {
                 p.copy_from_slice(&colour);
             }
-        }
-    }
-
-    /// Sets the pixel at (`x`, `y`) to `colour` (nothing outside the picture).
-    pub(super) fn set(&mut self, x: u32, y: u32, colour: Rgba) {
-        if x < self.width && y < self.height {
-            let i = (y as usize * self.width as usize + x as usize) * 4;
-            self.rgba[i..i + 4].copy_from_slice(&colour);
         }
     }
 

@@ -148,15 +148,12 @@ impl Paint<'_> {
         let level = 0.6 + 0.4 * shade::level_ground();
         let width = values.width as usize;
         for row in 0..values.height {
-            // The row's values as one slice where the grid holds them all (a value looked up
-            // by column and row checked both against the grid every time).
-            let start = row as usize * width;
-            let whole = values.values.get(start..start + width);
+            // The row's values as one slice (a value looked up by column and row checked both
+            // against the grid every time); NaN past the grid's values, as `Grid::get` reads.
+            let from = (row as usize * width).min(values.values.len());
+            let row_values = &values.values[from..];
             for col in 0..values.width {
-                let v = match whole {
-                    Some(r) => r[col as usize],
-                    None => values.get(i64::from(col), i64::from(row)),
-                };
+                let v = row_values.get(col as usize).copied().unwrap_or(f32::NAN);
                 let Some(u) = self.stretch.position(v) else {
                     continue;
                 };
@@ -172,12 +169,7 @@ impl Paint<'_> {
                     rgb = rgb.map(|c| (f32::from(c) * k + 0.5).min(255.0) as u8);
                 }
                 let (x, y, m) = (col * self.magnify, row * self.magnify, self.magnify);
-                let colour = [rgb[0], rgb[1], rgb[2], 255];
-                match m {
-                    // One pixel a value (maps of 480 pixels or more): set it, not a rectangle.
-                    1 => picture.set(x, y, colour),
-                    _ => picture.fill(x, y, m, m, colour),
-                }
+                picture.fill(x, y, m, m, [rgb[0], rgb[1], rgb[2], 255]);
             }
         }
     }
