@@ -504,7 +504,7 @@ impl TileResults {
 }
 
 /// `read_exact` into each of `parts` in turn, with as few reads as the system allows; a short
-/// file is damage.
+/// file is damage (not an I/O failure).
 fn read_parts<const N: usize>(file: &mut File, path: &Path, parts: [&mut [u8]; N]) -> Result<()> {
     let mut slices = parts.map(IoSliceMut::new);
     let mut left = &mut slices[..];
@@ -520,12 +520,9 @@ fn read_parts<const N: usize>(file: &mut File, path: &Path, parts: [&mut [u8]; N
     Ok(())
 }
 
-/// `read_exact`, a short file being damage (not an I/O failure).
+/// `read_exact` into one buffer ([`read_parts`]).
 fn read_exact(file: &mut File, path: &Path, buf: &mut [u8]) -> Result<()> {
-    file.read_exact(buf).map_err(|e| match e.kind() {
-        std::io::ErrorKind::UnexpectedEof => Error::damaged_work(path, "result file ends early"),
-        _ => Error::read_work(path, e),
-    })
+    read_parts(file, path, [buf])
 }
 
 #[cfg(test)]
