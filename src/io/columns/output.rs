@@ -101,7 +101,7 @@ impl Storage {
             Storage::Unsigned(ScalarType::U8) => write(out, [v as u8]),
             Storage::Unsigned(_) => write(out, (v as u16).to_le_bytes()),
             Storage::Scaled(ty, scale) => {
-                let raw = scaled_raw(v, scale, max_raw(ty));
+                let raw = scaled_raw(v, scale, ty);
                 match ty {
                     ScalarType::I16 => write(out, (raw as i16).to_le_bytes()),
                     _ => write(out, raw.to_le_bytes()),
@@ -118,13 +118,14 @@ impl Storage {
     }
 }
 
-/// The integer of a scaled type whose largest |raw| is `m` ([`max_raw`]) that holds `v` at
-/// `scale`: the nearest step, clamped to +-m; its minimum, -m - 1, where `v` is NaN. Without
-/// branches, so that a loop over values compiles to vector instructions.
+/// The integer of scaled type `ty` that holds `v` at `scale`: the nearest step, clamped to
+/// +-[`max_raw`]; [`no_data`] where `v` is NaN. Without branches on `v`, so that a loop over
+/// values compiles to vector instructions.
 #[inline(always)]
-pub(super) fn scaled_raw(v: f64, scale: f64, m: f64) -> i32 {
+pub(super) fn scaled_raw(v: f64, scale: f64, ty: ScalarType) -> i32 {
+    let m = max_raw(ty);
     let raw = (v / scale).round().clamp(-m, m);
-    let raw = if v.is_nan() { -m - 1.0 } else { raw };
+    let raw = if v.is_nan() { no_data(ty) } else { raw };
     // An integer of at most 2^31 in magnitude plus 1.5 * 2^52 is exact, and its low 32 bits
     // are the integer's two's complement: the conversion without the checks of `as i32`
     // (which saturates and maps NaN to 0: neither can happen here), which do not vectorise.
@@ -132,7 +133,7 @@ pub(super) fn scaled_raw(v: f64, scale: f64, m: f64) -> i32 {
 }
 
 /// The largest |raw| of a scaled type: its maximum (its minimum is the no-data value).
-pub(super) fn max_raw(ty: ScalarType) -> f64 {
+fn max_raw(ty: ScalarType) -> f64 {
     match ty {
         ScalarType::I16 => i16::MAX as f64,
         _ => i32::MAX as f64,
@@ -284,7 +285,7 @@ mod tests {
                         (true, _) => i32::MIN as i64,
                         (false, _) => (v / scale).round().clamp(-m, m) as i64,
                     };
-                    assert_eq!(scaled_raw(v, scale, m) as i64, want, "{v:e} at {scale:e}");
+                    assert_eq!(scaled_raw(v, scale, ty) as i64, want, "{v:e} at {scale:e}");
                 }
             }
         }

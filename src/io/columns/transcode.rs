@@ -5,7 +5,7 @@
 //! does to each column is read off
 //! [`PointResult::flipped`](crate::core::compute::PointResult::flipped) once, not written down again here.
 
-use super::output::{max_raw, scaled_raw, OutputColumns, Storage};
+use super::output::{scaled_raw, OutputColumns, Storage};
 use super::ResultLayout;
 use crate::core::estimate::{neg, ExtraColumn};
 use crate::io::las::extra_bytes::ScalarType;
@@ -308,9 +308,8 @@ fn scaled_run(
             *v = b.map_or(f32::NAN, f32::from_le_bytes);
         })
         .count();
-    let m = max_raw(ty);
     for (r, &v) in raw.iter_mut().zip(&values[..n]) {
-        *r = scaled_raw(v as f64, scale, m);
+        *r = scaled_raw(v as f64, scale, ty);
     }
     let recs = out.chunks_exact_mut(stride).zip(&raw[..n]);
     match ty {
