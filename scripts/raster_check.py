@@ -19,15 +19,17 @@ from rasterio.crs import CRS
 
 
 def column(las, name):
-    """The column's values as f64, NaN where undefined (NaN, or the raw type's minimum)."""
+    """The column's values as f64, NaN where undefined (NaN, or the raw type's minimum), and
+    whether they are scaled integers (an extra dimension of an integer type)."""
     if name.lower() in ("x", "y", "z"):
-        return np.asarray(getattr(las, name.lower()), dtype=np.float64)
+        return np.asarray(getattr(las, name.lower()), dtype=np.float64), False
     dim = next(d for d in las.point_format.dimensions if d.name.lower() == name.lower())
     raw = np.asarray(las.points.array[dim.name])
     values = np.asarray(las[dim.name], dtype=np.float64)
-    if np.issubdtype(raw.dtype, np.integer) and dim.scales is not None:
+    integers = np.issubdtype(raw.dtype, np.integer) and dim.scales is not None
+    if integers:
         values[raw == np.iinfo(raw.dtype).min] = np.nan
-    return values
+    return values, integers
 
 
 def point_crs(las):
@@ -43,13 +45,17 @@ def point_crs(las):
     return None
 
 
-def reduce(stat, values, circular):
-    """The cell value of `values` (defined ones only), as tilecurv documents it."""
-    v = np.sort(values[~np.isnan(values)].astype(np.float32))
+def reduce(stat, values, circular, integers):
+    """The cell value of `values` (defined ones only), as tilecurv documents it: the values of
+    32-bit floats, but the mean of scaled integers is the mean of the values they stand for."""
+    defined = values[~np.isnan(values)]
+    v = np.sort(defined.astype(np.float32))
     if stat == "count":
         return float(len(v))
     if len(v) == 0:
         return np.nan
+    if stat == "mean" and integers and not circular:
+        return float(defined.mean())
     if stat == "mean" and circular:
         r = np.radians(v.astype(np.float64))
         s, c = np.sin(r).sum(), np.cos(r).sum()
@@ -102,10 +108,11 @@ def main():
         if name == "PointCount":
             want[cells] = ends - starts
         else:
-            values = column(las, name)[order]
+            values, integers = column(las, name)
+            values = values[order]
             circular = name.lower() == "aspect"
             for c, s, e in zip(cells, starts, ends):
-                want[c] = reduce(a.stat, values[s:e], circular)
+                want[c] = reduce(a.stat, values[s:e], circular, integers)
         want = want.reshape(height, width)
         got = np.where(grid.mask, np.nan, grid.data.astype(np.float64))
         same_nodata = np.isnan(want) == np.isnan(got)

@@ -50,6 +50,9 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
         ));
     }
     let encoding = Encoding::new(spec.params.column_type, steps);
+    let outs = (spec.outputs.iter())
+        .map(|output| output_columns(output, &spec.cols, encoding))
+        .collect::<Result<Vec<_>>>()?;
     let mut rasters = match &exec.rasters {
         Some(o) => {
             let dir = o.dir.clone().unwrap_or_else(|| default_dir(&spec.outputs));
@@ -57,7 +60,7 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
             Some(OutputRasters::new(
                 o,
                 &spec.cols,
-                &spec.sources,
+                (&spec.sources, &outs),
                 dir,
                 budget,
             )?)
@@ -68,8 +71,8 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
     exec.reporter.phase("write", spec.total_points);
     let chunk = chunk_points(spec, exec);
     let mut undefined = 0;
-    for ((source, output), first) in spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids) {
-        let out_cols = output_columns(output, &spec.cols, encoding)?;
+    let outputs = spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids);
+    for (i, (((source, output), first), out_cols)) in outputs.zip(outs).enumerate() {
         let provenance = format!("{}{}", spec.provenance(), out_cols.provenance());
         let merge = Merge {
             source: source.as_ref(),
@@ -84,7 +87,7 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
             pool: &exec.pool,
         };
         let mut tap = match rasters.as_mut() {
-            Some(r) => Some(r.tap(source.as_ref(), &out_cols)?),
+            Some(r) => Some(r.tap(i, source.as_ref(), &out_cols)?),
             None => None,
         };
         undefined += assemble(

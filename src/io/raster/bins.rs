@@ -22,13 +22,39 @@ const MAX_FAN_IN: usize = 256;
 /// Bytes of each run's read buffer and of the run writer's buffer.
 const READ_BUFFER: usize = 256 << 10;
 
-/// Records of `columns` f32 values per point, binned by cell key.
-pub(crate) struct Bins {
+/// A 4-byte value a record carries: a column's f32, or a word of a tally (`sums`).
+pub(crate) trait Word: Copy + Default {
+    fn to_le(self) -> [u8; 4];
+    fn from_le(b: [u8; 4]) -> Self;
+}
+
+impl Word for f32 {
+    fn to_le(self) -> [u8; 4] {
+        self.to_le_bytes()
+    }
+    fn from_le(b: [u8; 4]) -> Self {
+        f32::from_le_bytes(b)
+    }
+}
+
+impl Word for u32 {
+    fn to_le(self) -> [u8; 4] {
+        self.to_le_bytes()
+    }
+    fn from_le(b: [u8; 4]) -> Self {
+        u32::from_le_bytes(b)
+    }
+}
+
+/// Records of `columns` values ([`Word`]s) per point, binned by cell key.
+pub(crate) struct Bins<W: Word> {
     dir: PathBuf,
+    /// The start of the run files' names (bins of different records share a directory).
+    name: &'static str,
     columns: usize,
     /// Per record in memory: its key and its index in `values`.
     keys: Vec<(u64, u32)>,
-    values: Vec<f32>,
+    values: Vec<W>,
     /// Records kept in memory before a run is written.
     capacity: usize,
     runs: Vec<PathBuf>,
@@ -43,16 +69,24 @@ fn record_bytes(columns: usize) -> usize {
     16 + 4 * columns
 }
 
-impl Bins {
+impl<W: Word> Bins<W> {
     /// Bins for records of `columns` values, keeping at most `budget` bytes of them in memory;
-    /// run files go to `dir` (made when the first run is written). Room for `expected` records
+    /// run files go to `dir` (made when the first run is written), named `name1.bin`,
+    /// `name2.bin`, ... Room for `expected` records
     /// (at most what the budget holds) is made at once: grown by doubling, the records were
     /// copied and their pages touched twice over.
-    pub(crate) fn new(dir: &Path, columns: usize, budget: u64, expected: u64) -> Bins {
+    pub(crate) fn new(
+        dir: &Path,
+        name: &'static str,
+        columns: usize,
+        budget: u64,
+        expected: u64,
+    ) -> Self {
         let capacity = (budget as usize / record_bytes(columns)).clamp(1 << 12, u32::MAX as usize);
         let room = usize::try_from(expected).map_or(capacity, |e| e.min(capacity));
         Bins {
             dir: dir.to_path_buf(),
+            name,
             columns,
             keys: Vec::with_capacity(room),
             values: Vec::with_capacity(room * columns),
@@ -64,7 +98,7 @@ impl Bins {
     }
 
     /// Adds one point's record: its cell key and one value per column (NaN for undefined).
-    pub(crate) fn push(&mut self, key: u64, values: &[f32]) -> Result<()> {
+    pub(crate) fn push(&mut self, key: u64, values: &[W]) -> Result<()> {
         debug_assert_eq!(values.len(), self.columns);
         self.keys.push((key, self.keys.len() as u32));
         self.values.extend_from_slice(values);
@@ -83,11 +117,11 @@ impl Bins {
     /// The path of the next run file.
     fn run_path(&mut self) -> PathBuf {
         self.written += 1;
-        self.dir.join(format!("run{}.bin", self.written))
+        self.dir.join(format!("{}{}.bin", self.name, self.written))
     }
 
     /// Writes the records in memory as a sorted run file.
-    fn spill(&mut self) -> Result<()> {
+    pub(crate) fn spill(&mut self) -> Result<()> {
         if self.keys.is_empty() {
             return Ok(());
         }
@@ -112,7 +146,7 @@ impl Bins {
 
     /// The records in key order: from memory when they never outgrew it, else merged from the
     /// run files (past [`MAX_FAN_IN`] runs, merged into longer runs first).
-    pub(crate) fn into_cells(mut self) -> Result<Cells> {
+    pub(crate) fn into_cells(mut self) -> Result<Cells<W>> {
         if self.runs.is_empty() {
             self.sort();
             let source = Source::Memory {
@@ -128,7 +162,7 @@ impl Bins {
             let path = self.run_path();
             let mut merged = Merge::open(&group, self.columns)?;
             let mut w = RunWriter::create(&path)?;
-            let mut values = vec![0.0; self.columns];
+            let mut values = vec![W::default(); self.columns];
             while let Some(key) = merged.next_record(&mut values)? {
                 w.put(key, &values)?;
             }
@@ -144,7 +178,7 @@ impl Bins {
     }
 }
 
-impl Drop for Bins {
+impl<W: Word> Drop for Bins<W> {
     fn drop(&mut self) {
         for p in &self.runs {
             let _ = std::fs::remove_file(p);
@@ -170,7 +204,7 @@ impl RunWriter {
         })
     }
 
-    fn put(&mut self, key: u64, values: &[f32]) -> Result<()> {
+    fn put<W: Word>(&mut self, key: u64, values: &[W]) -> Result<()> {
         let mut rec = [0u8; 8];
         rec.copy_from_slice(&key.to_le_bytes());
         self.w
@@ -178,7 +212,7 @@ impl RunWriter {
             .map_err(|e| Error::write(&self.path, e))?;
         for v in values {
             self.w
-                .write_all(&v.to_le_bytes())
+                .write_all(&v.to_le())
                 .map_err(|e| Error::write(&self.path, e))?;
         }
         Ok(())
@@ -198,7 +232,7 @@ struct RunReader {
 
 impl RunReader {
     /// The next record's key, its values in `values`; None at the end.
-    fn next(&mut self, values: &mut [f32]) -> Result<Option<u64>> {
+    fn next<W: Word>(&mut self, values: &mut [W]) -> Result<Option<u64>> {
         match self.r.read_exact(&mut self.rec) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(None),
@@ -206,7 +240,7 @@ impl RunReader {
         }
         let (key, rest) = self.rec.split_at(8);
         for (v, b) in values.iter_mut().zip(rest.chunks_exact(4)) {
-            *v = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            *v = W::from_le([b[0], b[1], b[2], b[3]]);
         }
         Ok(Some(u64::from_le_bytes(key.try_into().unwrap_or([0; 8]))))
     }
@@ -214,18 +248,18 @@ impl RunReader {
 
 /// A k-way merge of sorted run files. Equal keys come run by run in the order of the runs,
 /// which does not matter: a cell's values are sorted before they are reduced.
-struct Merge {
+struct Merge<W: Word> {
     runs: Vec<RunReader>,
     /// Per run, its current record's values.
-    heads: Vec<Vec<f32>>,
+    heads: Vec<Vec<W>>,
     heap: BinaryHeap<Reverse<(u64, usize)>>,
 }
 
-impl Merge {
-    fn open(paths: &[PathBuf], columns: usize) -> Result<Merge> {
+impl<W: Word> Merge<W> {
+    fn open(paths: &[PathBuf], columns: usize) -> Result<Self> {
         let mut m = Merge {
             runs: Vec::with_capacity(paths.len()),
-            heads: vec![vec![0.0; columns]; paths.len()],
+            heads: vec![vec![W::default(); columns]; paths.len()],
             heap: BinaryHeap::with_capacity(paths.len()),
         };
         for (i, p) in paths.iter().enumerate() {
@@ -243,7 +277,7 @@ impl Merge {
     }
 
     /// The next record in key order into `values`; None at the end.
-    fn next_record(&mut self, values: &mut [f32]) -> Result<Option<u64>> {
+    fn next_record(&mut self, values: &mut [W]) -> Result<Option<u64>> {
         let Some(Reverse((key, i))) = self.heap.pop() else {
             return Ok(None);
         };
@@ -256,41 +290,41 @@ impl Merge {
 }
 
 /// Where the sorted records come from.
-enum Source {
+enum Source<W: Word> {
     Memory {
         keys: Vec<(u64, u32)>,
-        values: Vec<f32>,
+        values: Vec<W>,
         next: usize,
     },
-    Runs(Merge),
+    Runs(Merge<W>),
 }
 
 /// The cells in key order, each with its points' values per column.
-pub(crate) struct Cells {
+pub(crate) struct Cells<W: Word> {
     /// Kept so that the run files live until the cells are read.
-    bins: Bins,
-    source: Source,
+    bins: Bins<W>,
+    source: Source<W>,
     /// From runs: the record read past the last cell, the first of the next one.
     pending: Option<u64>,
-    pending_values: Vec<f32>,
+    pending_values: Vec<W>,
     started: bool,
 }
 
-impl Cells {
-    fn new(bins: Bins, source: Source) -> Cells {
+impl<W: Word> Cells<W> {
+    fn new(bins: Bins<W>, source: Source<W>) -> Self {
         let columns = bins.columns;
         Cells {
             bins,
             source,
             pending: None,
-            pending_values: vec![0.0; columns],
+            pending_values: vec![W::default(); columns],
             started: false,
         }
     }
 
     /// The next cell's key, its values column by column in `out` (cleared first: `out[c]`
     /// holds column `c`'s values of the cell's points); None after the last cell.
-    pub(crate) fn next_cell(&mut self, out: &mut [Vec<f32>]) -> Result<Option<u64>> {
+    pub(crate) fn next_cell(&mut self, out: &mut [Vec<W>]) -> Result<Option<u64>> {
         out.iter_mut().for_each(Vec::clear);
         let n = self.bins.columns;
         let merge = match &mut self.source {
@@ -343,7 +377,7 @@ mod tests {
         let record = |i: u64| ((i * 7919) % n, [i as f32, -(i as f32)]);
         for (budget, runs) in [(1u64 << 30, false), (4096 * 24, true)] {
             let dir = tmp.path().join(format!("b{budget}"));
-            let mut bins = Bins::new(&dir, 2, budget, 1000);
+            let mut bins = Bins::<f32>::new(&dir, "run", 2, budget, 1000);
             for i in 0..n {
                 let (p, v) = record(i);
                 bins.push(p % 997, &v).expect("push");
@@ -376,7 +410,7 @@ mod tests {
     fn many_runs_are_merged_in_passes() {
         let tmp = tempfile::tempdir().expect("temp dir");
         let dir = tmp.path().join("runs");
-        let mut bins = Bins::new(&dir, 1, 0, 0);
+        let mut bins = Bins::<f32>::new(&dir, "run", 1, 0, 0);
         let n = (MAX_FAN_IN as u64 + 40) * 4096;
         for i in 0..n {
             bins.push(n - 1 - i, &[i as f32]).expect("push");

@@ -7,6 +7,7 @@
 mod bins;
 pub(crate) mod geokeys;
 pub(crate) mod geotiff;
+mod sums;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -14,13 +15,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use crate::core::quicklook::{
     render, Grid, Legend, Ramp, Shade, Thumbnail, DEFAULT_CLIP_PERCENTILE, DEFAULT_MAX_SIDE,
 };
-use crate::core::raster::{Cell, CellGrid, Stat};
+use crate::core::raster::{Cell, CellGrid, Integers, Stat, UNDEFINED};
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnSet, Group, TerrainValue, Value};
 use crate::io::quicklook_png::write_png;
 use bins::Bins;
 use geokeys::RasterCrs;
 use geotiff::{rows_per_strip, GeoTiff};
+use sums::CellSums;
 
 /// The name of the point-count raster.
 pub(crate) const COUNT_NAME: &str = "PointCount";
@@ -36,6 +38,10 @@ pub(crate) struct RasterColumn {
     pub(crate) signed: bool,
     /// Whether it is a direction in degrees (aspect): its mean is circular.
     pub(crate) angle: bool,
+    /// Set when the points' values are integers of this scale and offset in every input and
+    /// the statistic tallies them ([`Stat::tallies`]): the cells tally the integers
+    /// ([`crate::core::raster::Tally`]) instead of keeping every value.
+    pub(crate) integers: Option<Integers>,
 }
 
 /// How tilecurv's own columns are shown, with `unit` the symbol of the file's unit ("m"):
@@ -73,6 +79,7 @@ pub(crate) fn known_columns(unit: &str) -> Vec<(RasterColumn, bool)> {
                 unit,
                 signed,
                 angle,
+                integers: None,
             };
             Some((col, curvature))
         })
@@ -106,28 +113,66 @@ pub struct RasterSummary {
 }
 
 /// Points on their way into rasters: each point's cell and column values are binned as they
-/// come ([`Rasterizer::push`]); [`Rasterizer::finish`] writes the rasters.
+/// come ([`Rasterizer::push`]); [`Rasterizer::finish`] writes the rasters. The columns of
+/// integers ([`RasterColumn::integers`]) are tallied per cell, with the point count and the
+/// elevation that shades the quick looks ([`CellSums`]); the others keep every point's value
+/// until the cell is reduced ([`Bins`]).
 pub(crate) struct Rasterizer {
     request: RasterRequest,
-    bins: Bins,
+    /// Where each column's value of a point is: among its integers or its floats.
+    slots: Vec<Slot>,
+    sums: CellSums,
+    /// The points' floats, when some column is not of integers.
+    bins: Option<Bins<f32>>,
+    /// Steps a unit of the integer elevation (shade only).
+    z_per_step: f64,
     lo: Option<Cell>,
     hi: Option<Cell>,
     points: u64,
 }
 
+/// Where a column's values are kept: the index of its integers or of its floats.
+#[derive(Debug, Clone, Copy)]
+enum Slot {
+    Integers(usize, Integers),
+    Floats(usize),
+}
+
 impl Rasterizer {
     /// A rasterizer for `request` whose temporary run files go to `scratch`, keeping at most
-    /// `budget` bytes of points in memory, for about `points` points.
+    /// `budget` bytes of cells and points in memory, for about `points` points.
     pub(crate) fn new(
         request: RasterRequest,
         scratch: &Path,
         budget: u64,
         points: u64,
     ) -> Rasterizer {
-        // One more value per point: its z, whose cell means shade the quick looks.
-        let bins = Bins::new(scratch, request.columns.len() + 1, budget, points);
+        let (mut ints, mut floats) = (0, 0);
+        let mut slots = Vec::with_capacity(request.columns.len());
+        for c in &request.columns {
+            slots.push(match c.integers {
+                Some(i) => Slot::Integers(ints, i),
+                None => Slot::Floats(floats),
+            });
+            match c.integers {
+                Some(_) => ints += 1,
+                None => floats += 1,
+            }
+        }
+        // The integer columns, then the elevation, whose mean shades the quick looks.
+        let tallied = |budget| CellSums::new(scratch, request.stat, ints + 1, budget);
+        let (sums, bins) = match floats {
+            0 => (tallied(budget), None),
+            n => (
+                tallied(budget / 2),
+                Some(Bins::new(scratch, "points", n, budget / 2, points)),
+            ),
+        };
         Rasterizer {
+            z_per_step: 64.0 / request.cell,
             request,
+            slots,
+            sums,
             bins,
             lo: None,
             hi: None,
@@ -140,14 +185,27 @@ impl Rasterizer {
         &self.request
     }
 
-    /// Bins one point at `(x, y)` with one value per column followed by its z (`values` is
-    /// one longer than the columns; NaN: undefined). `what` names the point for the error when
-    /// its coordinates have no cell (not finite, or 2^31 cells away).
+    /// The integer that stands for the elevation `z` in the shading of the quick looks: z in
+    /// steps of 1/64 of a cell (far below what a shade shows), tallied exactly like the
+    /// columns' integers.
+    pub(crate) fn z_integer(&self, z: f64) -> i64 {
+        const LIMIT: f64 = i32::MAX as f64;
+        match z.is_finite() {
+            true => (z * self.z_per_step).round().clamp(-LIMIT, LIMIT) as i64,
+            false => UNDEFINED,
+        }
+    }
+
+    /// Bins one point at `(x, y)`: `floats` holds its values of the columns that are not of
+    /// integers (NaN: undefined), `ints` its oriented integers of the others
+    /// ([`Integers::oriented`]; [`UNDEFINED`]: undefined) followed by [`Self::z_integer`] of
+    /// its z. `what` names the point for the error when its coordinates have no cell (not
+    /// finite, or 2^31 cells away).
     pub(crate) fn push(
         &mut self,
         x: f64,
         y: f64,
-        values: &[f32],
+        (floats, ints): (&[f32], &[i64]),
         what: &dyn Fn() -> String,
     ) -> Result<()> {
         let Some(c) = Cell::of(x, y, self.request.cell) else {
@@ -166,7 +224,11 @@ impl Rasterizer {
             iy: h.iy.max(c.iy),
         }));
         self.points += 1;
-        self.bins.push(c.key(), values)
+        self.sums.add(c.key(), ints, what)?;
+        match &mut self.bins {
+            Some(b) => b.push(c.key(), floats),
+            None => Ok(()),
+        }
     }
 
     /// Writes one GeoTIFF per column and the point count into the request's directory (made if
@@ -195,15 +257,30 @@ impl Rasterizer {
             .map(|p| GeoTiff::create(p, &grid, crs))
             .collect::<Result<Vec<_>>>()?;
         let mut rows = Rows::new(&grid, writers);
-        let mut cells = self.bins.into_cells()?;
+        let mut sums = self.sums.into_cells()?;
+        let mut cells = self.bins.map(Bins::into_cells).transpose()?;
         let n = req.columns.len();
-        let mut values: Vec<Vec<f32>> = vec![Vec::new(); n + 1];
+        let floats = self.slots.iter().filter(|s| matches!(s, Slot::Floats(_)));
+        let mut values: Vec<Vec<f32>> = vec![Vec::new(); floats.count()];
+        let mut tallies = vec![Stat::Mean.empty(); n - values.len() + 1];
+        let z = Integers {
+            scale: 1.0 / self.z_per_step,
+            offset: 0.0,
+        };
         // The columns' cell values, the point count, then the mean z (shade only).
         let mut cell_values = vec![0.0f32; n + 2];
         let mut count = 0u64;
-        while let Some(key) = cells.next_cell(&mut values)? {
+        while let Some((key, points)) = sums.next_cell(&mut tallies)? {
             if count.is_multiple_of(4096) && cancel.load(Ordering::Relaxed) {
                 return Err(Error::Interrupted);
+            }
+            if let Some(c) = &mut cells {
+                if c.next_cell(&mut values)? != Some(key) {
+                    return Err(Error::Internal(format!(
+                        "cell {:?} has tallies but no points",
+                        Cell::from_key(key)
+                    )));
+                }
             }
             let cell = Cell::from_key(key);
             let Some((row, col)) = grid.position(cell) else {
@@ -211,14 +288,15 @@ impl Rasterizer {
                     "cell {cell:?} outside the raster {grid:?}"
                 )));
             };
-            for ((v, column), out) in values.iter_mut().zip(&req.columns).zip(&mut cell_values) {
-                *out = req.stat.reduce(v, column.angle);
+            let columns = self.slots.iter().zip(&req.columns);
+            for ((slot, column), out) in columns.zip(&mut cell_values) {
+                *out = match *slot {
+                    Slot::Integers(j, ints) => req.stat.tally_value(tallies[j], ints),
+                    Slot::Floats(j) => req.stat.reduce(&mut values[j], column.angle),
+                };
             }
-            cell_values[n] = values[n].len() as f32;
-            // Shade only: the mean in arrival order, without the sort that makes a published
-            // mean independent of it.
-            let z = &values[n];
-            cell_values[n + 1] = (z.iter().map(|&v| v as f64).sum::<f64>() / z.len() as f64) as f32;
+            cell_values[n] = points as f32;
+            cell_values[n + 1] = Stat::Mean.tally_value(tallies[tallies.len() - 1], z);
             rows.put(row, col, &cell_values)?;
             count += 1;
         }
@@ -229,6 +307,7 @@ impl Rasterizer {
             unit: "points".into(),
             signed: false,
             angle: false,
+            integers: None,
         });
         files.extend(quick_looks(
             &req.dir,

@@ -12,13 +12,15 @@ use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
 use crate::io::columns::ColumnSet;
 use crate::io::durable::{sweep_dead_temps, tmp_name};
-use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
-use crate::io::las::header::POINT_FORMAT_SIZES;
+use crate::io::las::extra_bytes;
 use crate::io::raster::geokeys::{raster_crs, RasterCrs};
 pub use crate::io::raster::RasterSummary;
 use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
-use crate::io::source::{PointSource, Property, SourceLayout};
+use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
+use read::{column_names, reader, reader_of_later, tally_integers, Binner, Reader};
+
+mod read;
 
 /// A `tilecurv raster` run.
 #[derive(Debug, Clone)]
@@ -94,7 +96,16 @@ fn make_rasters(
         ));
     }
     let symbol = unit.unit().map_or("unit".into(), |u| u.symbol());
-    let columns = choose_columns(first, job.columns.as_deref(), &symbol)?;
+    let mut columns = choose_columns(first, job.columns.as_deref(), &symbol)?;
+    let readers = sources
+        .iter()
+        .map(|s| {
+            (columns.iter())
+                .map(|c| reader_of_later(s.as_ref(), &c.name))
+                .collect::<Result<Vec<_>>>()
+        })
+        .collect::<Result<Vec<_>>>()?;
+    tally_integers(&mut columns, &readers, job.stat);
     let request = RasterRequest {
         cell,
         stat: job.stat,
@@ -106,8 +117,9 @@ fn make_rasters(
     let budget = binning_budget(memory_bytes, 2);
     let mut rasterizer = Rasterizer::new(request, &scratch, budget, total);
     reporter.phase("bin", total);
-    for s in &sources {
-        bin_source(s.as_ref(), &mut rasterizer, chunk, reporter, cancel)?;
+    for (s, readers) in sources.iter().zip(readers) {
+        let binner = Binner::new(readers, &rasterizer);
+        bin_source(s.as_ref(), binner, &mut rasterizer, chunk, reporter, cancel)?;
     }
     reporter.finish_phase();
     let crs = source_crs(first);
@@ -144,79 +156,6 @@ pub(crate) fn source_crs(s: &dyn PointSource) -> RasterCrs {
         }
         SourceLayout::Converted => raster_crs(std::iter::empty(), false),
     }
-}
-
-/// Where a column's value is in a record.
-enum Reader {
-    /// A LAS extra dimension (its no-data value gives NaN).
-    Extra { at: usize, d: Descriptor },
-    /// Any other property.
-    Property(Property),
-}
-
-impl Reader {
-    /// The value of each record of `records` (`row` bytes each) into column `c` of `values`
-    /// (rows of `width`), NaN where it is missing or no-data.
-    fn column(&self, records: &[u8], row: usize, values: &mut [f32], (c, width): (usize, usize)) {
-        fn each(
-            records: &[u8],
-            row: usize,
-            values: &mut [f32],
-            (c, width): (usize, usize),
-            read: impl Fn(&[u8]) -> f64,
-        ) {
-            for (rec, v) in records
-                .chunks_exact(row)
-                .zip(values.chunks_exact_mut(width))
-            {
-                v[c] = read(rec) as f32;
-            }
-        }
-        let place = (c, width);
-        let (at, d) = match self {
-            Reader::Property(p) => return each(records, row, values, place, |r| p.value(r)),
-            Reader::Extra { at, d } => (*at, d),
-        };
-        let extra = |r: &[u8], t| {
-            r.get(at..)
-                .and_then(|e| d.read_as(t, e))
-                .unwrap_or(f64::NAN)
-        };
-        // The type fixed in each loop (the types tilecurv writes, and f64); any other as read.
-        match d.scalar() {
-            Some(ScalarType::I32) => {
-                each(records, row, values, place, |r| extra(r, ScalarType::I32))
-            }
-            Some(ScalarType::I16) => {
-                each(records, row, values, place, |r| extra(r, ScalarType::I16))
-            }
-            Some(ScalarType::F32) => {
-                each(records, row, values, place, |r| extra(r, ScalarType::F32))
-            }
-            Some(ScalarType::F64) => {
-                each(records, row, values, place, |r| extra(r, ScalarType::F64))
-            }
-            Some(t) => each(records, row, values, place, |r| extra(r, t)),
-            None => each(records, row, values, place, |_| f64::NAN),
-        }
-    }
-}
-
-/// The reader of the column `name` in `s` (names compare without case).
-fn reader(s: &dyn PointSource, name: &str) -> Option<Reader> {
-    if let SourceLayout::Las(p) = s.layout() {
-        let base = POINT_FORMAT_SIZES[p.header.point_format as usize] as usize;
-        if let Some(d) = p.extra.iter().find(|d| d.name.eq_ignore_ascii_case(name)) {
-            return d.scalar().map(|_| Reader::Extra {
-                at: base,
-                d: d.clone(),
-            });
-        }
-    }
-    s.properties()
-        .into_iter()
-        .find(|p| p.name.eq_ignore_ascii_case(name))
-        .map(Reader::Property)
 }
 
 /// The columns to raster: those named (each must be in `s`), or every curvature column `s`
@@ -266,41 +205,19 @@ fn describe(known: &[(RasterColumn, bool)], name: &str) -> RasterColumn {
             unit: String::new(),
             signed: true,
             angle: false,
+            integers: None,
         })
-}
-
-/// The reader of the column `name` of a later input `s`, or the error that it lacks one the
-/// first input has.
-fn reader_of_later(s: &dyn PointSource, name: &str) -> Result<Reader> {
-    reader(s, name).ok_or_else(|| {
-        Error::Usage(format!(
-            "{} has no column {name:?} (the first input has it); it has: {}",
-            s.path().display(),
-            column_names(s).join(", ")
-        ))
-    })
-}
-
-/// The names of the columns of `s`.
-fn column_names(s: &dyn PointSource) -> Vec<String> {
-    s.properties().into_iter().map(|p| p.name).collect()
 }
 
 /// Bins every point of `s`.
 fn bin_source(
     s: &dyn PointSource,
+    mut binner: Binner,
     r: &mut Rasterizer,
     chunk: usize,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<()> {
-    let readers = r
-        .request()
-        .columns
-        .iter()
-        .map(|c| reader_of_later(s, &c.name))
-        .collect::<Result<Vec<_>>>()?;
-    let mut binner = Binner::new(readers);
     let rl = s.record_length();
     let what = |id: u64| format!("{} point {id}", s.path().display());
     s.for_each_chunk(chunk, &mut |first, records| {
@@ -311,66 +228,6 @@ fn bin_source(
         reporter.advance((records.len() / rl) as u64);
         Ok(())
     })
-}
-
-/// Reads points' raster values from their records and bins them: the one path of `raster`'s
-/// inputs and of `process --raster`'s output records.
-struct Binner {
-    /// Per raster column, where its value is in a record and how it is stored.
-    readers: Vec<Reader>,
-    /// The values of the points being binned, a row each: one a column, then z (for the
-    /// hillshade).
-    values: Vec<f32>,
-    /// Their coordinates.
-    xyz: Vec<[f64; 3]>,
-}
-
-impl Binner {
-    fn new(readers: Vec<Reader>) -> Self {
-        Binner {
-            readers,
-            values: Vec::new(),
-            xyz: Vec::new(),
-        }
-    }
-
-    /// Bins the points of `s` whose records, `row` bytes each (the source's record first, then
-    /// any columns an output added), are `records`; the first is point `first`. Column by
-    /// column over [`Binner::BATCH`] points at a time, each column in a loop made for its
-    /// stored type: point by point, choosing the type of every value again cost more than
-    /// binning it. `what` names a point in an error.
-    fn bin_all(
-        &mut self,
-        s: &dyn PointSource,
-        (first, records, row): (u64, &[u8], usize),
-        r: &mut Rasterizer,
-        what: &dyn Fn(u64) -> String,
-    ) -> Result<()> {
-        let width = self.readers.len() + 1;
-        for (b, batch) in records.chunks(Self::BATCH * row).enumerate() {
-            let first = first + (b * Self::BATCH) as u64;
-            let n = batch.len() / row;
-            self.values.resize(n * width, 0.0);
-            self.xyz.clear();
-            s.coordinates(first, batch, row, &mut self.xyz);
-            for (p, v) in self.xyz.iter().zip(self.values.chunks_exact_mut(width)) {
-                v[width - 1] = p[2] as f32;
-            }
-            for (c, rd) in self.readers.iter().enumerate() {
-                rd.column(batch, row, &mut self.values, (c, width));
-            }
-            let points = self.xyz.iter().zip(self.values.chunks_exact(width));
-            for (i, (p, v)) in points.enumerate() {
-                r.push(p[0], p[1], v, &|| what(first + i as u64))?;
-            }
-        }
-        Ok(())
-    }
-
-    /// Points decoded at a time: their records (about 100 bytes each with the terrain columns)
-    /// and values stay in the first-level cache between the columns (4096 did not: a miss for
-    /// every record in every column's loop, 12 a point more than a run without rasters).
-    const BATCH: usize = 256;
 }
 
 /// The default directory of the rasters of `outputs`: beside a single output, named after it
@@ -389,15 +246,18 @@ pub(crate) fn default_dir(outputs: &[PathBuf]) -> PathBuf {
 pub(crate) struct OutputRasters {
     rasterizer: Rasterizer,
     crs: RasterCrs,
+    /// Per output, the readers of its records' raster columns (taken by its tap).
+    readers: Vec<Vec<Reader>>,
 }
 
 impl OutputRasters {
     /// The rasters `opts` asks for of outputs with the columns `cols` (the run's), from the
-    /// inputs `sources`, into `dir`; `memory_bytes` bounds the points binned in memory.
+    /// inputs `sources`, whose outputs store the new columns as `outs` say (one each), into
+    /// `dir`; `memory_bytes` bounds the points binned in memory.
     pub(crate) fn new(
         opts: &RasterOptions,
         cols: &ColumnSet,
-        sources: &[Box<dyn PointSource>],
+        (sources, outs): (&[Box<dyn PointSource>], &[OutputColumns]),
         dir: PathBuf,
         memory_bytes: u64,
     ) -> Result<OutputRasters> {
@@ -407,7 +267,7 @@ impl OutputRasters {
         let cell = opts.cell.in_file_units(first.unit().unit());
         let known = known_columns(&cols.unit);
         let written: Vec<&str> = cols.columns().iter().map(|c| c.name).collect();
-        let columns: Vec<RasterColumn> = match &opts.columns {
+        let mut columns: Vec<RasterColumn> = match &opts.columns {
             Some(names) => names
                 .iter()
                 .map(|n| {
@@ -435,6 +295,10 @@ impl OutputRasters {
                 written.join(", ")
             )));
         }
+        let readers = (sources.iter().zip(outs))
+            .map(|(s, out)| output_readers(&columns, s.as_ref(), out))
+            .collect::<Result<Vec<_>>>()?;
+        tally_integers(&mut columns, &readers, opts.stat);
         let request = RasterRequest {
             cell,
             stat: opts.stat,
@@ -447,43 +311,23 @@ impl OutputRasters {
         Ok(OutputRasters {
             rasterizer: Rasterizer::new(request, &scratch, budget, points),
             crs: source_crs(first),
+            readers,
         })
     }
 
-    /// The tap of one output: its records are `source`'s followed by `out`'s columns. A
-    /// raster column is read from the new columns, else from the input's record (a field or
-    /// an extra dimension of the input, such as z or intensity).
+    /// The tap of output `i`, of the input `source`: its records are the input's followed by
+    /// its new columns.
     pub(crate) fn tap<'a>(
         &'a mut self,
+        i: usize,
         source: &'a dyn PointSource,
         out: &OutputColumns,
     ) -> Result<Tap<'a>> {
-        let names: Vec<String> = (self.rasterizer.request().columns.iter())
-            .map(|c| c.name.clone())
-            .collect();
-        // The new columns as a reader of the output file sees them: their descriptors encoded
-        // as the writer encodes them and parsed as any LAS input's are.
-        let encoded: Vec<u8> = out
-            .descriptors()
-            .iter()
-            .flat_map(extra_bytes::encode)
-            .collect();
-        let new_columns = extra_bytes::parse(&encoded)
-            .map_err(|why| Error::Internal(format!("the output's own descriptors: {why}")))?;
-        let rl = source.record_length();
-        let readers = names
-            .iter()
-            .map(|n| match new_columns.iter().find(|d| d.name == *n) {
-                Some(d) => Ok(Reader::Extra {
-                    at: rl,
-                    d: d.clone(),
-                }),
-                None => reader_of_later(source, n),
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let readers = (self.readers.get_mut(i).map(std::mem::take))
+            .ok_or_else(|| Error::Internal(format!("no raster readers for output {i}")))?;
         Ok(Tap {
-            binner: Binner::new(readers),
-            row: rl + out.record_size(),
+            binner: Binner::new(readers, &self.rasterizer),
+            row: source.record_length() + out.record_size(),
             source,
             rasterizer: &mut self.rasterizer,
         })
@@ -500,6 +344,35 @@ impl OutputRasters {
         }
         self.rasterizer.finish(&self.crs, cancel)
     }
+}
+
+/// The readers of `columns` in the records of an output of `source` with the new columns
+/// `out`: a column is read from the new columns, else from the input's record (a field or an
+/// extra dimension of the input, such as z or intensity).
+fn output_readers(
+    columns: &[RasterColumn],
+    source: &dyn PointSource,
+    out: &OutputColumns,
+) -> Result<Vec<Reader>> {
+    // The new columns as a reader of the output file sees them: their descriptors encoded as
+    // the writer encodes them and parsed as any LAS input's are.
+    let encoded: Vec<u8> = out
+        .descriptors()
+        .iter()
+        .flat_map(extra_bytes::encode)
+        .collect();
+    let new_columns = extra_bytes::parse(&encoded)
+        .map_err(|why| Error::Internal(format!("the output's own descriptors: {why}")))?;
+    let rl = source.record_length();
+    (columns.iter())
+        .map(|c| match new_columns.iter().find(|d| d.name == c.name) {
+            Some(d) => Ok(Reader::Extra {
+                at: rl,
+                d: d.clone(),
+            }),
+            None => reader_of_later(source, &c.name),
+        })
+        .collect()
 }
 
 /// Bins the records of one output as they are written.
