@@ -424,7 +424,10 @@ mod tests {
                 stat.merge(&mut a, b);
                 assert_eq!(a, all, "{stat} merged");
                 let got = stat.tally_value(all, ints) as f64;
-                assert!((got - want).abs() <= 1e-6 * want.abs(), "{stat} {scale}: {got} {want}");
+                assert!(
+                    (got - want).abs() <= 1e-6 * want.abs(),
+                    "{stat} {scale}: {got} {want}"
+                );
             }
             assert!(Stat::Mean.tally_value(Stat::Mean.empty(), ints).is_nan());
         }

@@ -37,6 +37,14 @@ pub enum ScalarType {
     F64 = 10,
 }
 
+/// The first `N` bytes of `b` (which holds at least `N`).
+#[inline(always)]
+fn le<const N: usize>(b: &[u8]) -> [u8; N] {
+    let mut a = [0u8; N];
+    a.copy_from_slice(&b[..N]);
+    a
+}
+
 impl ScalarType {
     fn from_code(code: u8) -> Option<Self> {
         use ScalarType::*;
@@ -72,36 +80,21 @@ impl ScalarType {
     #[inline(always)]
     pub fn decode(self, b: &[u8]) -> f64 {
         use ScalarType::*;
-        fn le<const N: usize>(b: &[u8]) -> [u8; N] {
-            let mut a = [0u8; N];
-            a.copy_from_slice(&b[..N]);
-            a
-        }
         match self {
-            U8 => b[0] as f64,
-            I8 => b[0] as i8 as f64,
-            U16 => u16::from_le_bytes(le(b)) as f64,
-            I16 => i16::from_le_bytes(le(b)) as f64,
-            U32 => u32::from_le_bytes(le(b)) as f64,
-            I32 => i32::from_le_bytes(le(b)) as f64,
             U64 => u64::from_le_bytes(le(b)) as f64,
             I64 => i64::from_le_bytes(le(b)) as f64,
             F32 => f32::from_le_bytes(le(b)) as f64,
             F64 => f64::from_le_bytes(le(b)),
+            _ => self.decode_integer(b) as f64,
         }
     }
 
     /// [`ScalarType::decode`] of an integer type of at most 32 bits, as the integer (without
-    /// the round trip through f64 that cost as much as the rest of binning a value); any
-    /// other type's value truncated.
+    /// the round trip through f64 that cost as much as the rest of binning a value); 0 for the
+    /// other types.
     #[inline(always)]
     pub fn decode_integer(self, b: &[u8]) -> i64 {
         use ScalarType::*;
-        fn le<const N: usize>(b: &[u8]) -> [u8; N] {
-            let mut a = [0u8; N];
-            a.copy_from_slice(&b[..N]);
-            a
-        }
         match self {
             U8 => b[0] as i64,
             I8 => b[0] as i8 as i64,
@@ -109,7 +102,7 @@ impl ScalarType {
             I16 => i16::from_le_bytes(le(b)) as i64,
             U32 => u32::from_le_bytes(le(b)) as i64,
             I32 => i32::from_le_bytes(le(b)) as i64,
-            _ => self.decode(b) as i64,
+            U64 | I64 | F32 | F64 => 0,
         }
     }
 

@@ -42,17 +42,6 @@ impl Reader {
         ints: &mut [i64],
         (c, width): (usize, usize),
     ) {
-        fn each(
-            records: &[u8],
-            row: usize,
-            ints: &mut [i64],
-            (c, width): (usize, usize),
-            read: impl Fn(&[u8]) -> i64,
-        ) {
-            for (rec, v) in records.chunks_exact(row).zip(ints.chunks_exact_mut(width)) {
-                v[c] = read(rec);
-            }
-        }
         let (Reader::Extra { at, d }, Some(ints_of)) = (self, self.integers()) else {
             return each(records, row, ints, (c, width), |_| UNDEFINED);
         };
@@ -87,29 +76,15 @@ impl Reader {
     /// The value of each record of `records` (`row` bytes each) into column `c` of `values`
     /// (rows of `width`), NaN where it is missing or no-data.
     fn column(&self, records: &[u8], row: usize, values: &mut [f32], (c, width): (usize, usize)) {
-        fn each(
-            records: &[u8],
-            row: usize,
-            values: &mut [f32],
-            (c, width): (usize, usize),
-            read: impl Fn(&[u8]) -> f64,
-        ) {
-            for (rec, v) in records
-                .chunks_exact(row)
-                .zip(values.chunks_exact_mut(width))
-            {
-                v[c] = read(rec) as f32;
-            }
-        }
         let place = (c, width);
         let (at, d) = match self {
-            Reader::Property(p) => return each(records, row, values, place, |r| p.value(r)),
+            Reader::Property(p) => return each(records, row, values, place, |r| p.value(r) as f32),
             Reader::Extra { at, d } => (*at, d),
         };
         let extra = |r: &[u8], t| {
             r.get(at..)
                 .and_then(|e| d.read_as(t, e))
-                .unwrap_or(f64::NAN)
+                .unwrap_or(f64::NAN) as f32
         };
         // The type fixed in each loop (the types tilecurv writes, and f64); any other as read.
         match d.scalar() {
@@ -126,8 +101,26 @@ impl Reader {
                 each(records, row, values, place, |r| extra(r, ScalarType::F64))
             }
             Some(t) => each(records, row, values, place, |r| extra(r, t)),
-            None => each(records, row, values, place, |_| f64::NAN),
+            None => each(records, row, values, place, |_| f32::NAN),
         }
+    }
+}
+
+/// `read` of each record of `records` (`row` bytes each) into column `c` of `values` (rows of
+/// `width`): a loop for each column and stored type, made by the closure it is given.
+#[inline(always)]
+fn each<T>(
+    records: &[u8],
+    row: usize,
+    values: &mut [T],
+    (c, width): (usize, usize),
+    read: impl Fn(&[u8]) -> T,
+) {
+    for (rec, v) in records
+        .chunks_exact(row)
+        .zip(values.chunks_exact_mut(width))
+    {
+        v[c] = read(rec);
     }
 }
 
