@@ -19,17 +19,19 @@ from rasterio.crs import CRS
 
 
 def column(las, name):
-    """The column's values as f64, NaN where undefined (NaN, or the raw type's minimum), and
-    whether they are scaled integers (an extra dimension of an integer type)."""
+    """The column's values as f64, NaN where undefined (NaN, or a scaled column's raw type
+    minimum), and whether tilecurv tallies them as integers (an extra dimension of an integer
+    type of at most 32 bits, scaled or not)."""
     if name.lower() in ("x", "y", "z"):
         return np.asarray(getattr(las, name.lower()), dtype=np.float64), False
     dim = next(d for d in las.point_format.dimensions if d.name.lower() == name.lower())
     raw = np.asarray(las.points.array[dim.name])
     values = np.asarray(las[dim.name], dtype=np.float64)
-    integers = np.issubdtype(raw.dtype, np.integer) and dim.scales is not None
-    if integers:
+    integer = np.issubdtype(raw.dtype, np.integer)
+    if integer and dim.scales is not None:
         values[raw == np.iinfo(raw.dtype).min] = np.nan
-    return values, integers
+    extra = dim.name in las.point_format.extra_dimension_names
+    return values, extra and integer and raw.dtype.itemsize <= 4
 
 
 def point_crs(las):

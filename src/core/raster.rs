@@ -279,8 +279,8 @@ impl Stat {
     }
 
     /// The cell value of the tally `t` of a column of `ints`; NaN when no integer was defined
-    /// (a count of 0 for [`Stat::Count`]). The mean is the sum over the count, scaled: the
-    /// mean of the values the integers stand for, rounded once.
+    /// (a count of 0 for [`Stat::Count`]). The mean is the sum over the count, scaled and
+    /// offset in f64: the mean of the values the integers stand for, not of their f32 values.
     pub fn tally_value(self, t: Tally, ints: Integers) -> f32 {
         match self {
             Stat::Count => t.count as f32,

@@ -97,7 +97,8 @@ impl<W: Word> Bins<W> {
         }
     }
 
-    /// Adds one point's record: its cell key and one value per column (NaN for undefined).
+    /// Adds one record: its cell key and one value per column (a point's values, NaN for
+    /// undefined; or the words of a cell's tallies).
     pub(crate) fn push(&mut self, key: u64, values: &[W]) -> Result<()> {
         debug_assert_eq!(values.len(), self.columns);
         self.keys.push((key, self.keys.len() as u32));
@@ -247,7 +248,8 @@ impl RunReader {
 }
 
 /// A k-way merge of sorted run files. Equal keys come run by run in the order of the runs,
-/// which does not matter: a cell's values are sorted before they are reduced.
+/// which does not matter: a cell's values are sorted before they are reduced, and its partial
+/// tallies merge exactly.
 struct Merge<W: Word> {
     runs: Vec<RunReader>,
     /// Per run, its current record's values.

@@ -1,5 +1,6 @@
-//! Rasters of point columns: points are binned by cell out of core ([`bins`]), then the cells
-//! are reduced ([`crate::core::raster::Stat`]) and written row by row as one GeoTIFF per
+//! Rasters of point columns: points are binned by cell out of core, the integer columns' values
+//! tallied per cell ([`sums`]) and the others' kept ([`bins`]), then the cells are reduced
+//! ([`crate::core::raster::Stat`]) and written row by row as one GeoTIFF per
 //! column ([`geotiff`]), a point-count GeoTIFF, and a quick-look PNG beside each. Fed by the
 //! `raster` command (points of any LAS/LAZ holding the columns) and by `process --raster`
 //! (each point as its output is written), through one [`Rasterizer`].
@@ -124,12 +125,15 @@ pub(crate) struct Rasterizer {
     sums: CellSums,
     /// The points' floats, when some column is not of integers.
     bins: Option<Bins<f32>>,
-    /// Steps a unit of the integer elevation (shade only).
-    z_per_step: f64,
     lo: Option<Cell>,
     hi: Option<Cell>,
     points: u64,
 }
+
+/// The step of the elevation's integers (shade only): 2^-10 file units, about a millimetre in
+/// metres, far below what a hillshade shows whatever the cell (a cell in degrees included),
+/// and elevations up to 2^21 units (2,000 km) within the 32 bits a tallied integer has.
+const Z_STEP: f64 = 1.0 / 1024.0;
 
 /// Where a column's values are kept: the index of its integers or of its floats.
 #[derive(Debug, Clone, Copy)]
@@ -169,7 +173,6 @@ impl Rasterizer {
             ),
         };
         Rasterizer {
-            z_per_step: 64.0 / request.cell,
             request,
             slots,
             sums,
@@ -186,12 +189,11 @@ impl Rasterizer {
     }
 
     /// The integer that stands for the elevation `z` in the shading of the quick looks: z in
-    /// steps of 1/64 of a cell (far below what a shade shows), tallied exactly like the
-    /// columns' integers.
+    /// steps of [`Z_STEP`] file units, tallied exactly like the columns' integers.
     pub(crate) fn z_integer(&self, z: f64) -> i64 {
         const LIMIT: f64 = i32::MAX as f64;
         match z.is_finite() {
-            true => (z * self.z_per_step).round().clamp(-LIMIT, LIMIT) as i64,
+            true => (z / Z_STEP).round().clamp(-LIMIT, LIMIT) as i64,
             false => UNDEFINED,
         }
     }
@@ -264,7 +266,7 @@ impl Rasterizer {
         let mut values: Vec<Vec<f32>> = vec![Vec::new(); floats.count()];
         let mut tallies = vec![Stat::Mean.empty(); n - values.len() + 1];
         let z = Integers {
-            scale: 1.0 / self.z_per_step,
+            scale: Z_STEP,
             offset: 0.0,
         };
         // The columns' cell values, the point count, then the mean z (shade only).

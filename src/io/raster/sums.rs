@@ -11,7 +11,7 @@ use super::bins::{Bins, Cells};
 use crate::core::radix::sort_by_key;
 #[cfg(test)]
 use crate::core::raster::UNDEFINED;
-use crate::core::raster::{Stat, Tally, MAX_CELL_POINTS};
+use crate::core::raster::{Cell, Stat, Tally, MAX_CELL_POINTS};
 use crate::error::{Error, Result};
 
 /// The key of an empty slot: no block has it (a key's row and column stay below 2^32 - 1).
@@ -62,17 +62,32 @@ pub(crate) struct CellSums {
     spilled: bool,
 }
 
-/// Bytes a block of cells of `columns` tallies takes in the table, its slots included (at
-/// most a quarter full after they double).
+/// Bytes a block of cells of `columns` tallies takes in the table: its key and slots (at most
+/// a quarter full after they double), its cells' points and tallies, and their place in the
+/// list of cells in key order that a spill or the end makes.
 fn block_bytes(columns: usize) -> usize {
-    8 + BLOCK * (4 + std::mem::size_of::<Tally>() * columns) + 4 * std::mem::size_of::<(u64, u32)>()
+    let slots = 4 * std::mem::size_of::<(u64, u32)>();
+    let cell = 4 + std::mem::size_of::<Tally>() * columns + std::mem::size_of::<(u64, u32)>();
+    8 + slots + BLOCK * cell
+}
+
+/// Makes room in `v` for `add` more items, doubling its capacity but to at most `cap` items
+/// (the budget's): a table that fills its share does not take twice it.
+fn room<T>(v: &mut Vec<T>, add: usize, cap: usize) {
+    let need = v.len() + add;
+    if need > v.capacity() {
+        let want = (2 * v.capacity()).clamp(need, cap.max(need));
+        v.reserve_exact(want - v.len());
+    }
 }
 
 impl CellSums {
     /// Tallies by `stat` of `columns - 1` columns, then a mean of one more (the elevation),
-    /// keeping at most `budget` bytes in memory; spilled cells go to run files in `dir`.
+    /// keeping at most `budget` bytes in memory; spilled cells go to run files in `dir`. Half
+    /// the budget is the table's (whose vectors, while they grow, briefly hold their old
+    /// items beside the new), a quarter the spilled cells' on their way to a run file.
     pub(crate) fn new(dir: &Path, stat: Stat, columns: usize, budget: u64) -> CellSums {
-        let table = budget as usize / 4 * 3;
+        let table = budget as usize / 2;
         let capacity = (table / block_bytes(columns)).clamp(4, u32::MAX as usize / BLOCK / 2);
         let words = 1 + TALLY_WORDS * columns;
         CellSums {
@@ -101,7 +116,7 @@ impl CellSums {
         self.last = Some((b, block));
         let i = block as usize * BLOCK + within(key);
         if self.points[i] >= MAX_CELL_POINTS {
-            return Err(too_many(what));
+            return Err(too_many(format!("the cell of {}", what())));
         }
         self.points[i] += 1;
         let n = self.columns;
@@ -126,6 +141,9 @@ impl CellSums {
         let i = self.blocks.len() as u32;
         self.place(key, i);
         self.blocks.push(key);
+        let n = self.columns;
+        room(&mut self.points, BLOCK, self.capacity * BLOCK);
+        room(&mut self.tallies, BLOCK * n, self.capacity * BLOCK * n);
         self.points.resize(self.points.len() + BLOCK, 0);
         let empty: Vec<Tally> = self.stats().into_iter().map(Stat::empty).collect();
         for _ in 0..BLOCK {
@@ -254,10 +272,10 @@ fn hash(key: u64, mask: usize) -> usize {
     (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> (64 - bits)) as usize & mask
 }
 
-fn too_many(what: &dyn Fn() -> String) -> Error {
+/// The error of a cell with more points than a tally counts: `cell` names it.
+fn too_many(cell: String) -> Error {
     Error::Usage(format!(
-        "{}: its cell holds more than {MAX_CELL_POINTS} points, more than a cell's sum holds; use a smaller --cell",
-        what()
+        "{cell} holds more than {MAX_CELL_POINTS} points, more than a cell's tally counts; use a smaller --cell"
     ))
 }
 
@@ -301,7 +319,12 @@ impl SumCells {
                 };
                 let points: u64 = words[0].iter().map(|&p| u64::from(p)).sum();
                 if points > u64::from(MAX_CELL_POINTS) {
-                    return Err(too_many(&|| format!("cell key {key}")));
+                    let c = Cell::from_key(key);
+                    let cell = format!(
+                        "the cell ({}, {}) (floor(x / cell), floor(y / cell))",
+                        c.ix, c.iy
+                    );
+                    return Err(too_many(cell));
                 }
                 for (j, (t, &stat)) in out.iter_mut().zip(&self.stats).enumerate() {
                     *t = stat.empty();

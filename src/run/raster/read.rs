@@ -18,11 +18,15 @@ pub(super) enum Reader {
 
 impl Reader {
     /// How the column's values are integers: a LAS extra dimension of an integer type of at
-    /// most 32 bits (its scale and offset); None for any other.
+    /// most 32 bits with a finite scale and offset (those); None for any other.
     fn integers(&self) -> Option<Integers> {
         use ScalarType::*;
         match self {
-            Reader::Extra { d, .. } if matches!(d.scalar()?, U8 | I8 | U16 | I16 | U32 | I32) => {
+            Reader::Extra { d, .. }
+                if matches!(d.scalar()?, U8 | I8 | U16 | I16 | U32 | I32)
+                    && d.scale.is_finite()
+                    && d.value_offset.is_finite() =>
+            {
                 Some(Integers {
                     scale: d.scale,
                     offset: d.value_offset,
