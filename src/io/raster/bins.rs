@@ -22,39 +22,16 @@ const MAX_FAN_IN: usize = 256;
 /// Bytes of each run's read buffer and of the run writer's buffer.
 const READ_BUFFER: usize = 256 << 10;
 
-/// A 4-byte value a record carries: a column's f32, or a word of a tally (`sums`).
-pub(crate) trait Word: Copy + Default {
-    fn to_le(self) -> [u8; 4];
-    fn from_le(b: [u8; 4]) -> Self;
-}
-
-impl Word for f32 {
-    fn to_le(self) -> [u8; 4] {
-        self.to_le_bytes()
-    }
-    fn from_le(b: [u8; 4]) -> Self {
-        f32::from_le_bytes(b)
-    }
-}
-
-impl Word for u32 {
-    fn to_le(self) -> [u8; 4] {
-        self.to_le_bytes()
-    }
-    fn from_le(b: [u8; 4]) -> Self {
-        u32::from_le_bytes(b)
-    }
-}
-
-/// Records of `columns` values ([`Word`]s) per point, binned by cell key.
-pub(crate) struct Bins<W: Word> {
+/// Records of `columns` 32-bit words per point (a column's f32 bits, or words of integers and
+/// tallies), binned by cell key.
+pub(crate) struct Bins {
     dir: PathBuf,
     /// The start of the run files' names (bins of different records share a directory).
     name: &'static str,
     columns: usize,
     /// Per record in memory: its key and its index in `values`.
     keys: Vec<(u64, u32)>,
-    values: Vec<W>,
+    values: Vec<u32>,
     /// Records kept in memory before a run is written.
     capacity: usize,
     runs: Vec<PathBuf>,
@@ -65,11 +42,11 @@ pub(crate) struct Bins<W: Word> {
 }
 
 /// Bytes a record takes in memory (key, index, values) and in a run file (key, values).
-fn record_bytes(columns: usize) -> usize {
+pub(super) fn record_bytes(columns: usize) -> usize {
     16 + 4 * columns
 }
 
-impl<W: Word> Bins<W> {
+impl Bins {
     /// Bins for records of `columns` values, keeping at most `budget` bytes of them in memory;
     /// run files go to `dir` (made when the first run is written), named `name1.bin`,
     /// `name2.bin`, ... Room for `expected` records
@@ -99,7 +76,7 @@ impl<W: Word> Bins<W> {
 
     /// Adds one record: its cell key and one value per column (a point's values, NaN for
     /// undefined; or the words of a cell's tallies).
-    pub(crate) fn push(&mut self, key: u64, values: &[W]) -> Result<()> {
+    pub(crate) fn push(&mut self, key: u64, values: &[u32]) -> Result<()> {
         debug_assert_eq!(values.len(), self.columns);
         self.keys.push((key, self.keys.len() as u32));
         self.values.extend_from_slice(values);
@@ -147,7 +124,7 @@ impl<W: Word> Bins<W> {
 
     /// The records in key order: from memory when they never outgrew it, else merged from the
     /// run files (past [`MAX_FAN_IN`] runs, merged into longer runs first).
-    pub(crate) fn into_cells(mut self) -> Result<Cells<W>> {
+    pub(crate) fn into_cells(mut self) -> Result<Cells> {
         if self.runs.is_empty() {
             self.sort();
             let source = Source::Memory {
@@ -163,7 +140,7 @@ impl<W: Word> Bins<W> {
             let path = self.run_path();
             let mut merged = Merge::open(&group, self.columns)?;
             let mut w = RunWriter::create(&path)?;
-            let mut values = vec![W::default(); self.columns];
+            let mut values = vec![0; self.columns];
             while let Some(key) = merged.next_record(&mut values)? {
                 w.put(key, &values)?;
             }
@@ -179,7 +156,7 @@ impl<W: Word> Bins<W> {
     }
 }
 
-impl<W: Word> Drop for Bins<W> {
+impl Drop for Bins {
     fn drop(&mut self) {
         for p in &self.runs {
             let _ = std::fs::remove_file(p);
@@ -205,7 +182,7 @@ impl RunWriter {
         })
     }
 
-    fn put<W: Word>(&mut self, key: u64, values: &[W]) -> Result<()> {
+    fn put(&mut self, key: u64, values: &[u32]) -> Result<()> {
         let mut rec = [0u8; 8];
         rec.copy_from_slice(&key.to_le_bytes());
         self.w
@@ -213,7 +190,7 @@ impl RunWriter {
             .map_err(|e| Error::write(&self.path, e))?;
         for v in values {
             self.w
-                .write_all(&v.to_le())
+                .write_all(&v.to_le_bytes())
                 .map_err(|e| Error::write(&self.path, e))?;
         }
         Ok(())
@@ -233,7 +210,7 @@ struct RunReader {
 
 impl RunReader {
     /// The next record's key, its values in `values`; None at the end.
-    fn next<W: Word>(&mut self, values: &mut [W]) -> Result<Option<u64>> {
+    fn next(&mut self, values: &mut [u32]) -> Result<Option<u64>> {
         match self.r.read_exact(&mut self.rec) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(None),
@@ -241,7 +218,7 @@ impl RunReader {
         }
         let (key, rest) = self.rec.split_at(8);
         for (v, b) in values.iter_mut().zip(rest.chunks_exact(4)) {
-            *v = W::from_le([b[0], b[1], b[2], b[3]]);
+            *v = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
         }
         Ok(Some(u64::from_le_bytes(key.try_into().unwrap_or([0; 8]))))
     }
@@ -250,18 +227,18 @@ impl RunReader {
 /// A k-way merge of sorted run files. Equal keys come run by run in the order of the runs,
 /// which does not matter: a cell's values are sorted before they are reduced, and its partial
 /// tallies merge exactly.
-struct Merge<W: Word> {
+struct Merge {
     runs: Vec<RunReader>,
     /// Per run, its current record's values.
-    heads: Vec<Vec<W>>,
+    heads: Vec<Vec<u32>>,
     heap: BinaryHeap<Reverse<(u64, usize)>>,
 }
 
-impl<W: Word> Merge<W> {
+impl Merge {
     fn open(paths: &[PathBuf], columns: usize) -> Result<Self> {
         let mut m = Merge {
             runs: Vec::with_capacity(paths.len()),
-            heads: vec![vec![W::default(); columns]; paths.len()],
+            heads: vec![vec![0; columns]; paths.len()],
             heap: BinaryHeap::with_capacity(paths.len()),
         };
         for (i, p) in paths.iter().enumerate() {
@@ -279,7 +256,7 @@ impl<W: Word> Merge<W> {
     }
 
     /// The next record in key order into `values`; None at the end.
-    fn next_record(&mut self, values: &mut [W]) -> Result<Option<u64>> {
+    fn next_record(&mut self, values: &mut [u32]) -> Result<Option<u64>> {
         let Some(Reverse((key, i))) = self.heap.pop() else {
             return Ok(None);
         };
@@ -292,41 +269,41 @@ impl<W: Word> Merge<W> {
 }
 
 /// Where the sorted records come from.
-enum Source<W: Word> {
+enum Source {
     Memory {
         keys: Vec<(u64, u32)>,
-        values: Vec<W>,
+        values: Vec<u32>,
         next: usize,
     },
-    Runs(Merge<W>),
+    Runs(Merge),
 }
 
 /// The cells in key order, each with its points' values per column.
-pub(crate) struct Cells<W: Word> {
+pub(crate) struct Cells {
     /// Kept so that the run files live until the cells are read.
-    bins: Bins<W>,
-    source: Source<W>,
+    bins: Bins,
+    source: Source,
     /// From runs: the record read past the last cell, the first of the next one.
     pending: Option<u64>,
-    pending_values: Vec<W>,
+    pending_values: Vec<u32>,
     started: bool,
 }
 
-impl<W: Word> Cells<W> {
-    fn new(bins: Bins<W>, source: Source<W>) -> Self {
+impl Cells {
+    fn new(bins: Bins, source: Source) -> Self {
         let columns = bins.columns;
         Cells {
             bins,
             source,
             pending: None,
-            pending_values: vec![W::default(); columns],
+            pending_values: vec![0; columns],
             started: false,
         }
     }
 
     /// The next cell's key, its values column by column in `out` (cleared first: `out[c]`
     /// holds column `c`'s values of the cell's points); None after the last cell.
-    pub(crate) fn next_cell(&mut self, out: &mut [Vec<W>]) -> Result<Option<u64>> {
+    pub(crate) fn next_cell(&mut self, out: &mut [Vec<u32>]) -> Result<Option<u64>> {
         out.iter_mut().for_each(Vec::clear);
         let n = self.bins.columns;
         let merge = match &mut self.source {
@@ -376,10 +353,10 @@ mod tests {
         let tmp = tempfile::tempdir().expect("temp dir");
         let n = 40_000u64;
         // Keys in a scrambled order; cell k holds the points i with i % 997 == k.
-        let record = |i: u64| ((i * 7919) % n, [i as f32, -(i as f32)]);
+        let record = |i: u64| ((i * 7919) % n, [i as u32, !(i as u32)]);
         for (budget, runs) in [(1u64 << 30, false), (4096 * 24, true)] {
             let dir = tmp.path().join(format!("b{budget}"));
-            let mut bins = Bins::<f32>::new(&dir, "run", 2, budget, 1000);
+            let mut bins = Bins::new(&dir, "run", 2, budget, 1000);
             for i in 0..n {
                 let (p, v) = record(i);
                 bins.push(p % 997, &v).expect("push");
@@ -391,14 +368,14 @@ mod tests {
             while let Some(key) = cells.next_cell(&mut out).expect("cell") {
                 assert!(last < Some(key), "keys in order");
                 last = Some(key);
-                let mut got: Vec<f32> = out[0].clone();
-                got.sort_by(f32::total_cmp);
-                let want: Vec<f32> = (0..n)
+                let mut got: Vec<u32> = out[0].clone();
+                got.sort_unstable();
+                let want: Vec<u32> = (0..n)
                     .filter(|&i| record(i).0 % 997 == key)
-                    .map(|i| i as f32)
+                    .map(|i| i as u32)
                     .collect();
                 assert_eq!(got, want, "cell {key}");
-                assert!(out[0].iter().zip(&out[1]).all(|(a, b)| *a == -*b));
+                assert!(out[0].iter().zip(&out[1]).all(|(a, b)| *a == !*b));
                 seen += out[0].len();
             }
             assert_eq!((seen as u64, last), (n, Some(996)));
@@ -412,16 +389,16 @@ mod tests {
     fn many_runs_are_merged_in_passes() {
         let tmp = tempfile::tempdir().expect("temp dir");
         let dir = tmp.path().join("runs");
-        let mut bins = Bins::<f32>::new(&dir, "run", 1, 0, 0);
+        let mut bins = Bins::new(&dir, "run", 1, 0, 0);
         let n = (MAX_FAN_IN as u64 + 40) * 4096;
         for i in 0..n {
-            bins.push(n - 1 - i, &[i as f32]).expect("push");
+            bins.push(n - 1 - i, &[i as u32]).expect("push");
         }
         let mut cells = bins.into_cells().expect("cells");
         let mut out = vec![Vec::new()];
         let mut k = 0;
         while let Some(key) = cells.next_cell(&mut out).expect("cell") {
-            assert_eq!((key, out[0].as_slice()), (k, &[(n - 1 - k) as f32][..]));
+            assert_eq!((key, out[0].as_slice()), (k, &[(n - 1 - k) as u32][..]));
             k += 1;
         }
         assert_eq!(k, n);

@@ -16,14 +16,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use crate::core::quicklook::{
     render, Grid, Legend, Ramp, Shade, Thumbnail, DEFAULT_CLIP_PERCENTILE, DEFAULT_MAX_SIDE,
 };
-use crate::core::raster::{Cell, CellGrid, Integers, Stat, UNDEFINED};
+use crate::core::raster::{Cell, CellGrid, Integers, Stat, Tally, MAX_CELL_POINTS, UNDEFINED};
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnSet, Group, TerrainValue, Value};
 use crate::io::quicklook_png::write_png;
 use bins::Bins;
+use bins::Cells;
 use geokeys::RasterCrs;
 use geotiff::{rows_per_strip, GeoTiff};
-use sums::CellSums;
+use sums::{CellSums, SumCells};
 
 /// The name of the point-count raster.
 pub(crate) const COUNT_NAME: &str = "PointCount";
@@ -115,16 +116,23 @@ pub struct RasterSummary {
 
 /// Points on their way into rasters: each point's cell and column values are binned as they
 /// come ([`Rasterizer::push`]); [`Rasterizer::finish`] writes the rasters. The columns of
-/// integers ([`RasterColumn::integers`]) are tallied per cell, with the point count and the
-/// elevation that shades the quick looks ([`CellSums`]); the others keep every point's value
-/// until the cell is reduced ([`Bins`]).
+/// integers ([`RasterColumn::integers`]), the point count and the elevation that shades the
+/// quick looks are reduced from tallies ([`crate::core::raster::Tally`]); the others keep
+/// every point's value until the cell is reduced ([`Bins`]). Where points are dense (more of
+/// them than cells, about), the tallies are made as the points come ([`CellSums`]); where they
+/// are sparse, a cell's tallies take more memory than its points, whose integers are then kept
+/// with their floats and tallied at the end: the same tallies either way.
 pub(crate) struct Rasterizer {
     request: RasterRequest,
     /// Where each column's value of a point is: among its integers or its floats.
     slots: Vec<Slot>,
-    sums: CellSums,
-    /// The points' floats, when some column is not of integers.
-    bins: Option<Bins<f32>>,
+    /// The cells' tallies as the points come, where points are dense.
+    sums: Option<CellSums>,
+    /// The points' words: their floats' bits and, without `sums`, their integers (two words
+    /// each, z's last); None when there are none.
+    bins: Option<Bins>,
+    /// One point's words.
+    words: Vec<u32>,
     lo: Option<Cell>,
     hi: Option<Cell>,
     points: u64,
@@ -135,6 +143,91 @@ pub(crate) struct Rasterizer {
 /// and elevations up to 2^21 units (2,000 km) within the 32 bits a tallied integer has.
 const Z_STEP: f64 = 1.0 / 1024.0;
 
+/// Whether tallying the cells as the points come takes less memory than keeping the points'
+/// integers: `points` over `area` square units (None: unknown, tallied) in cells of `cell`,
+/// with `ints` integer columns (and z) and `floats` others. About 2.3 points a cell for seven
+/// integer columns: a cell's tallies take about 150 bytes, a point's integers 64.
+fn tallies_fit(points: u64, area: Option<f64>, cell: f64, (ints, floats): (usize, usize)) -> bool {
+    let Some(area) = area else {
+        return true;
+    };
+    let cells = (area / (cell * cell)).max(1.0);
+    let table = cells * sums::block_bytes(ints + 1) as f64 / sums::BLOCK as f64;
+    let kept = bins::record_bytes(floats + 2 * (ints + 1)) - bins::record_bytes(floats);
+    table <= points as f64 * kept as f64
+}
+
+/// The cells in key order at the end, with their tallies and kept values: from the table of
+/// tallies (and the floats' bins, cell for cell), or from the bins alone, the tallies then
+/// made from each cell's kept integers.
+struct InOrder {
+    sums: Option<SumCells>,
+    bins: Option<Cells>,
+    /// The current cell's records from the bins, word by word.
+    words: Vec<Vec<u32>>,
+    /// The float columns among the words (the first ones).
+    floats: usize,
+    /// Each tally's statistic: the integer columns', then the elevation's mean.
+    stats: Vec<Stat>,
+}
+
+impl InOrder {
+    /// The next cell's key and points, its tallies in `tallies` and its float columns' values
+    /// in `values`; None after the last cell.
+    fn next(
+        &mut self,
+        tallies: &mut [Tally],
+        values: &mut [Vec<f32>],
+    ) -> Result<Option<(u64, u32)>> {
+        let tallied = match &mut self.sums {
+            Some(s) => match s.next_cell(tallies)? {
+                None => return Ok(None),
+                some => some,
+            },
+            None => None,
+        };
+        let Some(bins) = &mut self.bins else {
+            return Ok(tallied);
+        };
+        let key = bins.next_cell(&mut self.words)?;
+        let key = match (key, tallied) {
+            (Some(k), Some((t, _))) if k == t => k,
+            (Some(k), None) => k,
+            (None, None) => return Ok(None),
+            _ => {
+                return Err(Error::Internal(format!(
+                    "the cells' tallies and kept values disagree at {key:?}"
+                )))
+            }
+        };
+        for (v, w) in values.iter_mut().zip(&self.words) {
+            v.clear();
+            v.extend(w.iter().map(|&b| f32::from_bits(b)));
+        }
+        if tallied.is_some() {
+            return Ok(tallied);
+        }
+        let ints = &self.words[self.floats..];
+        let points = ints.first().map_or(0, Vec::len);
+        if points > MAX_CELL_POINTS as usize {
+            let c = Cell::from_key(key);
+            return Err(sums::too_many(format!("the cell ({}, {})", c.ix, c.iy)));
+        }
+        for ((t, &stat), pair) in tallies
+            .iter_mut()
+            .zip(&self.stats)
+            .zip(ints.chunks_exact(2))
+        {
+            *t = stat.empty();
+            for (&lo, &hi) in pair[0].iter().zip(&pair[1]) {
+                let raw = (u64::from(hi) << 32 | u64::from(lo)) as i64;
+                stat.add_all(std::slice::from_mut(t), &[raw]);
+            }
+        }
+        Ok(Some((key, points as u32)))
+    }
+}
+
 /// Where a column's values are kept: the index of its integers or of its floats.
 #[derive(Debug, Clone, Copy)]
 enum Slot {
@@ -144,12 +237,13 @@ enum Slot {
 
 impl Rasterizer {
     /// A rasterizer for `request` whose temporary run files go to `scratch`, keeping at most
-    /// `budget` bytes of cells and points in memory, for about `points` points.
+    /// `budget` bytes of cells and points in memory, for about `points` points over about
+    /// `area` square file units (None: unknown).
     pub(crate) fn new(
         request: RasterRequest,
         scratch: &Path,
         budget: u64,
-        points: u64,
+        (points, area): (u64, Option<f64>),
     ) -> Rasterizer {
         let (mut ints, mut floats) = (0, 0);
         let mut slots = Vec::with_capacity(request.columns.len());
@@ -164,19 +258,21 @@ impl Rasterizer {
             }
         }
         // The integer columns, then the elevation, whose mean shades the quick looks.
-        let tallied = |budget| CellSums::new(scratch, request.stat, ints + 1, budget);
-        let (sums, bins) = match floats {
-            0 => (tallied(budget), None),
-            n => (
-                tallied(budget / 2),
-                Some(Bins::new(scratch, "points", n, budget / 2, points)),
-            ),
+        let dense = tallies_fit(points, area, request.cell, (ints, floats));
+        let words = floats + if dense { 0 } else { 2 * (ints + 1) };
+        let share = if dense && words > 0 {
+            budget / 2
+        } else {
+            budget
         };
+        let sums = dense.then(|| CellSums::new(scratch, request.stat, ints + 1, share));
+        let bins = (words > 0).then(|| Bins::new(scratch, "points", words, share, points));
         Rasterizer {
             request,
             slots,
             sums,
             bins,
+            words: Vec::with_capacity(words),
             lo: None,
             hi: None,
             points: 0,
@@ -226,11 +322,21 @@ impl Rasterizer {
             iy: h.iy.max(c.iy),
         }));
         self.points += 1;
-        self.sums.add(c.key(), ints, what)?;
-        match &mut self.bins {
-            Some(b) => b.push(c.key(), floats),
-            None => Ok(()),
+        if let Some(s) = &mut self.sums {
+            s.add(c.key(), ints, what)?;
         }
+        let Some(b) = &mut self.bins else {
+            return Ok(());
+        };
+        self.words.clear();
+        self.words.extend(floats.iter().map(|v| v.to_bits()));
+        if self.sums.is_none() {
+            for &i in ints {
+                self.words
+                    .extend([i as u64 as u32, (i as u64 >> 32) as u32]);
+            }
+        }
+        b.push(c.key(), &self.words)
     }
 
     /// Writes one GeoTIFF per column and the point count into the request's directory (made if
@@ -259,12 +365,24 @@ impl Rasterizer {
             .map(|p| GeoTiff::create(p, &grid, crs))
             .collect::<Result<Vec<_>>>()?;
         let mut rows = Rows::new(&grid, writers);
-        let mut sums = self.sums.into_cells()?;
-        let mut cells = self.bins.map(Bins::into_cells).transpose()?;
         let n = req.columns.len();
         let floats = self.slots.iter().filter(|s| matches!(s, Slot::Floats(_)));
         let mut values: Vec<Vec<f32>> = vec![Vec::new(); floats.count()];
         let mut tallies = vec![Stat::Mean.empty(); n - values.len() + 1];
+        let stats = (1..tallies.len()).map(|_| req.stat).chain([Stat::Mean]);
+        let words = values.len()
+            + if self.sums.is_none() {
+                2 * tallies.len()
+            } else {
+                0
+            };
+        let mut cells = InOrder {
+            sums: self.sums.map(CellSums::into_cells).transpose()?,
+            bins: self.bins.map(Bins::into_cells).transpose()?,
+            words: vec![Vec::new(); words],
+            floats: values.len(),
+            stats: stats.collect(),
+        };
         let z = Integers {
             scale: Z_STEP,
             offset: 0.0,
@@ -272,17 +390,9 @@ impl Rasterizer {
         // The columns' cell values, the point count, then the mean z (shade only).
         let mut cell_values = vec![0.0f32; n + 2];
         let mut count = 0u64;
-        while let Some((key, points)) = sums.next_cell(&mut tallies)? {
+        while let Some((key, points)) = cells.next(&mut tallies, &mut values)? {
             if count.is_multiple_of(4096) && cancel.load(Ordering::Relaxed) {
                 return Err(Error::Interrupted);
-            }
-            if let Some(c) = &mut cells {
-                if c.next_cell(&mut values)? != Some(key) {
-                    return Err(Error::Internal(format!(
-                        "cell {:?} has tallies but no points",
-                        Cell::from_key(key)
-                    )));
-                }
             }
             let cell = Cell::from_key(key);
             let Some((row, col)) = grid.position(cell) else {
@@ -436,5 +546,97 @@ impl Rows {
             self.thumbs.into_iter().map(Thumbnail::finish).collect(),
             factor,
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::rng::Rng;
+
+    /// The rasters are the same bytes whether the integer columns are tallied as the points
+    /// come (dense points), with the table spilled or not, or kept with the points and
+    /// tallied at the end (sparse points): GeoTIFFs and PNGs, for each statistic.
+    #[test]
+    fn tallies_as_points_come_or_at_the_end_give_the_same_rasters() {
+        let tmp = tempfile::tempdir().expect("temp dir");
+        let column = |name: &str, integers| RasterColumn {
+            name: name.into(),
+            unit: String::new(),
+            signed: true,
+            angle: false,
+            integers,
+        };
+        let columns = vec![
+            column(
+                "A",
+                Some(Integers {
+                    scale: 1e-3,
+                    offset: 0.0,
+                }),
+            ),
+            column("B", None),
+            column(
+                "C",
+                Some(Integers {
+                    scale: -0.5,
+                    offset: 3.0,
+                }),
+            ),
+        ];
+        let crs = geokeys::raster_crs(std::iter::empty(), false);
+        for stat in [Stat::Mean, Stat::Min, Stat::Max, Stat::Count] {
+            // (area, budget, whether tallied as the points come)
+            let runs = [
+                (Some(1.0), 1u64 << 30, true),
+                (Some(1.0), 1 << 16, true),
+                (Some(1e9), 1 << 30, false),
+            ];
+            let mut first: Option<Vec<Vec<u8>>> = None;
+            for (i, (area, budget, dense)) in runs.into_iter().enumerate() {
+                let dir = tmp.path().join(format!("{stat}{i}"));
+                let request = RasterRequest {
+                    cell: 1.0,
+                    stat,
+                    dir: dir.clone(),
+                    columns: columns.clone(),
+                };
+                let mut r = Rasterizer::new(request, &dir.join(".runs"), budget, (6000, area));
+                assert_eq!(r.sums.is_some(), dense);
+                let mut rng = Rng::new(7);
+                for p in 0..6000 {
+                    let (x, y) = (rng.uniform() * 60.0 - 7.0, rng.uniform() * 40.0 + 3.0);
+                    let int = |rng: &mut Rng| match rng.uniform() < 0.1 {
+                        true => UNDEFINED,
+                        false => (rng.uniform() * 4e9 - 2e9) as i64,
+                    };
+                    let a = int(&mut rng);
+                    let c = -int(&mut rng).clamp(-30_000, 30_000);
+                    let b = if p % 7 == 0 {
+                        f32::NAN
+                    } else {
+                        rng.uniform() as f32
+                    };
+                    let z = r.z_integer(rng.uniform() * 10.0);
+                    r.push(x, y, (&[b], &[a, c, z]), &|| "test".into())
+                        .expect("push");
+                }
+                r.finish(&crs, &AtomicBool::new(false)).expect("finish");
+                let mut names: Vec<PathBuf> = std::fs::read_dir(&dir)
+                    .expect("dir")
+                    .map(|e| e.expect("entry").path())
+                    .collect();
+                names.sort();
+                assert_eq!(names.len(), 8, "{names:?}");
+                let bytes: Vec<Vec<u8>> = names
+                    .iter()
+                    .map(|p| std::fs::read(p).expect("read"))
+                    .collect();
+                match &first {
+                    None => first = Some(bytes),
+                    Some(f) => assert!(*f == bytes, "{stat}: run {i} differs"),
+                }
+            }
+        }
     }
 }

@@ -26,7 +26,7 @@ const TALLY_WORDS: usize = 3;
 /// at a time, the lookups and tallies scattered over the table cost a third of the rasters.
 const SIDE_BITS: u32 = 4;
 const SIDE: u64 = 1 << SIDE_BITS;
-const BLOCK: usize = 1 << (2 * SIDE_BITS);
+pub(super) const BLOCK: usize = 1 << (2 * SIDE_BITS);
 
 /// The key of the block of the cell `key` (its row and column, each divided by [`SIDE`]).
 fn block_of(key: u64) -> u64 {
@@ -58,14 +58,14 @@ pub(crate) struct CellSums {
     /// The block the last point went to.
     last: Option<(u64, u32)>,
     /// The spilled cells, a record each: its points, then each tally's words.
-    runs: Bins<u32>,
+    runs: Bins,
     spilled: bool,
 }
 
 /// Bytes a block of cells of `columns` tallies takes in the table: its key and slots (at most
 /// a quarter full after they double), its cells' points and tallies, and their place in the
 /// list of cells in key order that a spill or the end makes.
-fn block_bytes(columns: usize) -> usize {
+pub(super) fn block_bytes(columns: usize) -> usize {
     let slots = 4 * std::mem::size_of::<(u64, u32)>();
     let cell = 4 + std::mem::size_of::<Tally>() * columns + std::mem::size_of::<(u64, u32)>();
     8 + slots + BLOCK * cell
@@ -273,7 +273,7 @@ fn hash(key: u64, mask: usize) -> usize {
 }
 
 /// The error of a cell with more points than a tally counts: `cell` names it.
-fn too_many(cell: String) -> Error {
+pub(super) fn too_many(cell: String) -> Error {
     Error::Usage(format!(
         "{cell} holds more than {MAX_CELL_POINTS} points, more than a cell's tally counts; use a smaller --cell"
     ))
@@ -286,7 +286,7 @@ enum Source {
         next: usize,
     },
     Runs {
-        cells: Cells<u32>,
+        cells: Cells,
         /// A cell's records, word by word.
         words: Vec<Vec<u32>>,
     },

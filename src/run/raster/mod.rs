@@ -16,7 +16,7 @@ use crate::io::las::extra_bytes;
 use crate::io::raster::geokeys::{raster_crs, RasterCrs};
 pub use crate::io::raster::RasterSummary;
 use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
-use crate::io::source::{PointSource, SourceLayout};
+use crate::io::source::{declared_bounds, PointSource, SourceLayout};
 use crate::progress::Reporter;
 use read::{column_names, reader, reader_of_later, tally_integers, Binner, Reader};
 
@@ -115,7 +115,8 @@ fn make_rasters(
     let scratch = scratch_dir(&job.dir);
     let total = sources.iter().map(|s| s.len()).sum();
     let budget = binning_budget(memory_bytes, 2);
-    let mut rasterizer = Rasterizer::new(request, &scratch, budget, total);
+    let extent = (total, declared_area(&sources));
+    let mut rasterizer = Rasterizer::new(request, &scratch, budget, extent);
     reporter.phase("bin", total);
     for (s, readers) in sources.iter().zip(readers) {
         let binner = Binner::new(readers, &rasterizer);
@@ -129,6 +130,15 @@ fn make_rasters(
     warn_other_crs(&sources, &crs, reporter);
     reporter.info(&format!("raster CRS: {}", crs.described));
     rasterizer.finish(&crs, cancel)
+}
+
+/// The area the inputs' points cover by their declared bounds (LAS headers), summed over the
+/// inputs; None when one has none. Only the binning's memory depends on it, not the rasters.
+fn declared_area(sources: &[Box<dyn PointSource>]) -> Option<f64> {
+    sources
+        .iter()
+        .map(|s| declared_bounds(s.as_ref()).map(|[lo, hi]| (hi[0] - lo[0]) * (hi[1] - lo[1])))
+        .sum()
 }
 
 /// Warns about each input whose CRS is not the first's: one raster takes the first's.
@@ -308,8 +318,9 @@ impl OutputRasters {
         let scratch = scratch_dir(&dir);
         let points = sources.iter().map(|s| s.len()).sum();
         let budget = binning_budget(memory_bytes, 4);
+        let extent = (points, declared_area(sources));
         Ok(OutputRasters {
-            rasterizer: Rasterizer::new(request, &scratch, budget, points),
+            rasterizer: Rasterizer::new(request, &scratch, budget, extent),
             crs: source_crs(first),
             readers,
         })
