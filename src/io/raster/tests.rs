@@ -1,0 +1,90 @@
+//! The rasterizer's two ways of tallying give the same rasters.
+
+use super::*;
+use crate::core::rng::Rng;
+
+/// The rasters are the same bytes whether the integer columns are tallied as the points
+/// come (dense points), with the table spilled or not, or kept with the points and
+/// tallied at the end (sparse points): GeoTIFFs and PNGs, for each statistic.
+#[test]
+fn tallies_as_points_come_or_at_the_end_give_the_same_rasters() {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let column = |name: &str, integers| RasterColumn {
+        name: name.into(),
+        unit: String::new(),
+        signed: true,
+        angle: false,
+        integers,
+    };
+    let columns = vec![
+        column(
+            "A",
+            Some(Integers {
+                scale: 1e-3,
+                offset: 0.0,
+            }),
+        ),
+        column("B", None),
+        column(
+            "C",
+            Some(Integers {
+                scale: -0.5,
+                offset: 3.0,
+            }),
+        ),
+    ];
+    let crs = geokeys::raster_crs(std::iter::empty(), false);
+    for stat in [Stat::Mean, Stat::Min, Stat::Max, Stat::Count] {
+        // (area, budget, whether tallied as the points come)
+        let runs = [
+            (Some(1.0), 1u64 << 30, true),
+            (Some(1.0), 1 << 16, true),
+            (Some(1e9), 1 << 30, false),
+        ];
+        let mut first: Option<Vec<Vec<u8>>> = None;
+        for (i, (area, budget, dense)) in runs.into_iter().enumerate() {
+            let dir = tmp.path().join(format!("{stat}{i}"));
+            let request = RasterRequest {
+                cell: 1.0,
+                stat,
+                dir: dir.clone(),
+                columns: columns.clone(),
+            };
+            let mut r = Rasterizer::new(request, &dir.join(".runs"), budget, (6000, area));
+            assert_eq!(r.sums.is_some(), dense);
+            let mut rng = Rng::new(7);
+            for p in 0..6000 {
+                let (x, y) = (rng.uniform() * 60.0 - 7.0, rng.uniform() * 40.0 + 3.0);
+                let int = |rng: &mut Rng| match rng.uniform() < 0.1 {
+                    true => UNDEFINED,
+                    false => (rng.uniform() * 4e9 - 2e9) as i64,
+                };
+                let a = int(&mut rng);
+                let c = -int(&mut rng).clamp(-30_000, 30_000);
+                let b = if p % 7 == 0 {
+                    f32::NAN
+                } else {
+                    rng.uniform() as f32
+                };
+                let z = r.z_integer(rng.uniform() * 10.0);
+                r.push(x, y, (&[b], &[a, c, z]), &|| "test".into())
+                    .expect("push");
+            }
+            r.finish(&crs, &AtomicBool::new(false)).expect("finish");
+            let mut names: Vec<PathBuf> = std::fs::read_dir(&dir)
+                .expect("dir")
+                .map(|e| e.expect("entry").path())
+                .collect();
+            names.sort();
+            assert_eq!(names.len(), 8, "{names:?}");
+            let bytes: Vec<Vec<u8>> = names
+                .iter()
+                .map(|p| std::fs::read(p).expect("read"))
+                .collect();
+            match &first {
+                None => first = Some(bytes),
+                Some(f) => assert!(*f == bytes, "{stat}: run {i} differs"),
+            }
+        }
+    }
+}
