@@ -16,10 +16,10 @@ use crate::core::radix::sort_by_key;
 use crate::error::{Error, Result};
 
 /// Runs merged at once; past it, runs are first merged into longer runs. Each open run holds
-/// one read buffer ([`READ_BUFFER`]).
+/// one read buffer ([`Bins::buffer`]).
 const MAX_FAN_IN: usize = 256;
 
-/// Bytes of each run's read buffer and of the run writer's buffer.
+/// The most bytes of each run's read buffer and of the run writer's buffer.
 const READ_BUFFER: usize = 256 << 10;
 
 /// Records of `columns` 32-bit words per point (a column's f32 bits, or words of integers and
@@ -34,6 +34,9 @@ pub(crate) struct Bins {
     values: Vec<u32>,
     /// Records kept in memory before a run is written.
     capacity: usize,
+    /// Bytes of each run file's buffer: the budget shared by a merge's readers and a writer
+    /// (within 4 KiB to [`READ_BUFFER`]), whose records' memory is freed before the merge.
+    buffer: usize,
     runs: Vec<PathBuf>,
     /// Run files written so far (their names are numbered).
     written: usize,
@@ -68,6 +71,7 @@ impl Bins {
             keys: Vec::with_capacity(room),
             values: Vec::with_capacity(room * columns),
             capacity,
+            buffer: (budget as usize / (MAX_FAN_IN + 1)).clamp(4 << 10, READ_BUFFER),
             runs: Vec::new(),
             written: 0,
             made_dir: false,
@@ -109,7 +113,7 @@ impl Bins {
         }
         self.sort();
         let path = self.run_path();
-        let mut w = RunWriter::create(&path)?;
+        let mut w = RunWriter::create(&path, self.buffer)?;
         let n = self.columns;
         for &(key, i) in &self.keys {
             let i = i as usize * n;
@@ -135,11 +139,13 @@ impl Bins {
             return Ok(Cells::new(self, source));
         }
         self.spill()?;
+        // The records' memory goes to the merge's buffers.
+        (self.keys, self.values) = (Vec::new(), Vec::new());
         while self.runs.len() > MAX_FAN_IN {
             let group: Vec<PathBuf> = self.runs.drain(..MAX_FAN_IN).collect();
             let path = self.run_path();
-            let mut merged = Merge::open(&group, self.columns)?;
-            let mut w = RunWriter::create(&path)?;
+            let mut merged = Merge::open(&group, self.columns, self.buffer)?;
+            let mut w = RunWriter::create(&path, self.buffer)?;
             let mut values = vec![0; self.columns];
             while let Some(key) = merged.next_record(&mut values)? {
                 w.put(key, &values)?;
@@ -151,7 +157,7 @@ impl Bins {
             }
             self.runs.push(path);
         }
-        let merge = Merge::open(&self.runs, self.columns)?;
+        let merge = Merge::open(&self.runs, self.columns, self.buffer)?;
         Ok(Cells::new(self, Source::Runs(merge)))
     }
 }
@@ -174,11 +180,11 @@ struct RunWriter {
 }
 
 impl RunWriter {
-    fn create(path: &Path) -> Result<RunWriter> {
+    fn create(path: &Path, buffer: usize) -> Result<RunWriter> {
         let f = File::create(path).map_err(|e| Error::write(path, e))?;
         Ok(RunWriter {
             path: path.to_path_buf(),
-            w: BufWriter::with_capacity(READ_BUFFER, f),
+            w: BufWriter::with_capacity(buffer, f),
         })
     }
 
@@ -235,7 +241,7 @@ struct Merge {
 }
 
 impl Merge {
-    fn open(paths: &[PathBuf], columns: usize) -> Result<Self> {
+    fn open(paths: &[PathBuf], columns: usize, buffer: usize) -> Result<Self> {
         let mut m = Merge {
             runs: Vec::with_capacity(paths.len()),
             heads: vec![vec![0; columns]; paths.len()],
@@ -245,7 +251,7 @@ impl Merge {
             let f = File::open(p).map_err(|e| Error::read_work(p, e))?;
             m.runs.push(RunReader {
                 path: p.clone(),
-                r: BufReader::with_capacity(READ_BUFFER, f),
+                r: BufReader::with_capacity(buffer, f),
                 rec: vec![0; 8 + 4 * columns],
             });
             if let Some(k) = m.runs[i].next(&mut m.heads[i])? {
