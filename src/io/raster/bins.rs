@@ -22,6 +22,16 @@ const MAX_FAN_IN: usize = 256;
 /// The most bytes of each run's read buffer and of the run writer's buffer.
 const READ_BUFFER: usize = 256 << 10;
 
+/// The two words that carry `v` in a record: its low and high halves.
+pub(super) fn words_of(v: i64) -> [u32; 2] {
+    [v as u64 as u32, (v as u64 >> 32) as u32]
+}
+
+/// The integer of the two words `low`, `high` ([`words_of`]).
+pub(super) fn from_words(low: u32, high: u32) -> i64 {
+    (u64::from(high) << 32 | u64::from(low)) as i64
+}
+
 /// Records of `columns` 32-bit words per point (a column's f32 bits, or words of integers and
 /// tallies), binned by cell key.
 pub(crate) struct Bins {
@@ -307,11 +317,13 @@ impl Cells {
         }
     }
 
-    /// The next cell's key, its values column by column in `out` (cleared first: `out[c]`
-    /// holds column `c`'s values of the cell's points); None after the last cell.
-    pub(crate) fn next_cell(&mut self, out: &mut [Vec<u32>]) -> Result<Option<u64>> {
-        out.iter_mut().for_each(Vec::clear);
+    /// The next cell's key, its values column by column in `out` (one vector a column,
+    /// cleared first: `out[c]` holds column `c`'s values of the cell's records); None after
+    /// the last cell.
+    pub(crate) fn next_cell(&mut self, out: &mut Vec<Vec<u32>>) -> Result<Option<u64>> {
         let n = self.bins.columns;
+        out.resize_with(n, Vec::new);
+        out.iter_mut().for_each(Vec::clear);
         let merge = match &mut self.source {
             Source::Memory { keys, values, next } => {
                 // The cell's records are the next run of its key: each column gathered in one

@@ -20,8 +20,7 @@ use crate::core::raster::{Cell, CellGrid, Integers, Stat, Tally, MAX_CELL_POINTS
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnSet, Group, TerrainValue, Value};
 use crate::io::quicklook_png::write_png;
-use bins::Bins;
-use bins::Cells;
+use bins::{from_words, words_of, Bins, Cells};
 use geokeys::RasterCrs;
 use geotiff::{rows_per_strip, GeoTiff};
 use sums::{CellSums, SumCells};
@@ -210,8 +209,7 @@ impl InOrder {
         let ints = &self.words[self.floats..];
         let points = ints.first().map_or(0, Vec::len);
         if points > MAX_CELL_POINTS as usize {
-            let c = Cell::from_key(key);
-            return Err(sums::too_many(format!("the cell ({}, {})", c.ix, c.iy)));
+            return Err(sums::too_many_in(key));
         }
         for ((t, &stat), pair) in tallies
             .iter_mut()
@@ -220,8 +218,7 @@ impl InOrder {
         {
             *t = stat.empty();
             for (&lo, &hi) in pair[0].iter().zip(&pair[1]) {
-                let raw = (u64::from(hi) << 32 | u64::from(lo)) as i64;
-                stat.add_all(std::slice::from_mut(t), &[raw]);
+                stat.add_all(std::slice::from_mut(t), &[from_words(lo, hi)]);
             }
         }
         Ok(Some((key, points as u32)))
@@ -246,17 +243,18 @@ impl Rasterizer {
         (points, area): (u64, Option<f64>),
     ) -> Rasterizer {
         let (mut ints, mut floats) = (0, 0);
-        let mut slots = Vec::with_capacity(request.columns.len());
-        for c in &request.columns {
-            slots.push(match c.integers {
-                Some(i) => Slot::Integers(ints, i),
-                None => Slot::Floats(floats),
-            });
-            match c.integers {
-                Some(_) => ints += 1,
-                None => floats += 1,
-            }
-        }
+        let slots = (request.columns.iter())
+            .map(|c| match c.integers {
+                Some(i) => {
+                    ints += 1;
+                    Slot::Integers(ints - 1, i)
+                }
+                None => {
+                    floats += 1;
+                    Slot::Floats(floats - 1)
+                }
+            })
+            .collect();
         // The integer columns, then the elevation, whose mean shades the quick looks.
         let dense = tallies_fit(points, area, request.cell, (ints, floats));
         let words = floats + if dense { 0 } else { 2 * (ints + 1) };
@@ -331,10 +329,7 @@ impl Rasterizer {
         self.words.clear();
         self.words.extend(floats.iter().map(|v| v.to_bits()));
         if self.sums.is_none() {
-            for &i in ints {
-                self.words
-                    .extend([i as u64 as u32, (i as u64 >> 32) as u32]);
-            }
+            self.words.extend(ints.iter().flat_map(|&i| words_of(i)));
         }
         b.push(c.key(), &self.words)
     }
@@ -369,19 +364,12 @@ impl Rasterizer {
         let floats = self.slots.iter().filter(|s| matches!(s, Slot::Floats(_)));
         let mut values: Vec<Vec<f32>> = vec![Vec::new(); floats.count()];
         let mut tallies = vec![Stat::Mean.empty(); n - values.len() + 1];
-        let stats = (1..tallies.len()).map(|_| req.stat).chain([Stat::Mean]);
-        let words = values.len()
-            + if self.sums.is_none() {
-                2 * tallies.len()
-            } else {
-                0
-            };
         let mut cells = InOrder {
             sums: self.sums.map(CellSums::into_cells).transpose()?,
             bins: self.bins.map(Bins::into_cells).transpose()?,
-            words: vec![Vec::new(); words],
+            words: Vec::new(),
             floats: values.len(),
-            stats: stats.collect(),
+            stats: sums::tally_stats(req.stat, tallies.len()),
         };
         let z = Integers {
             scale: Z_STEP,

@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use super::bins::{Bins, Cells};
+use super::bins::{from_words, words_of, Bins, Cells};
 use crate::core::radix::sort_by_key;
 #[cfg(test)]
 use crate::core::raster::UNDEFINED;
@@ -218,8 +218,8 @@ impl CellSums {
             words.clear();
             words.push(self.points[i]);
             for t in &self.tallies[i * n..(i + 1) * n] {
-                let acc = t.acc as u64;
-                words.extend([acc as u32, (acc >> 32) as u32, t.count]);
+                words.extend(words_of(t.acc));
+                words.push(t.count);
             }
             self.runs.push(key, &words)?;
         }
@@ -233,10 +233,8 @@ impl CellSums {
         Ok(())
     }
 
-    /// Each column's statistic: the columns', then the elevation's mean.
     fn stats(&self) -> Vec<Stat> {
-        let columns = (1..self.columns).map(|_| self.stat);
-        columns.chain([Stat::Mean]).collect()
+        tally_stats(self.stat, self.columns)
     }
 
     /// The cells in key order with their merged tallies.
@@ -254,12 +252,11 @@ impl CellSums {
             });
         }
         self.spill()?;
-        let words = 1 + TALLY_WORDS * stats.len();
         Ok(SumCells {
             stats,
             source: Source::Runs {
                 cells: self.runs.into_cells()?,
-                words: vec![Vec::new(); words],
+                words: Vec::new(),
             },
         })
     }
@@ -272,10 +269,26 @@ fn hash(key: u64, mask: usize) -> usize {
     (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> (64 - bits)) as usize & mask
 }
 
+/// Each tally's statistic for `columns` tallies: `stat` for the columns, then the mean of the
+/// last one (the elevation, which shades the quick looks).
+pub(super) fn tally_stats(stat: Stat, columns: usize) -> Vec<Stat> {
+    let each = (1..columns).map(|_| stat);
+    each.chain([Stat::Mean]).collect()
+}
+
 /// The error of a cell with more points than a tally counts: `cell` names it.
-pub(super) fn too_many(cell: String) -> Error {
+fn too_many(cell: String) -> Error {
     Error::Usage(format!(
         "{cell} holds more than {MAX_CELL_POINTS} points, more than a cell's tally counts; use a smaller --cell"
+    ))
+}
+
+/// [`too_many`] for the cell `key`, named by its indices.
+pub(super) fn too_many_in(key: u64) -> Error {
+    let c = Cell::from_key(key);
+    too_many(format!(
+        "the cell ({}, {}) (floor(x / cell), floor(y / cell))",
+        c.ix, c.iy
     ))
 }
 
@@ -319,18 +332,13 @@ impl SumCells {
                 };
                 let points: u64 = words[0].iter().map(|&p| u64::from(p)).sum();
                 if points > u64::from(MAX_CELL_POINTS) {
-                    let c = Cell::from_key(key);
-                    let cell = format!(
-                        "the cell ({}, {}) (floor(x / cell), floor(y / cell))",
-                        c.ix, c.iy
-                    );
-                    return Err(too_many(cell));
+                    return Err(too_many_in(key));
                 }
                 for (j, (t, &stat)) in out.iter_mut().zip(&self.stats).enumerate() {
                     *t = stat.empty();
                     let w = |k: usize| &words[1 + TALLY_WORDS * j + k];
                     for ((&lo, &hi), &count) in w(0).iter().zip(w(1)).zip(w(2)) {
-                        let acc = (u64::from(hi) << 32 | u64::from(lo)) as i64;
+                        let acc = from_words(lo, hi);
                         stat.merge(t, Tally { acc, count });
                     }
                 }
