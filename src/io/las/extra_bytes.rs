@@ -178,6 +178,15 @@ impl Descriptor {
         }
         Some(raw * self.scale + self.value_offset)
     }
+
+    /// The declared no-data value as the raw integer [`ScalarType::decode_integer`] gives
+    /// for it, when it is one (of at most 32 bits): the value [`Descriptor::read_as`] takes
+    /// as no-data, for a reader that compares integers rather than each value as an f64.
+    pub fn no_data_integer(&self) -> Option<i64> {
+        (self.no_data)
+            .filter(|v| v.fract() == 0.0 && v.abs() <= u32::MAX as f64)
+            .map(|v| v as i64)
+    }
 }
 
 /// Parses the descriptors of an extra-bytes VLR payload. Returns an error message when the

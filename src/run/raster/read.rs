@@ -49,11 +49,10 @@ impl Reader {
         let (Reader::Extra { at, d }, Some(ints_of)) = (self, self.integers()) else {
             return each(records, row, ints, (c, width), |_| UNDEFINED);
         };
-        // The no-data value as the integer it is (UNDEFINED, which no integer read is, if
-        // none or not an integer), and the sign that orients the integers, found once.
-        let no_data = (d.no_data)
-            .filter(|v| v.fract() == 0.0 && v.abs() <= u32::MAX as f64)
-            .map_or(UNDEFINED, |v| v as i64);
+        // The no-data integer (UNDEFINED, which no integer read is, if none) and the sign that
+        // orients the integers, found once: comparing each value as an f64 (`read_as`) cost
+        // 10 instructions a value more.
+        let no_data = d.no_data_integer().unwrap_or(UNDEFINED);
         let sign = ints_of.oriented(1);
         let start = at + d.offset;
         let read = |rec: &[u8], t: ScalarType| match rec.get(start..start + t.size()) {
