@@ -190,3 +190,76 @@ fn a_plane_has_no_shape_index() {
     let (n, c) = exact(0.2, 0.1, 0.0, 0.0, 0.0);
     same(&TerrainValues::of(n, &c), &v, 1e-12);
 }
+
+/// The batches of [`TerrainValues::fill`] give what [`TerrainValues::of`] gives, bit for bit,
+/// for every kind of point: steep, flat, level, downward, planar, umbilic, without a normal or a
+/// curvature, and the exceptional ones the library's arctangent takes (a zero normal, a huge
+/// one, infinite curvatures), in batches cut short at the end.
+#[test]
+fn batches_give_the_values_of_each_point() {
+    let mut rng = Rng::new(31);
+    let specials: [(V3, f64, f64); 9] = [
+        ([0.0, 0.0, 0.0], 0.1, 0.2),
+        ([0.0, 0.0, -0.0], 0.1, 0.2),
+        ([1e200, 0.0, 0.0], 0.1, 0.2),
+        ([0.0, 0.0, 1.0], 0.0, 0.0),
+        ([0.0, 0.0, -1.0], -0.3, 0.3),
+        ([0.6, 0.0, 0.8], f64::INFINITY, f64::INFINITY),
+        ([0.6, 0.0, 0.8], 1e308, 1e308),
+        ([f64::NAN, 0.0, 1.0], 0.1, 0.2),
+        ([0.6, 0.0, -0.8], f64::NAN, f64::NAN),
+    ];
+    let mut items: Vec<(V3, Curvature, TerrainValues)> = (0..1000 + 37)
+        .map(|i| {
+            let (normal, k1, k2) = match i % 50 {
+                j if j < specials.len() => specials[j],
+                j => {
+                    let tilt = if j % 7 == 0 { 1e-4 } else { 0.8 };
+                    let t = [tilt * rng.normal(), tilt * rng.normal(), 1.0];
+                    let len = (t[0] * t[0] + t[1] * t[1] + 1.0).sqrt();
+                    let sign = if j % 3 == 0 { -1.0 } else { 1.0 };
+                    let (a, b) = (0.1 * rng.normal(), 0.1 * rng.normal());
+                    (t.map(|v| sign * v / len), a.min(b), a.max(b))
+                }
+            };
+            let d = |rng: &mut Rng| [rng.normal(), rng.normal(), rng.normal()];
+            let (d1, d2) = match i % 11 {
+                0 => ([0.0; 3], [0.0; 3]),
+                _ => (d(&mut rng), d(&mut rng)),
+            };
+            let c = Curvature {
+                h: 0.5 * (k1 + k2),
+                k: k1 * k2,
+                k1,
+                k2,
+                d1,
+                d2,
+                flags: 0,
+            };
+            (normal, c, TerrainValues::undefined(0))
+        })
+        .collect();
+    TerrainValues::fill(&mut items, |t| (t.0, &t.1), |t| &mut t.2);
+    for (i, (n, c, got)) in items.iter().enumerate() {
+        let want = TerrainValues::of(*n, c);
+        let bits = |t: &TerrainValues| t.numbers().map(f64::to_bits);
+        assert_eq!(
+            bits(got),
+            bits(&want),
+            "point {i}: {got:?} against {want:?}"
+        );
+        assert_eq!(got.flags, want.flags, "point {i}");
+    }
+    // The library's values where it is needed: atan2(0, 0) = 0 and atan2(1e200, 0) = pi/2.
+    assert_eq!(
+        (items[0].2.slope_deg, items[0].2.flags),
+        (0.0, terrain_flags::FLAT)
+    );
+    assert_eq!(items[2].2.slope_deg, 90.0);
+    close(
+        items[6].2.shape_index,
+        1.0,
+        1e-15,
+        "shape index of a huge dome",
+    );
+}
