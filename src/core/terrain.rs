@@ -5,7 +5,7 @@
 //! derivatives of a height field (algorithms.md 10.4), the truth of `generate terrain`, written
 //! independently of the shape operator the estimator route goes through. Pure numbers.
 
-use crate::core::angle::{atan2, atan2_finite, is_exceptional, select};
+use crate::core::angle::atan2;
 use crate::core::estimate::Curvature;
 use crate::core::geometry::{dot, V3};
 
@@ -93,32 +93,57 @@ impl TerrainValues {
     /// downward normal is read as the upward one with the curvature flipped (3.6), so a flip by
     /// `--orient propagate` changes nothing here.
     pub fn of(normal: V3, c: &Curvature) -> Self {
-        lane::<true>(normal, c).0
-    }
-
-    /// Sets the terrain values of every item of `items` from its normal and curvature
-    /// (`input`) into its `output`: the values [`TerrainValues::of`] gives, bit for bit, [`BATCH`]
-    /// points at a time. The numbers are gathered into one array each, so that the loop over
-    /// them computes four points at once: its divisions, square roots and arctangents
-    /// ([`crate::core::angle::atan2_finite`]) cost about half what they do a point at a time.
-    /// A point whose arctangent needs the library ([`crate::core::angle::is_exceptional`]: a
-    /// zero normal, an infinite curvature) is computed again by [`TerrainValues::of`].
-    pub fn fill<T>(
-        items: &mut [T],
-        input: impl Fn(&T) -> (V3, &Curvature),
-        output: impl Fn(&mut T) -> &mut TerrainValues,
-    ) {
-        let mut lanes = Lanes::default();
-        for batch in items.chunks_mut(BATCH) {
-            for (i, item) in batch.iter().enumerate() {
-                let (normal, curvature) = input(item);
-                lanes.set(i, normal, curvature);
-            }
-            lanes.compute(batch.len());
-            for (i, item) in batch.iter_mut().enumerate() {
-                *output(item) = lanes.get(i);
-            }
+        if !normal.iter().all(|v| v.is_finite()) {
+            return TerrainValues::NONE;
         }
+        let (n, c) = if normal[2] < 0.0 {
+            (normal.map(|v| -v), c.flipped())
+        } else {
+            (normal, *c)
+        };
+        let s2 = n[0] * n[0] + n[1] * n[1];
+        let sin_s = s2.sqrt();
+        let slope_deg = atan2(sin_s, n[2]).to_degrees();
+        let flat = slope_deg < FLAT_SLOPE_DEG;
+        let mut t = TerrainValues {
+            slope_deg,
+            aspect_deg: if flat {
+                f64::NAN
+            } else {
+                azimuth_deg(atan2(n[0], n[1]))
+            },
+            flags: if flat { terrain_flags::FLAT } else { 0 },
+            ..TerrainValues::undefined(0)
+        };
+        let (k1, k2) = (c.k1, c.k2);
+        if !(k1.is_finite() && k2.is_finite()) {
+            t.flags |= terrain_flags::NO_CURVATURE;
+            return t;
+        }
+        let (mean, half_gap) = (0.5 * (k1 + k2), 0.5 * (k2 - k1));
+        t.curvedness = (0.5 * (k1 * k1 + k2 * k2)).sqrt();
+        if mean == 0.0 && half_gap == 0.0 {
+            t.flags |= terrain_flags::PLANAR;
+        } else {
+            t.shape_index = std::f64::consts::FRAC_2_PI * atan2(mean, half_gap);
+        }
+        if !flat {
+            // c = n x z along the contour and g = c x n up the slope line (10.2), both of
+            // length sin(slope), which the ratio of squares below does not need divided out.
+            let contour = [n[1], -n[0], 0.0];
+            let up = [-n[0] * n[2], -n[1] * n[2], s2];
+            // The normal curvature along a unit tangent u is k1 + (k2 - k1) sin^2(u, d1), with
+            // sin^2 = (d2.u)^2 read in the (g, c) frame and normalised, so that profile +
+            // tangential = k1 + k2 even when d2 leans off the tangent plane. Without directions
+            // (zero: an umbilic, where every direction is principal) both are the mean.
+            let (a, b) = (dot(c.d2, up), dot(c.d2, contour));
+            let w = a * a + b * b;
+            let along_slope = if w > 0.5 * s2 { a * a / w } else { 0.5 };
+            t.profile = k1 + (k2 - k1) * along_slope;
+            t.tangential = k1 + (k2 - k1) * (1.0 - along_slope);
+            t.plan = t.tangential / sin_s;
+        }
+        t
     }
 
     /// The closed forms of algorithms.md 10.4 for the height field z = f(x, y) with
@@ -167,183 +192,14 @@ impl TerrainValues {
 
 /// The azimuth in degrees clockwise from north, in [0, 360), of a horizontal vector (east,
 /// north) whose `atan2(east, north)` is `angle` (radians).
-#[inline(always)]
 fn azimuth_deg(angle: f64) -> f64 {
     let a = angle.to_degrees();
     // -1e-15 + 360 rounds to 360, which is north again.
-    let turned = a + 360.0;
-    select(a < 0.0, select(turned < 360.0, turned, 0.0), a)
-}
-
-/// Points a batch of [`TerrainValues::fill`] computes together.
-pub const BATCH: usize = 64;
-
-/// A batch of points in arrays, one per number, which a loop over them reads and writes four at
-/// a time (an array of points would be read a point at a time: the compiler does not vectorise
-/// its strided loads).
-struct Lanes {
-    /// The normals' three components, k1, k2, d1's three and d2's three.
-    inputs: [[f64; BATCH]; 11],
-    /// The numbers of [`TerrainValues::numbers`], in that order.
-    numbers: [[f64; BATCH]; 7],
-    flags: [u8; BATCH],
-    /// Whether [`lane`] says the point needs the library's arctangent.
-    exceptional: [bool; BATCH],
-}
-
-impl Default for Lanes {
-    fn default() -> Self {
-        Lanes {
-            inputs: [[0.0; BATCH]; 11],
-            numbers: [[0.0; BATCH]; 7],
-            flags: [0; BATCH],
-            exceptional: [false; BATCH],
-        }
+    match a < 0.0 {
+        true if a + 360.0 < 360.0 => a + 360.0,
+        true => 0.0,
+        false => a,
     }
-}
-
-impl Lanes {
-    /// Puts point `i` in the batch.
-    #[inline(always)]
-    fn set(&mut self, i: usize, n: V3, c: &Curvature) {
-        let numbers = [n[0], n[1], n[2], c.k1, c.k2, c.d1[0], c.d1[1], c.d1[2]];
-        for (row, v) in self.inputs.iter_mut().zip(numbers.into_iter().chain(c.d2)) {
-            row[i] = v;
-        }
-    }
-
-    /// Point `i` of `inputs` (the curvature's H, K and flags are not needed).
-    #[inline(always)]
-    fn point(inputs: &[[f64; BATCH]; 11], i: usize) -> (V3, Curvature) {
-        let v = |row: usize| inputs[row][i];
-        let curvature = Curvature {
-            k1: v(3),
-            k2: v(4),
-            d1: [v(5), v(6), v(7)],
-            d2: [v(8), v(9), v(10)],
-            ..Curvature::undefined(0)
-        };
-        ([v(0), v(1), v(2)], curvature)
-    }
-
-    /// [`lane`] of the first `len` points.
-    fn compute(&mut self, len: usize) {
-        lanes(
-            &self.inputs,
-            &mut self.numbers,
-            &mut self.flags,
-            &mut self.exceptional,
-            len,
-        );
-    }
-
-    /// Point `i`'s values: [`lane`]'s, or [`TerrainValues::of`] where it needs the library.
-    #[inline(always)]
-    fn get(&self, i: usize) -> TerrainValues {
-        if self.exceptional[i] {
-            let (n, c) = Lanes::point(&self.inputs, i);
-            return TerrainValues::of(n, &c);
-        }
-        let v = |row: usize| self.numbers[row][i];
-        TerrainValues {
-            profile: v(0),
-            tangential: v(1),
-            plan: v(2),
-            shape_index: v(3),
-            curvedness: v(4),
-            slope_deg: v(5),
-            aspect_deg: v(6),
-            flags: self.flags[i],
-        }
-    }
-}
-
-/// [`lane`] of the first `len` points of `inputs` ([`Lanes`]). Arrays borrowed apart rather
-/// than fields of one struct, which the compiler did not vectorise (it could not tell the
-/// writes from the reads).
-#[inline(never)]
-fn lanes(
-    inputs: &[[f64; BATCH]; 11],
-    numbers: &mut [[f64; BATCH]; 7],
-    flags: &mut [u8; BATCH],
-    exceptional: &mut [bool; BATCH],
-    len: usize,
-) {
-    for i in 0..len.min(BATCH) {
-        let (n, c) = Lanes::point(inputs, i);
-        let (t, e) = lane::<false>(n, &c);
-        for (row, v) in numbers.iter_mut().zip(t.numbers()) {
-            row[i] = v;
-        }
-        flags[i] = t.flags;
-        exceptional[i] = e;
-    }
-}
-
-/// The terrain values of one point (algorithms.md 10.2), and whether one of its arctangents
-/// whose value is used had arguments [`is_exceptional`]. Every choice is a select, no branch,
-/// so that a loop over points in arrays runs four at a time ([`TerrainValues::fill`]) with
-/// [`atan2_finite`], which is wrong for those arguments; with `LIBRARY` the arctangent is
-/// [`atan2`], which passes them to the library ([`TerrainValues::of`]).
-#[inline(always)]
-fn lane<const LIBRARY: bool>(normal: V3, c: &Curvature) -> (TerrainValues, bool) {
-    let atan = |y: f64, x: f64| match LIBRARY {
-        true => atan2(y, x),
-        false => atan2_finite(y, x),
-    };
-    // A downward normal is read as the upward one with the curvature flipped (3.6): k1 and k2
-    // negated and exchanged with their directions.
-    let down = normal[2] < 0.0;
-    let n = normal.map(|v| select(down, -v, v));
-    let (k1, k2) = (select(down, -c.k2, c.k1), select(down, -c.k1, c.k2));
-    let d2 = [0, 1, 2].map(|i| select(down, c.d1[i], c.d2[i]));
-    let s2 = n[0] * n[0] + n[1] * n[1];
-    let sin_s = s2.sqrt();
-    let slope_deg = atan(sin_s, n[2]).to_degrees();
-    let flat = slope_deg < FLAT_SLOPE_DEG;
-    let known = n[0].is_finite() & n[1].is_finite() & n[2].is_finite();
-    let aspect_deg = select(flat | !known, f64::NAN, azimuth_deg(atan(n[0], n[1])));
-    // Without a normal nothing is defined: its curvature is not used either.
-    let curved = known & k1.is_finite() & k2.is_finite();
-    let (mean, half_gap) = (0.5 * (k1 + k2), 0.5 * (k2 - k1));
-    let curvedness = (0.5 * (k1 * k1 + k2 * k2)).sqrt();
-    let planar = (mean == 0.0) & (half_gap == 0.0);
-    let shape_index = std::f64::consts::FRAC_2_PI * atan(mean, half_gap);
-    // c = n x z along the contour and g = c x n up the slope line (10.2), both of length
-    // sin(slope), which the ratio of squares below does not need divided out. The normal
-    // curvature along a unit tangent u is k1 + (k2 - k1) sin^2(u, d1), with sin^2 = (d2.u)^2
-    // read in the (g, c) frame and normalised, so that profile + tangential = k1 + k2 even
-    // when d2 leans off the tangent plane. Without directions (zero: an umbilic, where every
-    // direction is principal) both are the mean.
-    let contour = [n[1], -n[0], 0.0];
-    let up = [-n[0] * n[2], -n[1] * n[2], s2];
-    let (a, b) = (dot(d2, up), dot(d2, contour));
-    let w = a * a + b * b;
-    let along_slope = select(w > 0.5 * s2, a * a / w, 0.5);
-    let profile = k1 + (k2 - k1) * along_slope;
-    let tangential = k1 + (k2 - k1) * (1.0 - along_slope);
-    let plan = tangential / sin_s;
-    // `&` and `|` rather than `&&` and `||`: no branch, so that the loop stays vectorised.
-    let along = curved & !flat;
-    let shaped = curved & !planar;
-    let values = TerrainValues {
-        profile: select(along, profile, f64::NAN),
-        tangential: select(along, tangential, f64::NAN),
-        plan: select(along, plan, f64::NAN),
-        shape_index: select(shaped, shape_index, f64::NAN),
-        curvedness: select(curved, curvedness, f64::NAN),
-        slope_deg: select(known, slope_deg, f64::NAN),
-        aspect_deg,
-        flags: u8::from(flat) * terrain_flags::FLAT
-            + u8::from(!curved) * terrain_flags::NO_CURVATURE
-            + u8::from(curved & planar) * terrain_flags::PLANAR
-            + u8::from(!known) * terrain_flags::NO_NORMAL,
-    };
-    let exceptional = known
-        & (is_exceptional(sin_s, n[2])
-            | (!flat & is_exceptional(n[0], n[1]))
-            | (shaped & is_exceptional(mean, half_gap)));
-    (values, exceptional)
 }
 
 #[cfg(test)]

@@ -22,7 +22,6 @@ use crate::core::geometry::V3;
 use crate::core::neighbors::NeighbourIndex;
 use crate::core::plan::Rect;
 use crate::core::scale::{choose, Ladder, SMOOTH};
-use crate::core::terrain::TerrainValues;
 use crate::core::tile::TilePoints;
 
 /// Computes the core points of `t` with the scale chosen per point from `ladder`
@@ -93,11 +92,10 @@ pub(super) fn compute_auto(
                 patch: NO_PATCH,
                 scale: ladder.k(choice.rung) as u16,
                 scale_flags: choice.flags,
-                terrain: TerrainValues::NONE,
+                terrain: p.terrain_of(normals[choice.rung][i], &curvature),
             }
         })
         .collect_into_vec(&mut done);
-    p.fill_terrain(&mut done);
     stop()?;
     Ok(TileOutcome {
         done,

@@ -53,16 +53,12 @@ pub struct ComputeParams<'e> {
 }
 
 impl ComputeParams<'_> {
-    /// Sets the terrain values of `done` from their normals and curvatures when they are asked
-    /// for (a point without a normal has NaN there, which gives undefined values): in batches
-    /// ([`TerrainValues::fill`]), once the estimates are in, at about 1% of a point's cost,
-    /// paid only then.
-    fn fill_terrain(&self, done: &mut [PointResult]) {
-        // Pieces of 4096 points: each fill sets up its batch arrays (9 KiB) once.
-        if self.terrain {
-            done.par_chunks_mut(4096).for_each(|chunk| {
-                TerrainValues::fill(chunk, |r| (r.normal, &r.curvature), |r| &mut r.terrain)
-            });
+    /// The terrain values of a point with `normal` and `curvature` when they are asked for;
+    /// undefined otherwise (a cost of about 1% of a point's, paid only then).
+    fn terrain_of(&self, normal: Option<V3>, curvature: &Curvature) -> TerrainValues {
+        match (self.terrain, normal) {
+            (true, Some(n)) => TerrainValues::of(n, curvature),
+            _ => TerrainValues::NONE,
         }
     }
 }
@@ -299,12 +295,11 @@ fn estimate_points(
                     },
                     scale: 0,
                     scale_flags: 0,
-                    terrain: TerrainValues::NONE,
+                    terrain: p.terrain_of(normals[i], &curvature),
                 }
             },
         )
         .collect_into_vec(&mut done);
-    p.fill_terrain(&mut done);
     done
 }
 
