@@ -284,7 +284,7 @@ impl Rasterizer {
 
     /// The integer that stands for the elevation `z` in the shading of the quick looks: z in
     /// steps of [`Z_STEP`] file units, tallied exactly like the columns' integers.
-    pub(crate) fn z_integer(&self, z: f64) -> i64 {
+    pub(crate) fn z_integer(z: f64) -> i64 {
         const LIMIT: f64 = i32::MAX as f64;
         match z.is_finite() {
             true => (z / Z_STEP).round().clamp(-LIMIT, LIMIT) as i64,

@@ -66,7 +66,7 @@ fn tallies_as_points_come_or_at_the_end_give_the_same_rasters() {
                 } else {
                     rng.uniform() as f32
                 };
-                let z = r.z_integer(rng.uniform() * 10.0);
+                let z = Rasterizer::z_integer(rng.uniform() * 10.0);
                 r.push(x, y, (&[b], &[a, c, z]), &|| "test".into())
                     .expect("push");
             }

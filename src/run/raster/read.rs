@@ -224,7 +224,7 @@ impl Binner {
             self.xyz.clear();
             s.coordinates(first, batch, row, &mut self.xyz);
             for (p, v) in self.xyz.iter().zip(self.ints.chunks_exact_mut(wi)) {
-                v[ni] = r.z_integer(p[2]);
+                v[ni] = Rasterizer::z_integer(p[2]);
             }
             let (mut fc, mut ic) = (0, 0);
             for (rd, ints) in &self.readers {
