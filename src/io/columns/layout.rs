@@ -1,5 +1,8 @@
 //! The layout of a result record: the stored values of a column set in their order and width
-//! ([`ResultLayout`]), found once per file rather than per record.
+//! ([`ResultLayout`]), found once per file rather than per record. A record holds the numbers
+//! but the terrain numbers, the curvature flags and the other flag bytes, then the terrain
+//! numbers: last, so that a result file's row keeps them as one piece at its end
+//! (io::workdir::results::rows), which is copied in one move each way.
 
 use super::{TerrainValue, Value};
 use crate::core::compute::{PointResult, NO_PATCH};
@@ -85,17 +88,39 @@ fn terrain_block(results: &[PointResult], records: &mut [u8], (stride, at): (usi
 /// decode). No allocation, so that it can be made for each piece of an output.
 #[derive(Debug, Clone, Copy)]
 pub struct ResultLayout {
-    /// The numbers (`values[..numbers]`), then the flag bytes after the curvature flags.
+    /// The numbers (`values[..numbers]`, the terrain numbers last), then the flag bytes after
+    /// the curvature flags.
     pub(super) values: [Value; MAX_STORED],
     pub(super) numbers: usize,
     pub(super) len: usize,
     pub(super) width: usize,
+    /// The numbers before the terrain numbers (all of them without terrain numbers).
+    pub(super) lead: usize,
 }
 
 impl ResultLayout {
     /// Bytes of one record: the numbers, the curvature flags and the other flag bytes.
     pub fn size(&self) -> usize {
-        self.width * self.numbers + 1 + (self.len - self.numbers)
+        self.width * self.numbers + self.flag_bytes()
+    }
+
+    /// The curvature flags and the other flag bytes.
+    fn flag_bytes(&self) -> usize {
+        1 + (self.len - self.numbers)
+    }
+
+    /// Where the curvature flags are in a record (the other flag bytes follow them).
+    pub(super) fn flags_at(&self) -> usize {
+        self.lead * self.width
+    }
+
+    /// Where the `i`-th stored number starts in a record: the numbers before the terrain
+    /// numbers from the start, the terrain numbers after the flag bytes.
+    pub(super) fn number_at(&self, i: usize) -> usize {
+        match i.checked_sub(self.lead) {
+            None => i * self.width,
+            Some(j) => self.flags_at() + self.flag_bytes() + j * self.width,
+        }
     }
 
     /// Where the stored number `v` starts in a record, if it is stored and not a flag byte
@@ -103,14 +128,13 @@ impl ResultLayout {
     pub fn offset(&self, v: Value) -> Option<usize> {
         (self.values[..self.numbers].iter())
             .position(|&s| s == v)
-            .map(|i| i * self.width)
+            .map(|i| self.number_at(i))
     }
 
     /// The stored numbers with where each starts in a record, and their width in bytes.
     pub fn numbers(&self) -> (impl Iterator<Item = (Value, usize)> + '_, usize) {
-        let w = self.width;
         let numbers = self.values[..self.numbers].iter().enumerate();
-        (numbers.map(move |(i, &v)| (v, i * w)), w)
+        (numbers.map(|(i, &v)| (v, self.number_at(i))), self.width)
     }
 
     /// Appends the stored values of one point to `out` ([`ResultLayout::encode_all`]).
@@ -122,7 +146,8 @@ impl ResultLayout {
 
     /// Writes the stored values of each of `results` into its record in `records`, one every
     /// `stride` bytes, `at` bytes into it: [`ResultLayout::size`] bytes, the numbers as f64
-    /// or f32 little-endian, then the curvature flags and the other flag bytes. Value by
+    /// or f32 little-endian and the flag bytes, at their places ([`ResultLayout::number_at`],
+    /// [`ResultLayout::flags_at`]). Value by
     /// value, each in a loop made for it (`by_value`): point by point, choosing each value's
     /// field again for every point was a tenth of the cost of the terrain columns. Callers
     /// pass batches that stay in the cache (a loop a value walks the whole batch).
@@ -139,7 +164,7 @@ impl ResultLayout {
             .position(|s| s == TERRAIN_NUMBERS)
             .filter(|_| w == 4);
         for (i, &v) in self.values[..self.numbers].iter().enumerate() {
-            let place = (stride, at + i * w);
+            let place = (stride, at + self.number_at(i));
             match terrain.map(|first| i.wrapping_sub(first)) {
                 Some(0) => {
                     terrain_block(results, records, place);
@@ -155,7 +180,7 @@ impl ResultLayout {
                     .copy_from_slice(&(x as f32).to_le_bytes()))),
             }
         }
-        let flags_at = at + w * self.numbers;
+        let flags_at = at + self.flags_at();
         let byte = |x: f64, b: &mut [u8]| b[0] = x as u8;
         column(results, records, (stride, flags_at), Value::Flags, byte);
         for (j, &v) in self.values[self.numbers..self.len].iter().enumerate() {
@@ -176,16 +201,17 @@ impl ResultLayout {
             scale_flags: 0,
             terrain: TerrainValues::NONE,
         };
-        let (mut at, w) = (0, self.width);
-        for v in &self.values[..self.numbers] {
+        let w = self.width;
+        for (i, v) in self.values[..self.numbers].iter().enumerate() {
+            let at = self.number_at(i);
             let value = match rec.get(at..at + w) {
                 Some(b) if w == 8 => b.try_into().map(f64::from_le_bytes).ok(),
                 Some(b) => b.try_into().map(|b| f32::from_le_bytes(b) as f64).ok(),
                 None => None,
             };
             v.set(&mut r, value.unwrap_or(f64::NAN));
-            at += w;
         }
+        let at = self.flags_at();
         r.curvature.flags = rec.get(at).copied().unwrap_or(0);
         for (v, b) in self.values[self.numbers..self.len].iter().zip(at + 1..) {
             v.set(&mut r, f64::from(rec.get(b).copied().unwrap_or(0)));

@@ -471,8 +471,10 @@ impl ColumnSet {
     }
 
     /// The values a result file stores (as f64 or f32, the flag bytes after them: the
-    /// curvature flags, then [`Value::is_flag_byte`] ones): those of the columns written, with k1 and k2 both when either is written (the flip of `--orient
-    /// propagate` makes each from the other). An iterator, so that no point allocates.
+    /// curvature flags, then [`Value::is_flag_byte`] ones; a record puts the terrain numbers
+    /// after the flag bytes, [`ResultLayout`]): those of the columns written, with k1 and k2
+    /// both when either is written (the flip of `--orient propagate` makes each from the
+    /// other). An iterator, so that no point allocates.
     fn stored(&self) -> impl Iterator<Item = Value> + '_ {
         let on = |g| self.choice.has(g);
         let principal = on(Group::K1) || on(Group::K2);
@@ -511,7 +513,7 @@ impl ColumnSet {
         self.layout().offset(v)
     }
 
-    /// The order and width of the stored values, for decoding records
+    /// The order, width and places of the stored values, for decoding records
     /// ([`ResultLayout::decode`]): the numbers, then the flag bytes.
     pub fn layout(&self) -> ResultLayout {
         let mut values = [Value::H; MAX_STORED];
@@ -527,11 +529,15 @@ impl ColumnSet {
             *slot = v;
             len += 1;
         }
+        let lead = (values[..numbers].iter())
+            .position(|v| matches!(v, Value::Terrain(_)))
+            .unwrap_or(numbers);
         ResultLayout {
             values,
             numbers,
             len,
             width: self.value_size(),
+            lead,
         }
     }
 }

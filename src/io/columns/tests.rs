@@ -106,7 +106,13 @@ fn the_layout_holds_the_fullest_column_set() {
     let mut rec = Vec::new();
     layout.encode(&r, &mut rec);
     assert_eq!(rec.len(), cols.result_size());
-    assert_eq!(rec[rec.len() - 3..], [16, 3, 9]);
+    // The flag bytes after the numbers but the terrain numbers, which end the record.
+    let flags = layout.flags_at();
+    assert_eq!(rec[flags..flags + 3], [16, 3, 9]);
+    assert_eq!(
+        layout.offset(Value::Terrain(TerrainValue::Aspect)),
+        Some(rec.len() - 8)
+    );
     let back = layout.decode(&rec);
     assert_eq!(
         (back.scale_flags, back.terrain.flags, back.curvature.flags),

@@ -95,20 +95,21 @@ impl Transcoder {
         // small integers exactly; 0 and 1 are left out so that no probe is a default.
         let width = layout.width;
         let slots: Vec<Slot> = (0..layout.numbers)
-            .map(|i| Slot::Number(i * width))
-            .chain(
-                (0..=layout.len - layout.numbers).map(|j| Slot::Byte(layout.numbers * width + j)),
-            )
+            .map(|i| Slot::Number(layout.number_at(i)))
+            .chain((0..=layout.len - layout.numbers).map(|j| Slot::Byte(layout.flags_at() + j)))
             .collect();
-        let mut probe = Vec::with_capacity(layout.size());
-        for i in 0..layout.numbers {
+        let mut probe = vec![0u8; layout.size()];
+        for (i, slot) in slots.iter().enumerate() {
             let v = (i + 2) as f64;
-            match width {
-                8 => probe.extend_from_slice(&v.to_le_bytes()),
-                _ => probe.extend_from_slice(&(v as f32).to_le_bytes()),
+            match *slot {
+                Slot::Number(at) if width == 8 => {
+                    probe[at..at + 8].copy_from_slice(&v.to_le_bytes());
+                }
+                Slot::Number(at) => probe[at..at + 4].copy_from_slice(&(v as f32).to_le_bytes()),
+                Slot::Byte(at) => probe[at] = (i + 2) as u8,
+                Slot::Missing => {}
             }
         }
-        probe.extend((layout.numbers..slots.len()).map(|i| (i + 2) as u8));
         let plain = layout.decode(&probe);
         let flipped = plain.flipped(extra);
         let slot_of = |v: f64| {
@@ -128,7 +129,7 @@ impl Transcoder {
         Transcoder {
             reads,
             wide: width == 8,
-            flags_at: layout.numbers * width,
+            flags_at: layout.flags_at(),
         }
     }
 
@@ -385,15 +386,16 @@ mod tests {
                 let t = Transcoder::new(&layout, &out, &set.extra);
                 let mut batch = Vec::new();
                 for _ in 0..400 {
-                    let mut rec = Vec::new();
-                    for _ in 0..layout.numbers {
-                        let v = value(&mut rng);
+                    // Each number at its place, the flag bytes random.
+                    let mut rec: Vec<u8> =
+                        (0..layout.size()).map(|_| rng.below(256) as u8).collect();
+                    for i in 0..layout.numbers {
+                        let (v, at) = (value(&mut rng), layout.number_at(i));
                         match layout.width {
-                            8 => rec.extend_from_slice(&v.to_le_bytes()),
-                            _ => rec.extend_from_slice(&(v as f32).to_le_bytes()),
+                            8 => rec[at..at + 8].copy_from_slice(&v.to_le_bytes()),
+                            _ => rec[at..at + 4].copy_from_slice(&(v as f32).to_le_bytes()),
                         }
                     }
-                    rec.extend((layout.numbers..=layout.len).map(|_| rng.below(256) as u8));
                     let flip = rng.below(2) == 1;
                     let decoded = layout.decode(&rec);
                     let want_flags = decoded.curvature.flags;

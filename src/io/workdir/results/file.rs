@@ -31,7 +31,7 @@ use crate::io::pack::{
 };
 
 /// The first bytes of a result file: its format and version.
-const MAGIC: &[u8; 8] = b"TCRES008";
+const MAGIC: &[u8; 8] = b"TCRES009";
 
 /// Bytes of the header before the statistics: magic, count, column bytes, patches stored,
 /// statistics' length.
@@ -195,25 +195,27 @@ impl<'b> ResultWriter<'b> {
         })
     }
 
-    /// Adds the record of point `id` (greater than the last one): `record` is the patch (u64
-    /// LE) then the columns, [`record_size`] bytes.
-    pub(super) fn push(&mut self, id: u64, record: &[u8]) -> Result<()> {
-        let (patch, columns) = record.split_at(8.min(record.len()));
+    /// Adds the record of point `id` (greater than the last one): the patch (u64 LE) then the
+    /// columns, [`record_size`] bytes at the start of `from`, which may go on past the record
+    /// (its pieces are then copied as chunks of a fixed width: [`RowSplit::push`]).
+    pub(super) fn push(&mut self, id: u64, from: &[u8]) -> Result<()> {
+        let (patch, columns) = from.split_at(8.min(from.len()));
         let gap = match self.prev {
             None => Some(id),
             Some(p) => id.checked_sub(p).and_then(|d| d.checked_sub(1)),
         };
         let unpatched = patch == GlobalPatch::NONE.0.to_le_bytes();
-        let (Some(gap), true) = (gap, self.patched || unpatched) else {
+        let whole = from.len() >= 8 + self.row - if self.patched { 8 } else { 0 };
+        let (Some(gap), true, true) = (gap, self.patched || unpatched, whole) else {
             return Err(Error::Internal(format!(
-                "{}: result records out of order or with an unexpected patch (point {id})",
+                "{}: result records out of order, cut short or with an unexpected patch (point {id})",
                 self.path.display()
             )));
         };
         let b = &mut *self.b;
         put_varint(&mut b.ids, gap);
         let start = b.rows.len() + if self.patched { 8 } else { 0 };
-        let row = if self.patched { record } else { columns };
+        let row = if self.patched { from } else { columns };
         self.split.push(row, &mut b.rows, &mut b.raw_rows);
         if let Some(p) = &self.predict {
             // H, k1 and k2 precede the raw terrain numbers: at their offsets in a packed row.
@@ -479,11 +481,8 @@ impl TileResults {
         if !self.patched {
             out.extend_from_slice(&GlobalPatch::NONE.0.to_le_bytes());
         }
-        self.split.join(
-            &self.rows[i * width..(i + 1) * width],
-            &self.raw_rows[i * raw..(i + 1) * raw],
-            out,
-        );
+        self.split
+            .join(&self.rows[i * width..], &self.raw_rows[i * raw..], out);
     }
 
     /// Reads every record, checking that the file is whole: every block decodes with its

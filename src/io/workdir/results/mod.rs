@@ -149,7 +149,8 @@ fn write_tile_tmp(
     let mut w = ResultWriter::create(&path, count, cols, patched, &stats, &mut scratch.writer)?;
     for &(id, i) in order.iter() {
         let at = i as usize * size;
-        w.push(id, &records[at..at + size])?;
+        // The record and the bytes after it (ResultWriter::push).
+        w.push(id, &records[at..])?;
     }
     let tmp = w.finish();
     // A tile much larger than the others (the dense tile around a terrestrial scanner) does

@@ -1,12 +1,13 @@
 //! How a result block keeps the bytes of its rows (io::workdir::results::file): a stored row is
-//! the patch (u64 LE, if stored) then the columns of a [`ColumnSet`]. Its terrain numbers are
-//! kept as they are, row after row ([`RowSplit::raw`]); the other bytes (the packed row) are
+//! the patch (u64 LE, if stored) then the columns of a [`ColumnSet`]. Its terrain numbers (at
+//! its end) are kept as they are, row after row ([`RowSplit::raw`]); the other bytes (the packed row) are
 //! cut into byte planes, each plane either in the zstd frame or among the plain bytes beside it
 //! ([`RowSplit::plain`]).
 
 use std::ops::Range;
 
 use crate::io::columns::{ColumnSet, Value};
+use crate::io::pack::extend_short;
 
 /// Where each byte of a stored row goes in a block.
 #[derive(Debug, Clone)]
@@ -78,28 +79,39 @@ impl RowSplit {
         n * (self.plain_count() + self.raw_width())
     }
 
-    /// Appends a stored `row`: its packed bytes to `packed`, its raw bytes to `raw`. The
-    /// bytes after the raw ones are the flag bytes, one to three: moved one by one rather than
-    /// by a third call to copy (which, for a few bytes, costs more than the bytes).
-    pub(super) fn push(&self, row: &[u8], packed: &mut Vec<u8>, raw: &mut Vec<u8>) {
-        if self.raw.is_empty() {
-            return packed.extend_from_slice(row);
-        }
-        packed.extend_from_slice(&row[..self.raw.start]);
-        raw.extend_from_slice(&row[self.raw.clone()]);
-        row[self.raw.end..].iter().for_each(|&b| packed.push(b));
+    /// Bytes of a stored row.
+    fn row(&self) -> usize {
+        self.packed() + self.raw_width()
     }
 
-    /// Appends the stored row of a packed row and its raw bytes to `out` (the inverse of
-    /// [`RowSplit::push`]).
+    /// Appends the stored row at the start of `from` (which may go on past the row: the bytes
+    /// after it let its pieces be copied as chunks of a fixed width, [`extend_short`]): its
+    /// packed bytes to `packed`, its raw bytes to `raw`. The raw bytes end the row (the
+    /// terrain numbers end a record): two pieces.
+    pub(super) fn push(&self, from: &[u8], packed: &mut Vec<u8>, raw: &mut Vec<u8>) {
+        let row = self.row();
+        if self.raw.is_empty() {
+            return extend_short(packed, from, 0..row);
+        }
+        extend_short(packed, from, 0..self.raw.start);
+        extend_short(raw, from, self.raw.clone());
+        if self.raw.end < row {
+            extend_short(packed, from, self.raw.end..row);
+        }
+    }
+
+    /// Appends to `out` the stored row of the packed row at the start of `packed` and the raw
+    /// bytes at the start of `raw` (the inverse of [`RowSplit::push`]; either may go on past
+    /// its row, as there).
     pub(super) fn join(&self, packed: &[u8], raw: &[u8], out: &mut Vec<u8>) {
         if self.raw.is_empty() {
-            return out.extend_from_slice(packed);
+            return extend_short(out, packed, 0..self.packed());
         }
-        let (head, tail) = packed.split_at(self.raw.start.min(packed.len()));
-        out.extend_from_slice(head);
-        out.extend_from_slice(raw);
-        tail.iter().for_each(|&b| out.push(b));
+        extend_short(out, packed, 0..self.raw.start);
+        extend_short(out, raw, 0..self.raw_width());
+        if self.raw.start < self.packed() {
+            extend_short(out, packed, self.raw.start..self.packed());
+        }
     }
 }
 
