@@ -6,7 +6,6 @@
 //! callers own the files.
 
 use std::cell::RefCell;
-use std::ops::Range;
 
 use zstd::zstd_safe::CParameter;
 
@@ -51,28 +50,6 @@ pub(crate) fn zigzag(v: i64) -> u64 {
 /// The inverse of [`zigzag`].
 pub(crate) fn unzigzag(v: u64) -> i64 {
     ((v >> 1) as i64) ^ -((v & 1) as i64)
-}
-
-/// The longest piece [`extend_short`] copies as a chunk of fixed width.
-const SHORT: usize = 64;
-
-/// Appends `buf[range]` to `v`, as `v.extend_from_slice(&buf[range])` does. A range of at most
-/// [`SHORT`] bytes with [`SHORT`] bytes of `buf` from its start is copied as one chunk of that
-/// fixed width, which the compiler moves in a few vector instructions, and the excess cut off
-/// again: the two pieces of a result row (the packed bytes and the terrain numbers) are copied
-/// once per point each way, and a call to `memcpy` for each, with its dispatch on the length,
-/// cost more than the bytes. The last pieces of a buffer take the call.
-#[inline(always)]
-pub(crate) fn extend_short(v: &mut Vec<u8>, buf: &[u8], range: Range<usize>) {
-    let n = range.len();
-    match buf.get(range.start..range.start + SHORT) {
-        Some(chunk) if n <= SHORT => {
-            let len = v.len();
-            v.extend_from_slice(chunk);
-            v.truncate(len + n);
-        }
-        _ => v.extend_from_slice(&buf[range]),
-    }
 }
 
 /// Appends the byte planes of `rows`, records of `width` bytes: byte 0 of every record, then
@@ -428,20 +405,6 @@ pub(crate) fn decompress_into(frame: &[u8], len: usize, out: &mut Vec<u8>) -> bo
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn short_extensions_append_exactly_the_range() {
-        let buf: Vec<u8> = (1..=150).collect();
-        for start in [0, 3, 70, 140] {
-            for n in 0..=buf.len() - start {
-                let mut v = vec![7u8; 5];
-                extend_short(&mut v, &buf, start..start + n);
-                let mut want = vec![7u8; 5];
-                want.extend_from_slice(&buf[start..start + n]);
-                assert_eq!(v, want, "{n} bytes from {start}");
-            }
-        }
-    }
 
     #[test]
     fn varints_and_zigzag_round_trip() {

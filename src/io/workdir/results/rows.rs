@@ -7,7 +7,6 @@
 use std::ops::Range;
 
 use crate::io::columns::{ColumnSet, Value};
-use crate::io::pack::extend_short;
 
 /// Where each byte of a stored row goes in a block.
 #[derive(Debug, Clone)]
@@ -115,10 +114,46 @@ impl RowSplit {
     }
 }
 
+/// The longest piece [`extend_short`] copies as a chunk of fixed width.
+const SHORT: usize = 64;
+
+/// Appends `buf[range]` to `v`, as `v.extend_from_slice(&buf[range])` does. A range of at most
+/// [`SHORT`] bytes with [`SHORT`] bytes of `buf` from its start is copied as one chunk of that
+/// fixed width, which the compiler moves in a few vector instructions, and the excess cut off
+/// again: the two pieces of a result row (the packed bytes and the terrain numbers) are copied
+/// once per point each way, and a call to `memcpy` for each, with its dispatch on the length,
+/// cost more than the bytes. The last pieces of a buffer take the call.
+#[inline(always)]
+fn extend_short(v: &mut Vec<u8>, buf: &[u8], range: Range<usize>) {
+    let n = range.len();
+    match buf.get(range.start..range.start + SHORT) {
+        Some(chunk) if n <= SHORT => {
+            let len = v.len();
+            v.extend_from_slice(chunk);
+            v.truncate(len + n);
+        }
+        _ => v.extend_from_slice(&buf[range]),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::io::columns::ColumnChoice;
+
+    #[test]
+    fn short_extensions_append_exactly_the_range() {
+        let buf: Vec<u8> = (1..=150).collect();
+        for start in [0, 3, 70, 140] {
+            for n in 0..=buf.len() - start {
+                let mut v = vec![7u8; 5];
+                extend_short(&mut v, &buf, start..start + n);
+                let mut want = vec![7u8; 5];
+                want.extend_from_slice(&buf[start..start + n]);
+                assert_eq!(v, want, "{n} bytes from {start}");
+            }
+        }
+    }
 
     fn set(list: &str, wide: bool) -> ColumnSet {
         ColumnSet {
