@@ -205,7 +205,9 @@ impl<'b> ResultWriter<'b> {
             Some(p) => id.checked_sub(p).and_then(|d| d.checked_sub(1)),
         };
         let unpatched = patch == GlobalPatch::NONE.0.to_le_bytes();
-        let whole = from.len() >= 8 + self.row - if self.patched { 8 } else { 0 };
+        // The stored row: the record with its patch, or its columns alone.
+        let row = if self.patched { from } else { columns };
+        let whole = row.len() >= self.row;
         let (Some(gap), true, true) = (gap, self.patched || unpatched, whole) else {
             return Err(Error::Internal(format!(
                 "{}: result records out of order, cut short or with an unexpected patch (point {id})",
@@ -215,7 +217,6 @@ impl<'b> ResultWriter<'b> {
         let b = &mut *self.b;
         put_varint(&mut b.ids, gap);
         let start = b.rows.len() + if self.patched { 8 } else { 0 };
-        let row = if self.patched { from } else { columns };
         self.split.push(row, &mut b.rows, &mut b.raw_rows);
         if let Some(p) = &self.predict {
             // H, k1 and k2 precede the raw terrain numbers: at their offsets in a packed row.

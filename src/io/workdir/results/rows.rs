@@ -1,8 +1,8 @@
 //! How a result block keeps the bytes of its rows (io::workdir::results::file): a stored row is
-//! the patch (u64 LE, if stored) then the columns of a [`ColumnSet`]. Its terrain numbers (at
-//! its end) are kept as they are, row after row ([`RowSplit::raw`]); the other bytes (the packed row) are
-//! cut into byte planes, each plane either in the zstd frame or among the plain bytes beside it
-//! ([`RowSplit::plain`]).
+//! the patch (u64 LE, if stored) then the columns of a [`ColumnSet`]. Its terrain numbers
+//! (which end it) are kept as they are, row after row ([`RowSplit::raw`]); the other bytes (the
+//! packed row) are cut into byte planes, each plane either in the zstd frame or among the plain
+//! bytes beside it ([`RowSplit::plain`]).
 
 use std::ops::Range;
 
@@ -36,7 +36,8 @@ impl RowSplit {
         let mut plain = vec![false; skip + layout.size()];
         for (v, at) in numbers {
             match v {
-                // The terrain numbers are the last numbers of a row: one range.
+                // The terrain numbers end a row (they end a record: ResultLayout): one range,
+                // whose end is the row's.
                 Value::Terrain(_) => {
                     raw.start = raw.start.min(skip + at);
                     raw.end = skip + at + width;
@@ -78,24 +79,14 @@ impl RowSplit {
         n * (self.plain_count() + self.raw_width())
     }
 
-    /// Bytes of a stored row.
-    fn row(&self) -> usize {
-        self.packed() + self.raw_width()
-    }
-
     /// Appends the stored row at the start of `from` (which may go on past the row: the bytes
     /// after it let its pieces be copied as chunks of a fixed width, [`extend_short`]): its
-    /// packed bytes to `packed`, its raw bytes to `raw`. The raw bytes end the row (the
-    /// terrain numbers end a record): two pieces.
+    /// packed bytes (the row up to its raw bytes, which end it) to `packed`, its raw bytes to
+    /// `raw`.
     pub(super) fn push(&self, from: &[u8], packed: &mut Vec<u8>, raw: &mut Vec<u8>) {
-        let row = self.row();
-        if self.raw.is_empty() {
-            return extend_short(packed, from, 0..row);
-        }
-        extend_short(packed, from, 0..self.raw.start);
-        extend_short(raw, from, self.raw.clone());
-        if self.raw.end < row {
-            extend_short(packed, from, self.raw.end..row);
+        extend_short(packed, from, 0..self.packed());
+        if !self.raw.is_empty() {
+            extend_short(raw, from, self.raw.clone());
         }
     }
 
@@ -103,13 +94,9 @@ impl RowSplit {
     /// bytes at the start of `raw` (the inverse of [`RowSplit::push`]; either may go on past
     /// its row, as there).
     pub(super) fn join(&self, packed: &[u8], raw: &[u8], out: &mut Vec<u8>) {
-        if self.raw.is_empty() {
-            return extend_short(out, packed, 0..self.packed());
-        }
-        extend_short(out, packed, 0..self.raw.start);
-        extend_short(out, raw, 0..self.raw_width());
-        if self.raw.start < self.packed() {
-            extend_short(out, packed, self.raw.start..self.packed());
+        extend_short(out, packed, 0..self.packed());
+        if !self.raw.is_empty() {
+            extend_short(out, raw, 0..self.raw_width());
         }
     }
 }
