@@ -5,7 +5,7 @@
 //! derivatives of a height field (algorithms.md 10.4), the truth of `generate terrain`, written
 //! independently of the shape operator the estimator route goes through. Pure numbers.
 
-use crate::core::angle::atan2;
+use crate::core::angle::{atan2, atan2_finite};
 use crate::core::estimate::Curvature;
 use crate::core::geometry::{dot, V3};
 
@@ -103,14 +103,20 @@ impl TerrainValues {
         };
         let s2 = n[0] * n[0] + n[1] * n[1];
         let sin_s = s2.sqrt();
-        let slope_deg = atan2(sin_s, n[2]).to_degrees();
+        // n[2] >= 0 here: the library's special cases are the normal's zero vector alone.
+        let slope_deg = match n[2] > 0.0 || s2 > 0.0 {
+            true => atan2_finite(sin_s, n[2]),
+            false => atan2(sin_s, n[2]),
+        }
+        .to_degrees();
         let flat = slope_deg < FLAT_SLOPE_DEG;
         let mut t = TerrainValues {
             slope_deg,
             aspect_deg: if flat {
                 f64::NAN
             } else {
-                azimuth_deg(atan2(n[0], n[1]))
+                // Not flat: (n[0], n[1]) is not the zero vector.
+                azimuth_deg(atan2_finite(n[0], n[1]))
             },
             flags: if flat { terrain_flags::FLAT } else { 0 },
             ..TerrainValues::undefined(0)
@@ -120,12 +126,14 @@ impl TerrainValues {
             t.flags |= terrain_flags::NO_CURVATURE;
             return t;
         }
-        let (mean, half_gap) = (0.5 * (k1 + k2), 0.5 * (k2 - k1));
+        // Halved before they are added: finite for every finite k1 and k2 (the same bits as
+        // halving the sum, but where the sum would overflow).
+        let (mean, half_gap) = (0.5 * k1 + 0.5 * k2, 0.5 * k2 - 0.5 * k1);
         t.curvedness = (0.5 * (k1 * k1 + k2 * k2)).sqrt();
         if mean == 0.0 && half_gap == 0.0 {
             t.flags |= terrain_flags::PLANAR;
         } else {
-            t.shape_index = std::f64::consts::FRAC_2_PI * atan2(mean, half_gap);
+            t.shape_index = std::f64::consts::FRAC_2_PI * atan2_finite(mean, half_gap);
         }
         if !flat {
             // c = n x z along the contour and g = c x n up the slope line (10.2), both of
