@@ -13,6 +13,7 @@ pub(crate) mod limits;
 pub(crate) mod output;
 pub(crate) mod pack;
 pub mod ply;
+pub(crate) mod prefetch;
 pub(crate) mod quicklook_png;
 pub(crate) mod raster;
 pub(crate) mod sink;

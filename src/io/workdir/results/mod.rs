@@ -26,6 +26,7 @@ use crate::core::quantize::{Bin, CurvatureStats, Magnitudes};
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::pack::Cursor;
+use crate::io::prefetch::prefetch;
 pub(crate) use file::{record_size, TileResults};
 use file::{ResultWriter, WriteBuffers};
 use sidecar::write_sidecar;
@@ -147,7 +148,13 @@ fn write_tile_tmp(
     let count = results.len() as u64;
     let path = tile_path(dir, key);
     let mut w = ResultWriter::create(&path, count, cols, patched, &stats, &mut scratch.writer)?;
-    for &(id, i) in order.iter() {
+    for (j, &(id, i)) in order.iter().enumerate() {
+        // Taken in id order, the records are scattered over the tile's (more than the
+        // second-level cache with the terrain numbers): the next ones' lines are fetched
+        // while this one is pushed.
+        if let Some(&(_, ahead)) = order.get(j + RECORDS_AHEAD) {
+            prefetch(records.as_ptr().wrapping_add(ahead as usize * size), size);
+        }
         let at = i as usize * size;
         // The record and the bytes after it (ResultWriter::push).
         w.push(id, &records[at..])?;
@@ -160,6 +167,10 @@ fn write_tile_tmp(
     }
     tmp
 }
+
+/// How many records ahead of the one pushed [`write_tile_tmp`] prefetches: enough for the
+/// misses of several to overlap.
+const RECORDS_AHEAD: usize = 16;
 
 /// What writing a tile's result file needs besides the results, kept from one tile to the
 /// next (fresh buffers for each tile cost page faults: [`WriteBuffers`]).
