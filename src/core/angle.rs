@@ -32,8 +32,8 @@ pub fn atan2(y: f64, x: f64) -> f64 {
 }
 
 /// [`atan2`] of finite arguments that are not both zero, as the caller knows them to be: the
-/// same bits without the tests for the library's special cases (a tenth of a terrain point's
-/// instructions for the three arctangents).
+/// same bits without the tests for the library's special cases (a fifth of the instructions
+/// of a point's terrain values, with their three arctangents).
 #[inline(always)]
 pub fn atan2_finite(y: f64, x: f64) -> f64 {
     debug_assert!(y.is_finite() && x.is_finite() && (y != 0.0 || x != 0.0));

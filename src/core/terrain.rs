@@ -126,8 +126,8 @@ impl TerrainValues {
             t.flags |= terrain_flags::NO_CURVATURE;
             return t;
         }
-        // Halved before they are added: finite for every finite k1 and k2 (the same bits as
-        // halving the sum, but where the sum would overflow).
+        // Halved before they are added: finite for every finite k1 and k2 (the bits of halving
+        // the sum, but where the sum would overflow or a half is subnormal).
         let (mean, half_gap) = (0.5 * k1 + 0.5 * k2, 0.5 * k2 - 0.5 * k1);
         t.curvedness = (0.5 * (k1 * k1 + k2 * k2)).sqrt();
         if mean == 0.0 && half_gap == 0.0 {

@@ -1,8 +1,8 @@
-//! A hint to the processor to bring memory into its caches before a loop reaches it: for the
-//! loops whose items are scattered over more memory than the second-level cache holds, and
-//! whose next addresses are known some iterations ahead (a tile's result records taken in id
-//! order, the raster cells of points in file order). A load that misses stalls the loop until
-//! it returns; a prefetch retires at once, so the misses of several items ahead overlap.
+//! A hint to the processor to bring memory into its caches before a loop reaches it: for a
+//! loop whose items are scattered over more memory than the second-level cache holds and whose
+//! next addresses are known some iterations ahead (a tile's result records taken in id order).
+//! A load that misses stalls the loop until it returns; a prefetch retires at once, so the
+//! misses of several items ahead overlap.
 
 /// The 64-byte lines of one x86-64 or AArch64 cache.
 const LINE: usize = 64;
