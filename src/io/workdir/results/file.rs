@@ -2,14 +2,15 @@
 //! version), the point count, the column bytes a point ([`ColumnSet::result_size`]), whether
 //! patches are stored (only when some point has one: `--orient propagate`), then the tile's
 //! [`CurvatureStats`]. Then blocks of records, each `records`, `raw length`, `frame length`,
-//! `plain length` (u32 LE), a zstd frame with a checksum ([`crate::io::pack`]), the plain
-//! bytes and their checksum (u64 LE, [`crate::io::pack::checksum`]). A stored row (the global
-//! patch as u64 if stored, then the columns, H exclusive-ored with its prediction from k1 and
-//! k2: [`HPrediction`]) is split ([`RowSplit`]): its terrain numbers are kept as they are, row
-//! after row, at the end of the plain bytes; the rest is cut into byte planes. The frame holds
+//! `plain length` (u32 LE), the plain bytes, a zstd frame with a checksum
+//! ([`crate::io::pack`]) and the plain bytes' checksum (u64 LE, [`crate::io::pack::checksum`]).
+//! A stored row (the global patch as u64 if stored, then the columns, H exclusive-ored with its
+//! prediction from k1 and k2: [`HPrediction`]) is split ([`RowSplit`]): its terrain numbers are
+//! kept as they are, row after row, at the start of the plain bytes (where the writer puts
+//! them as the rows come, in the file's buffer); the rest is cut into byte planes. The frame holds
 //! the ids as varints (the first id of the file, then each one's distance past the one before,
 //! less 1: ids strictly increase, so a tile's consecutive points take a zero byte) and the
-//! planes that compress, in plane order; the others, the low bytes of computed numbers, start
+//! planes that compress, in plane order; the others, the low bytes of computed numbers, end
 //! the plain bytes. Blocks hold about 32 KiB of records, the memory one reader of a merge
 //! keeps. A file is whole only if every block decodes, the ids increase and the count and the
 //! file's end agree ([`TileResults::verify`]).
@@ -31,7 +32,7 @@ use crate::io::pack::{
 };
 
 /// The first bytes of a result file: its format and version.
-const MAGIC: &[u8; 8] = b"TCRES009";
+const MAGIC: &[u8; 8] = b"TCRES010";
 
 /// Bytes of the header before the statistics: magic, count, column bytes, patches stored,
 /// statistics' length.
@@ -123,14 +124,21 @@ impl HPrediction {
 #[derive(Default)]
 pub(crate) struct WriteBuffers {
     ids: Vec<u8>,
-    /// The packed rows and the raw bytes of the block being gathered ([`RowSplit`]).
+    /// The packed rows of the block being gathered ([`RowSplit`]).
     rows: Vec<u8>,
-    raw_rows: Vec<u8>,
     planes: Vec<u8>,
     raw: Vec<u8>,
-    /// Bytes of the file not yet written, at most [`FILE_BUFFER`] and a block.
+    /// Bytes of the file not yet written, at most [`FILE_BUFFER`] and a block. The block being
+    /// gathered is at its end: room for its lengths, then its raw bytes, pushed there row by
+    /// row so that they are copied once on their way to the file, not twice (the terrain
+    /// numbers: most of a row's bytes).
     file: Vec<u8>,
+    /// Where the block being gathered starts in `file` (while it has rows).
+    block: usize,
 }
+
+/// Bytes of a block's lengths: records, raw, frame and plain length (u32 LE each).
+const BLOCK_HEAD: usize = 16;
 
 /// Bytes a writer gathers before a write to its file.
 const FILE_BUFFER: usize = 1 << 20;
@@ -166,7 +174,7 @@ impl<'b> ResultWriter<'b> {
         let tmp = tmp_name(path);
         let w = File::create(&tmp).map_err(|e| Error::write(&tmp, e))?;
         let stats = stats_bytes(stats);
-        for v in [&mut b.ids, &mut b.rows, &mut b.raw_rows, &mut b.file] {
+        for v in [&mut b.ids, &mut b.rows, &mut b.file] {
             v.clear();
         }
         for part in [
@@ -215,16 +223,22 @@ impl<'b> ResultWriter<'b> {
             )));
         };
         let b = &mut *self.b;
+        if b.rows.is_empty() {
+            // Room for the block's lengths, written when it is complete (flush_block).
+            b.block = b.file.len();
+            b.file.extend_from_slice(&[0; BLOCK_HEAD]);
+        }
         put_varint(&mut b.ids, gap);
         let start = b.rows.len() + if self.patched { 8 } else { 0 };
-        self.split.push(row, &mut b.rows, &mut b.raw_rows);
+        self.split.push(row, &mut b.rows, &mut b.file);
         if let Some(p) = &self.predict {
             // H, k1 and k2 precede the raw terrain numbers: at their offsets in a packed row.
             p.apply(&mut b.rows[start..]);
         }
         self.prev = Some(id);
         self.written += 1;
-        if b.rows.len() + b.raw_rows.len() + self.row > BLOCK_BYTES {
+        let raw = b.file.len() - b.block - BLOCK_HEAD;
+        if b.rows.len() + raw + self.row > BLOCK_BYTES {
             self.flush_block()?;
         }
         Ok(())
@@ -245,22 +259,20 @@ impl<'b> ResultWriter<'b> {
             b.raw.extend_from_slice(plane);
         }
         let frame = compress(&b.raw, Effort::Fast).map_err(|e| Error::write(&self.tmp, e))?;
-        for v in [n, b.raw.len(), frame.len(), self.split.plain_len(n)] {
-            b.file.extend_from_slice(&(v as u32).to_le_bytes());
-        }
-        b.file.extend_from_slice(&frame);
-        // The plain planes, then the raw bytes, straight into the file buffer after the frame
-        // and summed there.
-        let start = b.file.len();
+        // The plain planes after the raw bytes already in the file buffer, summed there.
         for (plane, _) in planes().filter(|(_, &plain)| plain) {
             b.file.extend_from_slice(plane);
         }
-        b.file.extend_from_slice(&b.raw_rows);
-        let sum = checksum(&b.file[start..]);
+        let sum = checksum(&b.file[b.block + BLOCK_HEAD..]);
+        b.file.extend_from_slice(&frame);
         b.file.extend_from_slice(&sum.to_le_bytes());
+        let lengths = [n, b.raw.len(), frame.len(), self.split.plain_len(n)];
+        let head = b.file[b.block..b.block + BLOCK_HEAD].chunks_exact_mut(4);
+        for (at, v) in head.zip(lengths) {
+            at.copy_from_slice(&(v as u32).to_le_bytes());
+        }
         b.ids.clear();
         b.rows.clear();
-        b.raw_rows.clear();
         if b.file.len() >= FILE_BUFFER {
             self.write_out()?;
         }
@@ -315,6 +327,8 @@ pub(crate) struct TileResults {
     raw_rows: Vec<u8>,
     next: usize,
     prev: Option<u64>,
+    /// The next block's lengths, read with the block before it (one read a block, not two).
+    next_head: Option<[u8; BLOCK_HEAD]>,
 }
 
 impl TileResults {
@@ -363,6 +377,7 @@ impl TileResults {
             raw_rows: Vec::new(),
             next: 0,
             prev: None,
+            next_head: None,
         })
     }
 
@@ -382,8 +397,14 @@ impl TileResults {
         self.ids.clear();
         self.next = 0;
         let bad = |what: &str| Error::damaged_work(&self.path, &format!("result file {what}"));
-        let mut head = [0u8; 16];
-        read_exact(&mut self.file, &self.path, &mut head)?;
+        let head = match self.next_head.take() {
+            Some(head) => head,
+            None => {
+                let mut head = [0u8; BLOCK_HEAD];
+                read_exact(&mut self.file, &self.path, &mut head)?;
+                head
+            }
+        };
         let word = |i: usize| u32::from_le_bytes(head[i..i + 4].try_into().unwrap_or([0; 4]));
         let [n, raw_len, frame_len, plain_len] = [0, 4, 8, 12].map(|i| word(i) as usize);
         let plain_planes = self.split.plain_count();
@@ -398,17 +419,30 @@ impl TileResults {
         }
         // The raw bytes go straight into the block's buffer, kept from block to block (the
         // terrain numbers: most of a row's bytes, which a buffer of their own per block zeroed
-        // and then copied).
+        // and then copied). The next block's lengths come with this block's bytes, when the
+        // count says there is a next block.
         let planes_len = n * plain_planes;
-        let mut frame = vec![0u8; frame_len + planes_len];
+        let mut planes_frame = vec![0u8; planes_len + frame_len];
         self.raw_rows.resize(plain_len - planes_len, 0);
         let mut sum = [0u8; 8];
-        let parts = [&mut frame[..], &mut self.raw_rows[..], &mut sum[..]];
+        let mut next_head = [0u8; BLOCK_HEAD];
+        let next_len = if self.remaining > n as u64 {
+            BLOCK_HEAD
+        } else {
+            0
+        };
+        let parts = [
+            &mut self.raw_rows[..],
+            &mut planes_frame[..],
+            &mut sum[..],
+            &mut next_head[..next_len],
+        ];
         read_parts(&mut self.file, &self.path, parts)?;
-        let (frame, plain) = frame.split_at(frame_len);
+        self.next_head = (next_len > 0).then_some(next_head);
+        let (plain, frame) = planes_frame.split_at(planes_len);
         let mut summed = Checksum::new();
-        summed.update(plain);
         summed.update(&self.raw_rows);
+        summed.update(plain);
         let mut raw = Vec::new();
         if summed.finish().to_le_bytes() != sum || !decompress_into(frame, raw_len, &mut raw) {
             return Err(bad("has a damaged block"));

@@ -100,7 +100,7 @@ fn result_files_round_trip_over_many_blocks() {
     assert!(read_all(&empty).expect("read").is_empty());
 }
 
-/// The terrain numbers, kept as they are at the end of each block's plain bytes: records go
+/// The terrain numbers, kept as they are at the start of each block's plain bytes: records go
 /// through a file unchanged with and without patches over several blocks, the file holds at
 /// least their bytes (they are not compressed), and a byte flipped among them is refused.
 #[test]
@@ -122,19 +122,25 @@ fn terrain_numbers_are_kept_as_they_are_and_checked() {
         // whatever the frame compresses to.
         assert!(size >= ids.len() * (7 * 4 + 2 * 3), "{size} bytes");
         assert!(super::super::is_complete(&path, ids.len() as u64, &cols));
-        // The last raw byte of the first block, just before its plain bytes' checksum.
+        // The first block's raw bytes start its plain bytes, right after its lengths: the
+        // first record's seven numbers are there as the record holds them.
         let good = std::fs::read(&path).expect("read");
         let stats = u64::from_le_bytes(good[32..40].try_into().expect("8 bytes")) as usize;
         let block = HEAD + stats;
         let word = |at: usize| u32::from_le_bytes(good[at..at + 4].try_into().expect("4")) as usize;
-        let (n, frame, plain) = (word(block), word(block + 8), word(block + 12));
+        let (n, plain) = (word(block), word(block + 12));
         assert_eq!(plain, n * (2 * 3 + 7 * 4));
-        let mut bad = good.clone();
-        bad[block + 16 + frame + plain - 1] ^= 0x01;
-        std::fs::write(&path, &bad).expect("write");
-        assert!(!super::super::is_complete(&path, ids.len() as u64, &cols));
-        let e = read_cols(&path, &cols).expect_err("a raw byte damaged");
-        assert!(e.to_string().contains("damaged block"), "{e}");
+        let first = record(ids[0], patched.then_some(ids[0] << 32 | 3), &cols);
+        let raw_at = block + BLOCK_HEAD;
+        assert_eq!(good[raw_at..raw_at + 28], first[first.len() - 28..]);
+        for at in [raw_at, raw_at + n * 28 - 1] {
+            let mut bad = good.clone();
+            bad[at] ^= 0x01;
+            std::fs::write(&path, &bad).expect("write");
+            assert!(!super::super::is_complete(&path, ids.len() as u64, &cols));
+            let e = read_cols(&path, &cols).expect_err("a raw byte damaged");
+            assert!(e.to_string().contains("damaged block"), "{e}");
+        }
     }
 }
 
@@ -191,25 +197,32 @@ fn damaged_truncated_and_old_result_files_are_refused() {
         bad[at] ^= 0x04;
         check(&bad, &format!("a bit flipped at {at}"));
     }
-    // The first block's plain planes and their checksum, after its frame.
+    // The first block's plain planes after its lengths, then its frame and the plain planes'
+    // checksum.
     let stats = u64::from_le_bytes(good[32..40].try_into().expect("8 bytes")) as usize;
     let block = HEAD + stats;
     let frame = u32::from_le_bytes(good[block + 8..block + 12].try_into().expect("4 bytes"));
     let plain = u32::from_le_bytes(good[block + 12..block + 16].try_into().expect("4 bytes"));
-    let plain_at = block + 16 + frame as usize;
-    assert_eq!(plain as usize, 18 * (BLOCK_BYTES / cols.result_size()));
+    let (plain, frame) = (plain as usize, frame as usize);
+    let plain_at = block + BLOCK_HEAD;
+    assert_eq!(plain, 18 * (BLOCK_BYTES / cols.result_size()));
     for (at, what) in [
         (plain_at, "the first plain byte"),
-        (plain_at + plain as usize / 2, "a plain byte"),
-        (plain_at + plain as usize + 3, "the plain planes' checksum"),
+        (plain_at + plain / 2, "a plain byte"),
+        (plain_at + plain + frame / 2, "a frame byte"),
+        (plain_at + plain + frame + 3, "the plain planes' checksum"),
         (block + 12, "the plain length"),
+        (
+            plain_at + plain + frame + 8 + 8,
+            "the second block's frame length",
+        ),
     ] {
         let mut bad = good.clone();
         bad[at] ^= 0x10;
         check(&bad, &format!("{what} damaged"));
     }
     let mut old = good.clone();
-    old[..8].copy_from_slice(b"TCRES007");
+    old[..8].copy_from_slice(b"TCRES009");
     check(&old, "the previous format");
 }
 
