@@ -17,6 +17,13 @@
 # page faults). Environment: TILECURV_BENCH_DIR (default /tmp/tilecurv-bench),
 # K (30), THREADS (2), SEED (1), TILECURV (a binary; default: cargo build --release).
 #
+# PAIRED=1 instead runs the two runs of each comparison (base and terrain, then terrain and
+# raster) at the same time, one thread each, so that both meet the same neighbours: their
+# per-round ratios scatter by about 0.07 (standard deviation) where interleaved 2-thread rounds
+# scatter by 0.09-0.12, and it prints each ratio's median with its standard error. Running at
+# once, the two compete for the shared cache and memory, so the ratios include what each
+# variant's memory traffic costs the other.
+#
 # COUNT=1 instead runs each variant once under valgrind's cachegrind and prints the user-space
 # instructions each executes and their ratios: repeated runs of 200k points agree within 0.2%
 # (the threads' interleaving), so they resolve the 1-2% differences the CPU times of this virtual
@@ -61,6 +68,44 @@ if [ "${COUNT:-0}" = 1 ]; then
     done
     awk -v b="${ins[base]}" -v t="${ins[terrain]}" -v r="${ins[raster]}" 'BEGIN {
         printf "input: %s points; instruction ratios terrain/base %.4f, raster/terrain %.4f\n", "'"$SIZE"'", t / b, r / t }'
+    exit 0
+fi
+if [ "${PAIRED:-0}" = 1 ]; then
+    declare -A paired=()
+    printf '%-6s %10s %12s %12s %11s %8s %8s\n' round "base (s)" "terrain (s)" "terrain (s)" \
+        "raster (s)" terrain raster
+    for r in $(seq 1 "$ROUNDS"); do
+        line=()
+        for pair in "base terrain" "terrain raster"; do
+            read -r a b <<<"$pair"
+            cat "$in" >/dev/null
+            for v in "$a" "$b"; do
+                out="$BENCH_DIR/bench_terrain_paired_$v.las"
+                # shellcheck disable=SC2086
+                /usr/bin/time -v -o "$BENCH_DIR/time_paired_$v.txt" "$TILECURV" process "$in" \
+                    -o "$out" -q -k "$K" --threads 1 ${variants[$v]} &
+            done
+            wait
+            ca=$(cpu_s "$BENCH_DIR/time_paired_$a.txt")
+            cb=$(cpu_s "$BENCH_DIR/time_paired_$b.txt")
+            paired[$b]="${paired[$b]:-} $(awk -v a="$ca" -v b="$cb" 'BEGIN { printf "%.4f", b / a }')"
+            line+=("$ca" "$cb")
+            rm -rf "$BENCH_DIR"/bench_terrain_paired_*
+        done
+        printf '%-6s %10s %12s %12s %11s %8s %8s\n' "$r" "${line[@]}" \
+            "$(awk -v a="${line[0]}" -v b="${line[1]}" 'BEGIN { printf "%.3f", b / a }')" \
+            "$(awk -v a="${line[2]}" -v b="${line[3]}" 'BEGIN { printf "%.3f", b / a }')"
+    done
+    # Median, mean and standard deviation of a variant's ratios, and the median's standard
+    # error (1.2533 sd / sqrt(n) for ratios scattered about normally).
+    summary() {
+        printf '%s\n' $1 | sort -n | awk '{ v[NR] = $1; s += $1; q += $1 * $1 } END {
+            m = s / NR; var = NR > 1 ? (q - NR * m * m) / (NR - 1) : 0; sd = sqrt(var > 0 ? var : 0)
+            printf "median %.3f (standard error %.3f), mean %.3f, standard deviation %.3f", v[int((NR + 1) / 2)], 1.2533 * sd / sqrt(NR), m, sd }'
+    }
+    echo "input: $in ($SIZE points), -k $K, pairs at once with --threads 1, $ROUNDS rounds:"
+    echo "  terrain/base:   $(summary "${paired[terrain]}")"
+    echo "  raster/terrain: $(summary "${paired[raster]}")"
     exit 0
 fi
 ratios=()
