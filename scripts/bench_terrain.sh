@@ -18,9 +18,9 @@
 # K (30), THREADS (2), SEED (1), TILECURV (a binary; default: cargo build --release).
 #
 # PAIRED=1 instead runs the two runs of each comparison (base and terrain, then terrain and
-# raster) at the same time, one thread each, so that both meet the same neighbours: their
-# per-round ratios scatter by about 0.07 (standard deviation) where interleaved 2-thread rounds
-# scatter by 0.09-0.12, and it prints each ratio's median with its standard error. Running at
+# raster) at the same time, one thread each, so that both meet the same neighbours (their
+# per-round ratios scattered by 0.06-0.11, as a standard deviation, on this machine; interleaved
+# 2-thread rounds by 0.09-0.12), and prints each ratio's median with its standard error. Running at
 # once, the two compete for the shared cache and memory, so the ratios include what each
 # variant's memory traffic costs the other.
 #
@@ -79,13 +79,21 @@ if [ "${PAIRED:-0}" = 1 ]; then
         for pair in "base terrain" "terrain raster"; do
             read -r a b <<<"$pair"
             cat "$in" >/dev/null
+            pids=()
             for v in "$a" "$b"; do
                 out="$BENCH_DIR/bench_terrain_paired_$v.las"
                 # shellcheck disable=SC2086
                 /usr/bin/time -v -o "$BENCH_DIR/time_paired_$v.txt" "$TILECURV" process "$in" \
                     -o "$out" -q -k "$K" --threads 1 ${variants[$v]} &
+                pids+=("$!")
             done
-            wait
+            # Each run waited for by itself, so that a failed one stops the script.
+            for p in "${pids[@]}"; do
+                wait "$p" || {
+                    echo "bench_terrain.sh: a run of the pair '$pair' failed (its report: $BENCH_DIR/time_paired_*.txt)" >&2
+                    exit 1
+                }
+            done
             ca=$(cpu_s "$BENCH_DIR/time_paired_$a.txt")
             cb=$(cpu_s "$BENCH_DIR/time_paired_$b.txt")
             paired[$b]="${paired[$b]:-} $(awk -v a="$ca" -v b="$cb" 'BEGIN { printf "%.4f", b / a }')"
