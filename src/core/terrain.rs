@@ -104,11 +104,12 @@ impl TerrainValues {
         let s2 = n[0] * n[0] + n[1] * n[1];
         let sin_s = s2.sqrt();
         // n[2] >= 0 here: the library's special cases are the normal's zero vector alone.
-        let slope_deg = match n[2] > 0.0 || s2 > 0.0 {
-            true => atan2_finite(sin_s, n[2]),
-            false => atan2(sin_s, n[2]),
-        }
-        .to_degrees();
+        let slope = if n[2] > 0.0 || s2 > 0.0 {
+            atan2_finite(sin_s, n[2])
+        } else {
+            atan2(sin_s, n[2])
+        };
+        let slope_deg = slope.to_degrees();
         let flat = slope_deg < FLAT_SLOPE_DEG;
         let mut t = TerrainValues {
             slope_deg,
