@@ -107,6 +107,7 @@ if [ "${PAIRED:-0}" = 1 ]; then
     # Median, mean and standard deviation of a variant's ratios, and the median's standard
     # error (1.2533 sd / sqrt(n) for ratios scattered about normally).
     summary() {
+        # shellcheck disable=SC2086
         printf '%s\n' $1 | sort -n | awk '{ v[NR] = $1; s += $1; q += $1 * $1 } END {
             m = s / NR; var = NR > 1 ? (q - NR * m * m) / (NR - 1) : 0; sd = sqrt(var > 0 ? var : 0)
             printf "median %.3f (standard error %.3f), mean %.3f, standard deviation %.3f", v[int((NR + 1) / 2)], 1.2533 * sd / sqrt(NR), m, sd }'
