@@ -9,8 +9,10 @@
 //! along a Morton curve as a loaded tile is, and times, per point: the engine's k-NN (index
 //! build included, queries in the index's cell order as the engine's tasks make them), kiddo
 //! `nearest_n` on tile-local f32 coordinates (no exact re-ranking, so a lower bound on what a
-//! kiddo-based engine costs), PCA normals, and the default estimator
-//! with its neighbourhood gather. Best of `--repeat` runs of each stage.
+//! kiddo-based engine costs), PCA normals, the default estimator with its neighbourhood gather,
+//! and the terrain values of its results (`--columns terrain`: slope, aspect, profile,
+//! tangential and plan curvature, shape index, curvedness), the one part of that option's cost
+//! that is arithmetic rather than bytes carried. Best of `--repeat` runs of each stage.
 
 use std::num::NonZeroUsize;
 use std::path::PathBuf;
@@ -23,6 +25,7 @@ use tilecurv::core::geometry::{sub, V3};
 use tilecurv::core::neighbors::{KnnScratch, NeighbourIndex};
 use tilecurv::core::normals::{orient, pca_normal, Orientation};
 use tilecurv::core::plan::Rect;
+use tilecurv::core::terrain::TerrainValues;
 use tilecurv::core::tile::TilePoints;
 use tilecurv::io::source::open;
 
@@ -172,7 +175,27 @@ fn main() {
             }
         }
     });
-    let _: V3 = [h_sum, checksum as f64, 0.0];
+    // Outside the timed loop, so that the estimator's stage stores nothing more than before.
+    let curvatures: Vec<_> = (0..n)
+        .map(|i| {
+            let list = &lists[i * k..(i + 1) * k];
+            buf.estimate(estimator.as_ref(), &t.xyz, &normals, i, list, &mut [])
+        })
+        .collect();
+    let mut slope_sum = 0.0;
+    // Point by point in the tile's order, as the tiles stage computes them (there right after
+    // each point's estimate).
+    let terrain = best(a.repeat, n, || {
+        for (nrm, c) in normals.iter().zip(&curvatures) {
+            if let Some(nrm) = nrm {
+                let v = TerrainValues::of(*nrm, c);
+                if v.slope_deg.is_finite() {
+                    slope_sum += v.slope_deg;
+                }
+            }
+        }
+    });
+    let _: V3 = [h_sum, checksum as f64, slope_sum];
     println!("stage                        us/point");
     println!("k-NN (tilecurv, exact)       {knn:8.3}");
     println!(
@@ -185,5 +208,9 @@ fn main() {
         "sum                          {:8.3}   = {:.0} points/s per core",
         knn + pca + est,
         1e6 / (knn + pca + est)
+    );
+    println!(
+        "terrain values               {terrain:8.3}   {:.1}% of the sum",
+        100.0 * terrain / (knn + pca + est)
     );
 }
