@@ -11,8 +11,8 @@
 //! `nearest_n` on tile-local f32 coordinates (no exact re-ranking, so a lower bound on what a
 //! kiddo-based engine costs), PCA normals, the default estimator with its neighbourhood gather,
 //! and the terrain values of its results (`--columns terrain`: slope, aspect, profile,
-//! tangential and plan curvature, shape index, curvedness), the one part of that option's cost
-//! that is arithmetic rather than bytes carried. Best of `--repeat` runs of each stage.
+//! tangential and plan curvature, shape index, curvedness): what computing them costs, without
+//! carrying them through the result files to the output. Best of `--repeat` runs of each stage.
 
 use std::num::NonZeroUsize;
 use std::path::PathBuf;
