@@ -165,7 +165,7 @@ where
     };
     install_signal_handlers();
     crate::io::limits::raise_open_files();
-    crate::io::limits::fit_allocator_to_address_space();
+    crate::io::limits::fit_allocator();
     let r = match cli.command {
         Command::Generate(args) => generate::generate(args),
         Command::Process(args) => process(args),
