@@ -67,10 +67,10 @@ fn current(which: Limit) -> Option<libc::rlimit> {
 /// eight: with eight, each of a run's threads (workers, tile drivers, the result writer, the
 /// merge) keeps an arena of its own, whose freed buffers the others do not reuse, and the
 /// resident memory outgrows the budget (a 2M-point terrain at `--memory 64M`, 2 cores: peak
-/// 99-108 MiB with glibc's cap, 63-71 MiB with two arenas a core; the CPU time of 14 runs
-/// interleaved at the default budget: glibc's cap took 1.014 of it, median, within the runs'
-/// scatter of 0.04). Call before any thread starts. Elsewhere (other C libraries) nothing
-/// changes.
+/// 94-108 MiB with glibc's cap, 63-77 MiB in six runs of seven with two arenas a core, 89 in
+/// the seventh; the CPU time of 14 runs interleaved at the default budget: glibc's cap took
+/// 1.014 of it, median, within the runs' scatter of 0.04). Call before any thread starts.
+/// Elsewhere (other C libraries) nothing changes.
 pub(crate) fn fit_allocator() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {
