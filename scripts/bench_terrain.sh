@@ -48,6 +48,8 @@ in="$BENCH_DIR/terrain_${SIZE}_seed${SEED}.las"
 [ -f "$in" ] || "$TILECURV" generate terrain -q -o "$in" --points "$SIZE" --seed "$SEED"
 cpu_s() { awk -F': ' '/User time|System time/ { s += $2 } END { printf "%.2f", s }' "$1"; }
 sys_s() { awk -F': ' '/System time/ { printf "%.2f", $2 }' "$1"; }
+# The median of the numbers given (of an even count, the lower of the two middle ones).
+med() { printf '%s\n' "$@" | sort -n | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 declare -A variants=(
     [base]="--columns H,K,flags"
     [terrain]="--columns H,K,flags,terrain"
@@ -76,6 +78,7 @@ if [ "${PAIRED:-0}" = 1 ]; then
         "raster (s)" terrain raster
     for r in $(seq 1 "$ROUNDS"); do
         line=()
+        shown_ratios=()
         for pair in "base terrain" "terrain raster"; do
             read -r a b <<<"$pair"
             cat "$in" >/dev/null
@@ -96,21 +99,22 @@ if [ "${PAIRED:-0}" = 1 ]; then
             done
             ca=$(cpu_s "$BENCH_DIR/time_paired_$a.txt")
             cb=$(cpu_s "$BENCH_DIR/time_paired_$b.txt")
-            paired[$b]="${paired[$b]:-} $(awk -v a="$ca" -v b="$cb" 'BEGIN { printf "%.4f", b / a }')"
+            # The ratio once: to four places for the summary, to three for the round's line.
+            read -r exact shown < <(awk -v a="$ca" -v b="$cb" 'BEGIN { printf "%.4f %.3f\n", b / a, b / a }')
+            paired[$b]="${paired[$b]:-} $exact"
             line+=("$ca" "$cb")
+            shown_ratios+=("$shown")
             rm -rf "$BENCH_DIR"/bench_terrain_paired_*
         done
-        printf '%-6s %10s %12s %12s %11s %8s %8s\n' "$r" "${line[@]}" \
-            "$(awk -v a="${line[0]}" -v b="${line[1]}" 'BEGIN { printf "%.3f", b / a }')" \
-            "$(awk -v a="${line[2]}" -v b="${line[3]}" 'BEGIN { printf "%.3f", b / a }')"
+        printf '%-6s %10s %12s %12s %11s %8s %8s\n' "$r" "${line[@]}" "${shown_ratios[@]}"
     done
     # Median, mean and standard deviation of a variant's ratios, and the median's standard
     # error (1.2533 sd / sqrt(n) for ratios scattered about normally).
     summary() {
         # shellcheck disable=SC2086
-        printf '%s\n' $1 | sort -n | awk '{ v[NR] = $1; s += $1; q += $1 * $1 } END {
+        printf '%s\n' $1 | awk -v med="$(med $1)" '{ s += $1; q += $1 * $1 } END {
             m = s / NR; var = NR > 1 ? (q - NR * m * m) / (NR - 1) : 0; sd = sqrt(var > 0 ? var : 0)
-            printf "median %.3f (standard error %.3f), mean %.3f, standard deviation %.3f", v[int((NR + 1) / 2)], 1.2533 * sd / sqrt(NR), m, sd }'
+            printf "median %.3f (standard error %.3f), mean %.3f, standard deviation %.3f", med, 1.2533 * sd / sqrt(NR), m, sd }'
     }
     echo "input: $in ($SIZE points), -k $K, pairs at once with --threads 1, $ROUNDS rounds:"
     echo "  terrain/base:   $(summary "${paired[terrain]}")"
@@ -140,7 +144,6 @@ for r in $(seq 1 "$ROUNDS"); do
     raster_ratios+=("$rratio")
     printf '%-6s %10s %12s %11s %8s %8s\n' "$r" "${cpu[base]}" "${cpu[terrain]}" "${cpu[raster]}" "$ratio" "$rratio"
 done
-med() { printf '%s\n' "$@" | sort -n | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 echo "input: $in ($SIZE points), -k $K, --threads $THREADS; median CPU ratios over $ROUNDS rounds: terrain/base $(med "${ratios[@]}"), raster/terrain $(med "${raster_ratios[@]}")"
 awk -v b="${least[base]}" -v t="${least[terrain]}" -v r="${least[raster]}" 'BEGIN {
     printf "least CPU time: base %.2f s, terrain %.2f s, raster %.2f s; ratios terrain/base %.3f, raster/terrain %.3f\n", b, t, r, t / b, r / t }'
