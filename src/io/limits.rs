@@ -63,9 +63,9 @@ fn current(which: Limit) -> Option<libc::rlimit> {
 
 /// Caps the allocator's arenas (glibc). Under an address-space limit, one: glibc reserves 64 MiB
 /// of address space for each further arena, which counts against `ulimit -v` though it is never
-/// used (one arena costs a few percent of speed). Otherwise two a core instead of glibc's
-/// eight: with eight, each of a run's threads (workers, tile drivers, the result writer, the
-/// merge) keeps an arena of its own, whose freed buffers the others do not reuse, and the
+/// used (one arena costs a few percent of speed). Otherwise two a core instead of glibc's eight
+/// a core: with that many, each of a run's threads (workers, tile drivers, the result writer,
+/// the merge) keeps an arena of its own, whose freed buffers the others do not reuse, and the
 /// resident memory outgrows the budget (a 2M-point terrain at `--memory 64M`, 2 cores: peak
 /// 94-108 MiB with glibc's cap, 63-77 MiB in six runs of seven with two arenas a core, 89 in
 /// the seventh; the CPU time of 14 runs interleaved at the default budget: glibc's cap took
