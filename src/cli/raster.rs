@@ -32,7 +32,7 @@ pub(super) fn run(a: RasterArgs) -> Result<i32, i32> {
             s.cells,
             s.grid.width,
             s.grid.height,
-            s.grid.cell,
+            s.cell_text(),
             s.files.len(),
             started.elapsed().as_secs_f64(),
             job.dir.display()

@@ -106,7 +106,7 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
             s.files.len(),
             s.grid.width,
             s.grid.height,
-            s.grid.cell,
+            s.cell_text(),
             s.files
                 .first()
                 .and_then(|f| f.parent())

@@ -92,6 +92,8 @@ pub(crate) fn known_columns(unit: &str) -> Vec<(RasterColumn, bool)> {
 pub(crate) struct RasterRequest {
     /// Cell size in file units.
     pub(crate) cell: f64,
+    /// The symbol of the file unit ("m", "ft", or "unit"), for messages.
+    pub(crate) unit: String,
     /// How a cell's value is formed.
     pub(crate) stat: Stat,
     /// The directory the rasters go to.
@@ -105,12 +107,24 @@ pub(crate) struct RasterRequest {
 pub struct RasterSummary {
     /// The grid (its cell size in file units).
     pub grid: CellGrid,
+    /// The symbol of the file unit ("m", "ft", or "unit").
+    pub unit: String,
     /// Points binned.
     pub points: u64,
     /// Cells holding at least one point.
     pub cells: u64,
     /// The GeoTIFFs and PNGs written.
     pub files: Vec<PathBuf>,
+}
+
+impl RasterSummary {
+    /// The cell size with its unit, for messages: "1 m", or "2 file units" without a CRS unit.
+    pub fn cell_text(&self) -> String {
+        match self.unit.as_str() {
+            "unit" => format!("{} file units", self.grid.cell),
+            u => format!("{} {u}", self.grid.cell),
+        }
+    }
 }
 
 /// Points on their way into rasters: each point's cell and column values are binned as they
@@ -417,6 +431,7 @@ impl Rasterizer {
         )?);
         Ok(RasterSummary {
             grid,
+            unit: req.unit.clone(),
             points: self.points,
             cells: count,
             files,

@@ -46,6 +46,7 @@ fn tallies_as_points_come_or_at_the_end_give_the_same_rasters() {
             let dir = tmp.path().join(format!("{stat}{i}"));
             let request = RasterRequest {
                 cell: 1.0,
+                unit: "m".into(),
                 stat,
                 dir: dir.clone(),
                 columns: columns.clone(),

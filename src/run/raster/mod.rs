@@ -108,6 +108,7 @@ fn make_rasters(
     tally_integers(&mut columns, &readers, job.stat);
     let request = RasterRequest {
         cell,
+        unit: symbol,
         stat: job.stat,
         dir: job.dir.clone(),
         columns,
@@ -311,6 +312,7 @@ impl OutputRasters {
         tally_integers(&mut columns, &readers, opts.stat);
         let request = RasterRequest {
             cell,
+            unit: cols.unit.clone(),
             stat: opts.stat,
             dir: dir.clone(),
             columns,
