@@ -34,17 +34,61 @@ def column(las, name):
     return values, extra and integer and raw.dtype.itemsize <= 4
 
 
+# ProjLinearUnitsGeoKey's EPSG unit codes: metre, foot, US survey foot.
+UNIT_METRES = {9001: 1.0, 9002: 0.3048, 9003: 1200 / 3937}
+
+
 def point_crs(las):
-    """GDAL's reading of the point file's CRS (WKT VLR, else GeoTIFF keys via its EPSG code)."""
+    """GDAL's reading of the point file's CRS (WKT VLR, else GeoTIFF keys via its EPSG code),
+    or for user-defined projected keys (code 32767, the parameters in the keys) the metres in
+    its linear unit, which the raster's CRS must be projected in."""
     for v in las.header.vlrs + list(las.header.evlrs or []):
-        if v.record_id == 2112:
-            return CRS.from_wkt(v.string)
+        if v.record_id == 2112 and v.user_id == "LASF_Projection":
+            # laspy parses the WKT record of LAS 1.4 files; of older ones it keeps the bytes.
+            text = getattr(v, "string", None) or bytes(v.record_data).decode("latin-1")
+            return CRS.from_wkt(text.rstrip("\0"))
     for v in las.header.vlrs:
         if v.record_id == 34735:
             keys = {k.id: k.value_offset for k in v.geo_keys}
             code = keys.get(3072, keys.get(2048))
+            if code == 32767:
+                return UNIT_METRES[keys[3076]]
             return None if code is None else CRS.from_epsg(code)
     return None
+
+
+def check_crs(name, got, expect):
+    """The raster's CRS as GDAL reads it against the point file's (point_crs)."""
+    if expect is None:
+        assert got is None or not got.is_valid, (name, got)
+    elif isinstance(expect, float):
+        assert got is not None and got.is_projected, (name, got)
+        assert abs(got.linear_units_factor[1] - expect) < 1e-9, (name, got.linear_units_factor)
+    elif expect.to_epsg() is None:
+        # A WKT without an EPSG code (autzen's Lambert conic in feet): the same projection,
+        # parameters and unit as PROJ states them.
+        assert got is not None and same_params(got.to_dict(), expect.to_dict()), (
+            name, got.to_dict() if got else None, expect.to_dict())
+    else:
+        assert got is not None and got.to_epsg() == expect.to_epsg(), (name, got, expect.to_epsg())
+
+
+def same_params(a, b):
+    """PROJ parameter dictionaries equal, numbers to 1e-9 relative."""
+    def same(x, y):
+        if isinstance(x, (int, float)) and isinstance(y, (int, float)):
+            return abs(x - y) <= 1e-9 * max(abs(x), abs(y), 1.0)
+        return x == y
+    return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+
+
+def crs_text(expect):
+    """How the report names the expected CRS."""
+    if isinstance(expect, float):
+        return f"user-defined in units of {expect} m"
+    if expect is not None and expect.to_epsg() is None:
+        return f"{expect.to_dict().get('proj')} in {expect.to_dict().get('units')}"
+    return None if expect is None else expect.to_epsg()
 
 
 def reduce(stat, values, circular, integers):
@@ -79,6 +123,9 @@ def main():
     p.add_argument("--cell", type=float, required=True)
     p.add_argument("--stat", default="mean")
     p.add_argument("--columns", required=True)
+    p.add_argument("--no-crs", action="store_true",
+                   help="expect rasters without a CRS (a WKT naming no EPSG code, which tilecurv "
+                        "cannot put in GeoTIFF keys)")
     a = p.parse_args()
     las = laspy.read(a.points)
     ix = np.floor(np.asarray(las.x) / a.cell).astype(np.int64)
@@ -90,7 +137,7 @@ def main():
     order = np.argsort(flat, kind="stable")
     cells, starts = np.unique(flat[order], return_index=True)
     ends = np.append(starts[1:], len(order))
-    expect_crs = point_crs(las)
+    expect_crs = None if a.no_crs else point_crs(las)
     names = a.columns.split(",") + ["PointCount"]
     for name in names:
         with rasterio.open(f"{a.rasters}/{name}.tif") as r:
@@ -100,11 +147,7 @@ def main():
             assert (t.c, t.f) == (west * a.cell, (north + 1) * a.cell), (name, t, west, north)
             assert r.nodata == float(np.finfo(np.float32).min), (name, r.nodata)
             assert r.dtypes[0] == "float32" and r.compression is not None, (name, r.dtypes)
-            if expect_crs is None:
-                assert r.crs is None or not r.crs.is_valid, (name, r.crs)
-            else:
-                assert r.crs is not None and r.crs.to_epsg() == expect_crs.to_epsg(), (
-                    name, r.crs, expect_crs.to_epsg())
+            check_crs(name, r.crs, expect_crs)
             grid = r.read(1, masked=True)
         want = np.full(width * height, np.nan)
         if name == "PointCount":
@@ -129,7 +172,7 @@ def main():
         bad = err > tol
         assert not bad.any(), (name, int(bad.sum()), float(err.max()))
         print(f"ok {name}: {d.sum()} cells of {width}x{height}, largest difference {err.max():.3g}, "
-              f"crs {None if expect_crs is None else expect_crs.to_epsg()}")
+              f"crs {crs_text(expect_crs)}")
 
 
 if __name__ == "__main__":

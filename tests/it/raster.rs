@@ -44,9 +44,16 @@ fn tif(dir: &Path, name: &str) -> Vec<u8> {
 /// `scripts/raster_check.py` on `points` and the rasters in `dir`, which must pass; returns
 /// its report.
 fn check(points: &Path, dir: &Path, cell: f64, stat: &str, columns: &str) -> String {
+    check_with(points, dir, (cell, stat, columns), &[])
+}
+
+/// [`check`] with more arguments to the script.
+fn check_with(points: &Path, dir: &Path, what: (f64, &str, &str), more: &[&str]) -> String {
+    let (cell, stat, columns) = what;
     let out = Command::new("python3")
         .arg(root().join("scripts/raster_check.py"))
         .args([points, dir])
+        .args(more)
         .args([
             "--cell",
             &format!("{cell:?}"),
@@ -367,5 +374,44 @@ fn rasters_of_a_text_input_equal_those_of_its_output() {
             tif(&r, name) == tif(&again, name),
             "{name}: process --raster of the text input differs from raster of its output"
         );
+    }
+}
+
+/// Every real survey of the shared data gives rasters that GDAL reads with the survey's CRS and
+/// numpy's cell means, whatever its GeoTIFF text holds (padding NULs: autzen, bcts, hexbin;
+/// Latin-1: the Norwegian survey), its point format or LAS version. The WKTs of autzen_trim_7
+/// and las14_pdrf6 name no EPSG code, which GeoTIFF keys need: their rasters have none, as the
+/// run warns.
+#[test]
+fn every_real_survey_gives_rasters_gdal_reads() {
+    if !rasterio_available() {
+        return;
+    }
+    for name in crate::real_files::FILES {
+        let Some(input) = shared(&format!("las/{name}")) else {
+            return;
+        };
+        let dir = tempfile::tempdir().expect("temp dir");
+        let out = dir.path().join("out.laz");
+        let run = tilecurv(&[
+            "process",
+            s(&input),
+            "-o",
+            s(&out),
+            "--columns",
+            "H",
+            "-k",
+            "10",
+            "--raster",
+            "8",
+        ]);
+        let log = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{name}: {log}");
+        let no_crs = ["autzen_trim_7.las", "las14_pdrf6.laz"].contains(&name);
+        assert_eq!(log.contains("names no EPSG code"), no_crs, "{name}: {log}");
+        let more: &[&str] = if no_crs { &["--no-crs"] } else { &[] };
+        let rasters = dir.path().join("out.rasters");
+        let report = check_with(&out, &rasters, (8.0, "mean", "H"), more);
+        eprintln!("{name}: {report}");
     }
 }

@@ -9,7 +9,7 @@ use tilecurv::io::source::PointSource;
 
 use crate::common::{laspy_available, process, records, shared, COLUMNS};
 
-const FILES: [&str; 15] = [
+pub(crate) const FILES: [&str; 15] = [
     "32-1-472-150-76.laz",
     "Haystack_Rock.las",
     "Megaplot.las",

@@ -47,7 +47,7 @@ pub(crate) fn raster_crs<'a>(
         CrsRecord::Keys(keys) => {
             let doubles = find(34736).map(|v| doubles_of(&v.data)).unwrap_or_default();
             let ascii = find(34737)
-                .map(|v| String::from_utf8_lossy(&v.data).into_owned())
+                .map(|v| ascii_params(&v.data))
                 .unwrap_or_default();
             from_keys(GeoKeys::parse(&keys.data), doubles, ascii)
         }
@@ -58,6 +58,27 @@ pub(crate) fn raster_crs<'a>(
             ..no_keys()
         },
     }
+}
+
+/// A LAS file's GeoAsciiParams record as a TIFF ASCII value, which holds ASCII without NULs.
+/// The keys address its strings by byte offset and length, so each byte stays in its place:
+/// the NULs that pad the record (the LAS specification allows them) are dropped from its end,
+/// a NUL inside it, which ends a string as `|` does, becomes `|`, and a byte outside ASCII
+/// (a citation's "å" in Latin-1) becomes `?`. The value ends with `|`, as GeoTIFF's strings do.
+fn ascii_params(data: &[u8]) -> String {
+    let end = data.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+    let mut s: String = data[..end]
+        .iter()
+        .map(|&b| match b {
+            0 => '|',
+            b if b.is_ascii() => char::from(b),
+            _ => '?',
+        })
+        .collect();
+    if !s.is_empty() && !s.ends_with('|') {
+        s.push('|');
+    }
+    s
 }
 
 /// Keys with only the model and raster types (user-defined model).
@@ -292,6 +313,24 @@ mod tests {
             .chunks_exact(4)
             .find(|e| e[0] == id)
             .map(|e| e[3])
+    }
+
+    /// The real surveys' GeoAsciiParams become values the TIFF writer takes, each string at
+    /// the offset and length its key gives (autzen: a padding NUL; a Norwegian survey: Latin-1).
+    #[test]
+    fn ascii_params_keep_their_offsets_without_nul_or_non_ascii() {
+        let autzen = b"NAD_1983_HARN|GCS Name = GCS_NAD83||\x00";
+        assert_eq!(ascii_params(autzen), "NAD_1983_HARN|GCS Name = GCS_NAD83||");
+        let norway = b"UTM sone 32, basert p\xe5 EUREF89|NN2000|";
+        let clean = ascii_params(norway);
+        assert_eq!(clean.len(), norway.len());
+        assert_eq!(&clean[31..38], "NN2000|");
+        assert_eq!(&clean[20..23], "p? ");
+        assert_eq!(ascii_params(b"A\x00B\x00\x00"), "A|B|");
+        assert_eq!(ascii_params(b"\x00\x00"), "");
+        let clean = ascii_params(b"WGS 84");
+        assert_eq!(clean, "WGS 84|");
+        assert!(clean.is_ascii() && !clean.contains('\0'));
     }
 
     /// A WKT 1 projected CRS gives its own code, not a nested one (the datum's, the unit's).
