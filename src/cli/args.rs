@@ -13,8 +13,9 @@ use crate::run::Process;
 /// The options that change how a run executes, never its output.
 #[derive(clap::Args, Debug, Clone)]
 pub(super) struct ExecArgs {
-    /// Memory budget for buckets and tiles in flight: 2G, 512M, ... (K, M, G = powers of 1024).
-    /// Past it, buckets spill to the work directory (zstd). Default: half the machine's memory,
+    /// Memory budget: 2G, 512M, ... (K, M, G = powers of 1024). It holds the buckets and tiles in
+    /// flight, and the raster cells being binned; past it, buckets spill to the work directory
+    /// (zstd) and raster cells to sorted runs beside the rasters. Default: half the machine's memory,
     /// at most 4G; lowered (with a message) to what `ulimit -v` leaves beside the mapped inputs
     /// and what the cgroup's memory limit leaves. The program itself adds about 60M.
     #[arg(long, value_parser = crate::config::parse_bytes)]

@@ -51,7 +51,8 @@ Exit codes:
        rebuild); the work is kept: fix the cause and run the same command again to resume
   5    tasks missing: a cluster stage (run-tile, assemble) found tasks of an earlier stage not
        done; nothing was written (the message names them; `tilecurv status --missing` lists them)
-  130  interrupted (SIGINT/SIGTERM): no output was written; run the same command again to resume
+  130  interrupted (SIGINT/SIGTERM): no output was written; `process` and the cluster stages
+       resume from their finished tiles when the same command runs again
 
 The output is written to a temporary file beside it and renamed only on success: it is complete or absent.";
 
@@ -135,13 +136,21 @@ fn reporter(quiet: bool, progress_json: Option<&std::path::Path>) -> Result<Term
     TermReporter::new(quiet, progress_json).map_err(|e| fail(&e))
 }
 
-/// Prints an error (and what to do after an interruption) and returns its exit code.
+/// Prints an error and returns its exit code.
 fn fail(e: &Error) -> i32 {
     say!("tilecurv: error: {e}");
+    exit_code(e)
+}
+
+/// [`fail`] for the commands that keep their finished tiles (`process` and the cluster
+/// stages), saying after an interruption that the same command resumes; `raster` and
+/// `generate` start over.
+fn fail_run(e: &Error) -> i32 {
+    let code = fail(e);
     if e.exit_class() == ExitClass::Interrupted {
         say!("tilecurv: run the same command again to resume from the finished tiles");
     }
-    exit_code(e)
+    code
 }
 
 /// Parses `args` (the program name first, as `std::env::args_os` gives them), runs the
@@ -186,7 +195,7 @@ fn process(args: ProcessArgs) -> Result<i32, i32> {
     let exec = args.exec();
     let job = args.into_process().map_err(|e| fail(&e))?;
     let reporter = reporter(quiet, exec.progress_json.as_deref())?;
-    let s = crate::run::process(&job, &exec, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    let s = crate::run::process(&job, &exec, &reporter, &CANCEL).map_err(|e| fail_run(&e))?;
     if !job.dry_run {
         reporter.summary(&s.json_fields(), s.seconds);
     }

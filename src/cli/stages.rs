@@ -2,7 +2,7 @@
 //! what a scheduler script reads: `plan` the task counts, `status` the tasks done or missing.
 
 use super::args::{AssembleArgs, BucketArgs, PlanArgs, RunTileArgs, StatusArgs};
-use super::{exit, fail, reporter, CANCEL};
+use super::{exit, fail, fail_run, reporter, CANCEL};
 use crate::progress::{out, say};
 use crate::run::cluster;
 
@@ -40,7 +40,8 @@ pub(super) fn bucket(a: BucketArgs) -> Result<i32, i32> {
         .map(|t| t.resolve().map(|i| i as usize))
         .transpose()
         .map_err(|e| fail(&e))?;
-    let ran = cluster::bucket(&a.work, &opts, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    let ran =
+        cluster::bucket(&a.work, &opts, task, &reporter, &CANCEL).map_err(|e| fail_run(&e))?;
     if !a.exec.quiet() {
         say!("done: {ran} bucket tasks run (the others were done)");
     }
@@ -52,7 +53,8 @@ pub(super) fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
     let opts = a.exec.options();
     let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
     let task = a.task.resolve().map_err(|e| fail(&e))?;
-    let d = cluster::run_tile(&a.work, &opts, task, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    let d =
+        cluster::run_tile(&a.work, &opts, task, &reporter, &CANCEL).map_err(|e| fail_run(&e))?;
     if !a.exec.quiet() {
         say!(
             "done: task {task}: {} tiles already done, {} undefined points among those computed now, {} recomputed with a wider halo",
@@ -83,8 +85,8 @@ pub(super) fn assemble(a: AssembleArgs) -> Result<i32, i32> {
         ..a.exec.options()
     };
     let reporter = reporter(a.exec.quiet(), opts.progress_json.as_deref())?;
-    let s =
-        cluster::assemble(&a.work, &a.output, &opts, &reporter, &CANCEL).map_err(|e| fail(&e))?;
+    let s = cluster::assemble(&a.work, &a.output, &opts, &reporter, &CANCEL)
+        .map_err(|e| fail_run(&e))?;
     reporter.summary(&s.json_fields(), s.seconds);
     if !a.exec.quiet() {
         say!(

@@ -69,7 +69,20 @@ pub struct CellGrid {
     pub height: u32,
 }
 
+/// The most cells a raster of `points` points may have: 2^32, or 64 a point where that is
+/// more. A grid beyond both is all but empty, the sign of a mistake (inputs in different CRSs,
+/// a point far from the others, a cell size in the wrong unit) that would otherwise spend hours
+/// writing empty cells.
+pub fn max_cells(points: u64) -> u64 {
+    (1u64 << 32).max(points.saturating_mul(64))
+}
+
 impl CellGrid {
+    /// Cells in the grid.
+    pub fn cells(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
     /// The grid covering the cells `lo` (south-west) to `hi` (north-east); None when it would
     /// have more than 2^31 - 1 cells on a side (what a TIFF holds).
     pub fn covering(cell: f64, lo: Cell, hi: Cell) -> Option<CellGrid> {

@@ -114,6 +114,9 @@ impl<'a> Exec<'a> {
         cancel: &'a AtomicBool,
     ) -> Result<Self> {
         opts.validate()?;
+        if let Some(r) = &opts.rasters {
+            raster::check_output_rasters(r, spec, reporter)?;
+        }
         let budget = limits::fit_memory(opts, spec, reporter)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(opts.threads)

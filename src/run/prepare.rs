@@ -15,7 +15,8 @@ use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
 use crate::run::spec::RunSpec;
 
-fn same_file(a: &Path, b: &Path) -> bool {
+/// Whether `a` and `b` name the same existing file.
+pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(x), Ok(y)) => x == y,
         _ => false,

@@ -26,6 +26,7 @@ mod orientation;
 mod outofcore;
 mod radius;
 mod raster;
+mod raster_refusals;
 mod real_files;
 mod reference;
 mod rerun;

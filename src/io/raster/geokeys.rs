@@ -34,6 +34,37 @@ pub(crate) struct RasterCrs {
     pub(crate) warning: Option<String>,
 }
 
+impl RasterCrs {
+    /// The value of the key `id` stored in the directory itself, if any.
+    fn key(&self, id: u16) -> Option<u16> {
+        (self.directory.get(4..)?.chunks_exact(4))
+            .find(|e| e[0] == id && e[1] == 0)
+            .map(|e| e[3])
+    }
+
+    /// Whether the points of a file in `other` are placed on the same map as this CRS's (the
+    /// horizontal CRS: a vertical CRS does not move a point on the map). None when either
+    /// declares no CRS. Compared by EPSG code, so that the keys of one file and the WKT of
+    /// another naming the same code agree; user-defined CRSs by their keys and parameters.
+    pub(crate) fn same_map(&self, other: &RasterCrs) -> Option<bool> {
+        let none = no_keys().directory;
+        if self.directory == none || other.directory == none {
+            return None;
+        }
+        let code = |c: &RasterCrs| match c.key(PROJECTED) {
+            Some(p) => Some((PROJECTED, p)),
+            None => c.key(GEOGRAPHIC).map(|g| (GEOGRAPHIC, g)),
+        };
+        Some(match (code(self), code(other)) {
+            (Some(a), Some(b)) if a.1 != USER_DEFINED && b.1 != USER_DEFINED => a == b,
+            _ => (&self.directory, &self.doubles) == (&other.directory, &other.doubles),
+        })
+    }
+}
+
+/// The code of a user-defined CRS, datum or unit in GeoTIFF keys.
+const USER_DEFINED: u16 = 32767;
+
 /// The raster CRS of a LAS file whose VLRs and EVLRs are `records`. As `crs_summary` chooses:
 /// the WKT when LAS 1.4's WKT bit is set, the GeoTIFF keys otherwise, either when there is only
 /// one.
@@ -84,7 +115,7 @@ fn ascii_params(data: &[u8]) -> String {
 /// Keys with only the model and raster types (user-defined model).
 fn no_keys() -> RasterCrs {
     RasterCrs {
-        directory: directory(&[(MODEL_TYPE, 32767), (RASTER_TYPE, PIXEL_IS_AREA)]),
+        directory: directory(&[(MODEL_TYPE, USER_DEFINED), (RASTER_TYPE, PIXEL_IS_AREA)]),
         ..RasterCrs::default()
     }
 }
@@ -331,6 +362,31 @@ mod tests {
         let clean = ascii_params(b"WGS 84");
         assert_eq!(clean, "WGS 84|");
         assert!(clean.is_ascii() && !clean.contains('\0'));
+    }
+
+    /// Two CRSs place points on the same map when their horizontal EPSG codes agree, whether
+    /// from a WKT or from keys and whatever their vertical CRS; user-defined ones when their
+    /// keys and parameters do; a file without a CRS is undecided.
+    #[test]
+    fn same_map_compares_horizontal_codes() {
+        let wkt = from_wkt(UTM);
+        let keys = |k: &[(u16, u16)]| RasterCrs {
+            directory: directory(k),
+            ..RasterCrs::default()
+        };
+        let same = keys(&[(MODEL_TYPE, 1), (PROJECTED, 26910), (VERTICAL, 5703)]);
+        let other = keys(&[(MODEL_TYPE, 1), (PROJECTED, 26911)]);
+        assert_eq!(wkt.same_map(&same), Some(true));
+        assert_eq!(wkt.same_map(&other), Some(false));
+        assert_eq!(wkt.same_map(&no_keys()), None);
+        assert_eq!(no_keys().same_map(&no_keys()), None);
+        let user = |d: f64| RasterCrs {
+            doubles: vec![d],
+            ..keys(&[(MODEL_TYPE, 1), (PROJECTED, USER_DEFINED)])
+        };
+        assert_eq!(user(43.0).same_map(&user(43.0)), Some(true));
+        assert_eq!(user(43.0).same_map(&user(44.0)), Some(false));
+        assert_eq!(user(43.0).same_map(&wkt), Some(false));
     }
 
     /// A WKT 1 projected CRS gives its own code, not a nested one (the datum's, the unit's).

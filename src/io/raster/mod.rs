@@ -16,7 +16,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use crate::core::quicklook::{
     render, Grid, Legend, Ramp, Shade, Thumbnail, DEFAULT_CLIP_PERCENTILE, DEFAULT_MAX_SIDE,
 };
-use crate::core::raster::{Cell, CellGrid, Integers, Stat, Tally, MAX_CELL_POINTS, UNDEFINED};
+use crate::core::raster::{
+    max_cells, Cell, CellGrid, Integers, Stat, Tally, MAX_CELL_POINTS, UNDEFINED,
+};
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnSet, Group, TerrainValue, Value};
 use crate::io::quicklook_png::write_png;
@@ -115,6 +117,26 @@ pub struct RasterSummary {
     pub cells: u64,
     /// The GeoTIFFs and PNGs written.
     pub files: Vec<PathBuf>,
+}
+
+/// Refuses a raster `width` x `height` cells of `cell` file units (`unit`) for `points`
+/// points when it has more than [`max_cells`] cells.
+pub(crate) fn check_size(
+    (width, height): (u64, u64),
+    (cell, unit): (f64, &str),
+    points: u64,
+) -> Result<()> {
+    let cells = width.saturating_mul(height);
+    if cells <= max_cells(points) {
+        return Ok(());
+    }
+    let span = |n: u64| n as f64 * cell;
+    Err(Error::Usage(format!(
+        "a raster of {width} x {height} cells of {cell} {unit} ({cells} cells) for {points} points would be almost all empty (at most {} cells): the points spread over {:.0} x {:.0} {unit}. Check that the inputs share a CRS and that no point lies far from the others (`tilecurv info FILE` shows each file's bounds), or use a larger --cell",
+        max_cells(points),
+        span(width),
+        span(height)
+    )))
 }
 
 impl RasterSummary {
@@ -320,9 +342,10 @@ impl Rasterizer {
     ) -> Result<()> {
         let Some(c) = Cell::of(x, y, self.request.cell) else {
             return Err(Error::Usage(format!(
-                "{}: ({x}, {y}) lies more than 2^31 cells of {} from the origin; use a larger --cell",
+                "{}: ({x}, {y}) lies more than 2^31 cells of {} {} from the origin; use a larger --cell",
                 what(),
-                self.request.cell
+                self.request.cell,
+                self.request.unit
             )));
         };
         self.lo = Some(self.lo.map_or(c, |l| Cell {
@@ -356,10 +379,13 @@ impl Rasterizer {
             return Err(Error::Usage("no point to make a raster of".into()));
         };
         let req = self.request;
+        let side = |lo: i64, hi: i64| hi.abs_diff(lo).saturating_add(1);
+        let (width, height) = (side(lo.ix, hi.ix), side(lo.iy, hi.iy));
+        check_size((width, height), (req.cell, &req.unit), self.points)?;
         let grid = CellGrid::covering(req.cell, lo, hi).ok_or_else(|| {
             Error::Usage(format!(
-                "a raster of cells of {} over the points would have more than 2^31 cells on a side; use a larger --cell",
-                req.cell
+                "a raster of cells of {} {} over the points would have more than 2^31 cells on a side; use a larger --cell",
+                req.cell, req.unit
             ))
         })?;
         std::fs::create_dir_all(&req.dir).map_err(|e| Error::write(&req.dir, e))?;
@@ -373,7 +399,7 @@ impl Rasterizer {
             .iter()
             .map(|p| GeoTiff::create(p, &grid, crs))
             .collect::<Result<Vec<_>>>()?;
-        let mut rows = Rows::new(&grid, writers);
+        let mut rows = Rows::new(&grid, writers, cancel);
         let n = req.columns.len();
         let floats = self.slots.iter().filter(|s| matches!(s, Slot::Floats(_)));
         let mut values: Vec<Vec<f32>> = vec![Vec::new(); floats.count()];
@@ -472,7 +498,7 @@ fn quick_looks(
 }
 
 /// The strips of every raster being filled, cell by cell in row order.
-struct Rows {
+struct Rows<'a> {
     width: usize,
     height: u32,
     per_strip: u32,
@@ -483,11 +509,14 @@ struct Rows {
     writers: Vec<GeoTiff>,
     /// A quick-look thumbnail of every strip's raster.
     thumbs: Vec<Thumbnail>,
+    /// Set to stop: checked at every strip, since rows without a point come between cells.
+    cancel: &'a AtomicBool,
 }
 
-impl Rows {
-    fn new(grid: &CellGrid, writers: Vec<GeoTiff>) -> Rows {
+impl<'a> Rows<'a> {
+    fn new(grid: &CellGrid, writers: Vec<GeoTiff>, cancel: &'a AtomicBool) -> Rows<'a> {
         let mut r = Rows {
+            cancel,
             width: grid.width as usize,
             height: grid.height,
             per_strip: rows_per_strip(grid.width),
@@ -522,6 +551,9 @@ impl Rows {
 
     /// Hands the full strips to their writers and starts the next ones.
     fn flush(&mut self) -> Result<()> {
+        if self.cancel.load(Ordering::Relaxed) {
+            return Err(Error::Interrupted);
+        }
         let next = self.first + self.per_strip;
         for i in 0..self.strips.len() {
             let blank = self.blank(next);

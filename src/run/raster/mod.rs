@@ -18,8 +18,10 @@ pub use crate::io::raster::RasterSummary;
 use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
 use crate::io::source::{declared_bounds, PointSource, SourceLayout};
 use crate::progress::Reporter;
+use crate::run::spec::RunSpec;
 use read::{column_names, reader, reader_of_later, tally_integers, Binner, Reader};
 
+mod check;
 mod read;
 
 /// A `tilecurv raster` run.
@@ -97,6 +99,8 @@ fn make_rasters(
     }
     let symbol = unit.unit().map_or("unit".into(), |u| u.symbol());
     let mut columns = choose_columns(first, job.columns.as_deref(), &symbol)?;
+    check::check_dir(&job.dir, "-o")?;
+    let crs = check::check_inputs(&sources, (cell, &symbol), reporter)?;
     let readers = sources
         .iter()
         .map(|s| {
@@ -124,11 +128,9 @@ fn make_rasters(
         bin_source(s.as_ref(), binner, &mut rasterizer, chunk, reporter, cancel)?;
     }
     reporter.finish_phase();
-    let crs = source_crs(first);
     if let Some(w) = &crs.warning {
         reporter.warn(w);
     }
-    warn_other_crs(&sources, &crs, reporter);
     reporter.info(&format!("raster CRS: {}", crs.described));
     rasterizer.finish(&crs, cancel)
 }
@@ -140,21 +142,6 @@ fn declared_area(sources: &[Box<dyn PointSource>]) -> Option<f64> {
         .iter()
         .map(|s| declared_bounds(s.as_ref()).map(|[lo, hi]| (hi[0] - lo[0]) * (hi[1] - lo[1])))
         .sum()
-}
-
-/// Warns about each input whose CRS is not the first's: one raster takes the first's.
-fn warn_other_crs(sources: &[Box<dyn PointSource>], crs: &RasterCrs, reporter: &dyn Reporter) {
-    for s in sources.iter().skip(1) {
-        let other = source_crs(s.as_ref());
-        if other.directory != crs.directory {
-            reporter.warn(&format!(
-                "{} has another CRS ({}) than the first input ({}): the rasters are in the first's, and this file's points are placed by their coordinates as they are",
-                s.path().display(),
-                other.described,
-                crs.described
-            ));
-        }
-    }
 }
 
 /// The raster CRS of a source: its LAS CRS ([`raster_crs`]); none for other formats.
@@ -252,6 +239,69 @@ pub(crate) fn default_dir(outputs: &[PathBuf]) -> PathBuf {
     }
 }
 
+/// The columns `process --raster` rasters of outputs with the columns `cols` of the input
+/// `first`: those `opts` names (the new columns, or the input's own), else every curvature
+/// column among the new ones.
+fn output_raster_columns(
+    opts: &RasterOptions,
+    cols: &ColumnSet,
+    first: &dyn PointSource,
+) -> Result<Vec<RasterColumn>> {
+    let known = known_columns(&cols.unit);
+    let written: Vec<&str> = cols.columns().iter().map(|c| c.name).collect();
+    let columns: Vec<RasterColumn> = match &opts.columns {
+        Some(names) => names
+            .iter()
+            .map(|n| {
+                let known_here = known.iter().find(|(k, _)| k.name.eq_ignore_ascii_case(n));
+                match known_here {
+                    Some((k, _)) if written.contains(&k.name.as_str()) => Ok(k.clone()),
+                    _ if reader(first, n).is_some() => Ok(describe(&known, n)),
+                    _ => Err(Error::Usage(format!(
+                        "--raster-columns {n}: the outputs have no such column; they have {}, and the input's {}",
+                        written.join(", "),
+                        column_names(first).join(", ")
+                    ))),
+                }
+            })
+            .collect::<Result<_>>()?,
+        None => known
+            .into_iter()
+            .filter(|(k, curvature)| *curvature && written.contains(&k.name.as_str()))
+            .map(|(k, _)| k)
+            .collect(),
+    };
+    if columns.is_empty() {
+        return Err(Error::Usage(format!(
+            "--raster: none of the outputs' new columns ({}) is a curvature column; add some with --columns (H, K, terrain, ...) or name the columns to raster with --raster-columns",
+            written.join(", ")
+        )));
+    }
+    Ok(columns)
+}
+
+/// Checks the rasters `opts` asks of the run `spec` before any work (run by every command that
+/// runs a stage, so that a dry run checks them too): their columns, their directory, the
+/// inputs' CRSs and the grid's size by the declared bounds. The same failures found only once
+/// the outputs are written would have cost the whole run.
+pub(crate) fn check_output_rasters(
+    opts: &RasterOptions,
+    spec: &RunSpec,
+    reporter: &dyn Reporter,
+) -> Result<()> {
+    let Some(first) = spec.sources.first().map(|s| s.as_ref()) else {
+        return Err(Error::Usage("raster: name at least one input file".into()));
+    };
+    output_raster_columns(opts, &spec.cols, first)?;
+    let dir = opts
+        .dir
+        .clone()
+        .unwrap_or_else(|| default_dir(&spec.outputs));
+    check::check_dir(&dir, "--raster-dir")?;
+    let cell = opts.cell.in_file_units(first.unit().unit());
+    check::check_inputs(&spec.sources, (cell, &spec.cols.unit), reporter).map(drop)
+}
+
 /// The rasters of a run's outputs (`process --raster`, `assemble --raster`), binned from each
 /// output record as it is written.
 pub(crate) struct OutputRasters {
@@ -276,36 +326,7 @@ impl OutputRasters {
             return Err(Error::Usage("raster: name at least one input file".into()));
         };
         let cell = opts.cell.in_file_units(first.unit().unit());
-        let known = known_columns(&cols.unit);
-        let written: Vec<&str> = cols.columns().iter().map(|c| c.name).collect();
-        let mut columns: Vec<RasterColumn> = match &opts.columns {
-            Some(names) => names
-                .iter()
-                .map(|n| {
-                    let known_here = known.iter().find(|(k, _)| k.name.eq_ignore_ascii_case(n));
-                    match known_here {
-                        Some((k, _)) if written.contains(&k.name.as_str()) => Ok(k.clone()),
-                        _ if reader(first, n).is_some() => Ok(describe(&known, n)),
-                        _ => Err(Error::Usage(format!(
-                            "--raster-columns {n}: the outputs have no such column; they have {}, and the input's {}",
-                            written.join(", "),
-                            column_names(first).join(", ")
-                        ))),
-                    }
-                })
-                .collect::<Result<_>>()?,
-            None => known
-                .into_iter()
-                .filter(|(k, curvature)| *curvature && written.contains(&k.name.as_str()))
-                .map(|(k, _)| k)
-                .collect(),
-        };
-        if columns.is_empty() {
-            return Err(Error::Usage(format!(
-                "--raster: the outputs hold no curvature column ({}); add some with --columns or name them with --raster-columns",
-                written.join(", ")
-            )));
-        }
+        let mut columns = output_raster_columns(opts, cols, first)?;
         let readers = (sources.iter().zip(outs))
             .map(|(s, out)| output_readers(&columns, s.as_ref(), out))
             .collect::<Result<Vec<_>>>()?;

@@ -1,0 +1,142 @@
+//! Rasters that would fail, or come out wrong, are refused before any point is read: for
+//! `process --raster` before the curvature work, with exit 2, and the folder left as it was.
+
+use std::path::Path;
+
+use crate::common::{s, shared, tilecurv};
+
+/// The names in `dir`, sorted.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("list")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Runs `args`, which must be refused with exit 2 before the curvature work (no `curvature:`
+/// phase in the log) with a message holding every one of `says`; returns the message.
+fn refused(args: &[&str], says: &[&str]) -> String {
+    let out = tilecurv(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+    assert!(!err.contains("curvature:"), "refused after the work: {err}");
+    for s in says {
+        assert!(err.contains(s), "{args:?}: no {s:?} in {err}");
+    }
+    err
+}
+
+/// A raster directory that is a file, or cannot be made, and an unknown raster column stop
+/// `process` before its work; the folder keeps only what was there.
+#[test]
+fn process_refuses_bad_raster_requests_before_the_work() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let file = dir.path().join("afile");
+    std::fs::write(&file, b"x").expect("file");
+    let out = dir.path().join("out.laz");
+    let base = ["process", s(&input), "-o", s(&out), "--raster", "2m"];
+    let run =
+        |more: &[&str]| -> Vec<String> { base.iter().chain(more).map(|a| a.to_string()).collect() };
+    let refused = |args: Vec<String>, says: &[&str]| {
+        refused(&args.iter().map(String::as_str).collect::<Vec<_>>(), says)
+    };
+    refused(
+        run(&["--raster-dir", s(&file)]),
+        &["exists and is not a directory", "--raster-dir"],
+    );
+    let under_file = file.join("r");
+    refused(
+        run(&["--raster-dir", s(&under_file)]),
+        &["is not a directory"],
+    );
+    refused(
+        run(&["--raster-columns", "Foo,H"]),
+        &["--raster-columns Foo", "intensity"],
+    );
+    refused(
+        run(&["--columns", "normals"]),
+        &["is a curvature column", "NormalX"],
+    );
+    assert_eq!(listing(dir.path()), ["afile"]);
+}
+
+/// Inputs in two CRSs make no raster (their points would land on another map): `process` and
+/// `raster` refuse them before reading a point; the same file twice is refused too.
+#[test]
+fn inputs_in_two_crss_or_named_twice_are_refused() {
+    let (Some(topo), Some(hay)) = (
+        shared("las/Topography.las"),
+        shared("las/Haystack_Rock.las"),
+    ) else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("multi");
+    let err = refused(
+        &[
+            "process",
+            s(&topo),
+            s(&hay),
+            "-o",
+            &format!("{}/", out.display()),
+            "--raster",
+            "2m",
+        ],
+        &["in another CRS", "EPSG:3645", "EPSG:2949", "Reproject"],
+    );
+    assert!(err.contains("Haystack_Rock.las"), "{err}");
+    let r = dir.path().join("r");
+    let raster = |a: &Path, b: &Path| {
+        [
+            "raster",
+            s(a),
+            s(b),
+            "--cell",
+            "2m",
+            "--columns",
+            "z",
+            "-o",
+            s(&r),
+        ]
+        .map(String::from)
+    };
+    let args = raster(&topo, &hay);
+    refused(&args.each_ref().map(|a| a.as_str()), &["in another CRS"]);
+    let args = raster(&topo, &topo);
+    refused(&args.each_ref().map(|a| a.as_str()), &["named twice"]);
+    assert!(listing(dir.path()).is_empty(), "{:?}", listing(dir.path()));
+}
+
+/// A grid that would be all but empty (a file without a CRS, 4,400 km from the other's points)
+/// is refused by the declared bounds, with the grid's size and what to check; the file without
+/// a CRS is warned about first.
+#[test]
+fn an_all_but_empty_grid_is_refused() {
+    let (Some(topo), Some(other)) = (shared("las/Topography.las"), shared("las/extrabytes.las"))
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let r = dir.path().join("r");
+    let err = refused(
+        &[
+            "raster",
+            s(&topo),
+            s(&other),
+            "--cell",
+            "2m",
+            "--columns",
+            "z",
+            "-o",
+            s(&r),
+        ],
+        &["almost all empty", "share a CRS", "larger --cell"],
+    );
+    assert!(err.contains("has no CRS"), "{err}");
+    assert!(!r.exists());
+}
