@@ -168,6 +168,8 @@ mod tests {
             title,
             unit,
             clip_percentile: 98.0,
+            fixed: None,
+            statistic: "cell mean of the points",
         };
         let looks = [
             (

@@ -22,6 +22,7 @@ pub(super) fn lut(ramp: Ramp) -> Vec<Rgb> {
             let (l, c, h) = match ramp {
                 Ramp::Diverging => diverging_lch(2.0 * u - 1.0),
                 Ramp::Sequential => sequential_lch(u),
+                Ramp::Cyclic => cyclic_lch(u),
             };
             oklch_to_srgb(l, c, h)
         })
@@ -51,6 +52,12 @@ fn sequential_lch(u: f64) -> (f64, f64, f64) {
     let chroma = 0.11 + 0.07 * u;
     let hue = 300.0 - 195.0 * u;
     (lightness, chroma, hue)
+}
+
+/// OKLCh of the cyclic ramp at `u` in [0, 1]: every hue once at one lightness and chroma, 0
+/// and 1 the same colour, so that only the hue tells the direction.
+fn cyclic_lch(u: f64) -> (f64, f64, f64) {
+    (0.72, 0.12, 40.0 + 360.0 * u)
 }
 
 /// sRGB of an OKLCh colour, its chroma reduced (by bisection) until it fits in sRGB.
@@ -128,7 +135,7 @@ pub(super) struct Stretch {
     /// The ramp.
     pub(super) ramp: Ramp,
     /// The clip percentile used (the legend's, bounded to 0..=100, or 50..=100 for a
-    /// sequential ramp).
+    /// sequential ramp); NaN for a fixed scale.
     pub(super) percentile: f64,
 }
 
@@ -136,7 +143,9 @@ impl Stretch {
     /// The stretch of `grid`'s defined (finite) values: a diverging ramp clipped at
     /// ±(percentile `pct` of |value|), a sequential one from percentile `100 - pct` to `pct`.
     /// Percentiles are exact (selected from a copy) and interpolate linearly between ranks.
-    pub(super) fn of(grid: &Grid, ramp: Ramp, pct: f64) -> Stretch {
+    /// A `fixed` scale (made symmetric for a diverging ramp) replaces them, and a cyclic ramp
+    /// spans 0 to 360 unless given one.
+    pub(super) fn of(grid: &Grid, ramp: Ramp, pct: f64, fixed: Option<(f64, f64)>) -> Stretch {
         let pct = if pct.is_finite() {
             pct
         } else {
@@ -147,14 +156,28 @@ impl Stretch {
             Some(r.map_or((x, x), |(lo, hi)| (lo.min(x), hi.max(x))))
         });
         let range = range.map(|(lo, hi)| (f64::from(lo), f64::from(hi)));
+        let fixed = fixed.or((ramp == Ramp::Cyclic).then_some((0.0, 360.0)));
+        if let Some((low, high)) = fixed {
+            let (low, high) = match ramp {
+                Ramp::Diverging => (-low.abs().max(high.abs()), low.abs().max(high.abs())),
+                _ => (low, high),
+            };
+            return Stretch {
+                range,
+                low,
+                high,
+                ramp,
+                percentile: f64::NAN,
+            };
+        }
         let percentile_used = match ramp {
             Ramp::Diverging => pct.clamp(0.0, 100.0),
-            Ramp::Sequential => pct.clamp(50.0, 100.0),
+            Ramp::Sequential | Ramp::Cyclic => pct.clamp(50.0, 100.0),
         };
         // One copy in f32 (|value| for a diverging ramp): 4 bytes a defined pixel.
         let mut copy: Vec<f32> = match ramp {
             Ramp::Diverging => defined().map(|x| x.abs()).collect(),
-            Ramp::Sequential => defined().copied().collect(),
+            Ramp::Sequential | Ramp::Cyclic => defined().copied().collect(),
         };
         let p = percentile_used;
         let (low, high) = match ramp {
@@ -162,7 +185,9 @@ impl Stretch {
                 let limit = percentile(&mut copy, p);
                 (-limit, limit)
             }
-            Ramp::Sequential => (percentile(&mut copy, 100.0 - p), percentile(&mut copy, p)),
+            Ramp::Sequential | Ramp::Cyclic => {
+                (percentile(&mut copy, 100.0 - p), percentile(&mut copy, p))
+            }
         };
         Stretch {
             range,
@@ -187,8 +212,10 @@ impl Stretch {
             Ramp::Diverging if v > 0.0 => 1.0,
             Ramp::Diverging if v < 0.0 => 0.0,
             Ramp::Diverging => 0.5,
-            Ramp::Sequential if span > 0.0 => ((v - self.low) / span).clamp(0.0, 1.0),
-            Ramp::Sequential => 0.5,
+            Ramp::Sequential | Ramp::Cyclic if span > 0.0 => {
+                ((v - self.low) / span).clamp(0.0, 1.0)
+            }
+            Ramp::Sequential | Ramp::Cyclic => 0.5,
         })
     }
 }

@@ -57,6 +57,9 @@ impl Panel {
             format!("{} ({})", legend.title, legend.unit)
         };
         let mut lines = Vec::new();
+        if !legend.statistic.is_empty() {
+            lines.push(legend.statistic.to_string());
+        }
         let (mut ticks, mut saturated) = (Vec::new(), (false, false));
         match s.range {
             None => lines.push("no data in any cell".to_string()),
@@ -185,6 +188,15 @@ fn ticks_of(s: &Stretch) -> Vec<(f64, String)> {
             vec![(1.0, compact(s.high)), (0.0, compact(s.low))]
         }
         Ramp::Sequential => vec![(0.5, compact(s.low))],
+        Ramp::Cyclic => [
+            (1.0, " N"),
+            (0.75, " W"),
+            (0.5, " S"),
+            (0.25, " E"),
+            (0.0, " N"),
+        ]
+        .map(|(u, dir)| (u, format!("{}{dir}", compact(s.low + u * (s.high - s.low)))))
+        .to_vec(),
     }
 }
 
@@ -192,8 +204,12 @@ fn ticks_of(s: &Stretch) -> Vec<(f64, String)> {
 fn clip_note(s: &Stretch) -> String {
     let p = s.percentile;
     match s.ramp {
+        Ramp::Cyclic if p.is_nan() => "cyclic: 0 and 360 are north".into(),
+        _ if p.is_nan() => format!("fixed scale {} to {}", compact(s.low), compact(s.high)),
         Ramp::Diverging => format!("clipped at {} pct |value|", ordinal(p)),
-        Ramp::Sequential => format!("clipped at {}-{} pct", ordinal(100.0 - p), ordinal(p)),
+        Ramp::Sequential | Ramp::Cyclic => {
+            format!("clipped at {}-{} pct", ordinal(100.0 - p), ordinal(p))
+        }
     }
 }
 
@@ -283,12 +299,14 @@ mod tests {
             height: 1,
             values,
         };
-        let stretch = Stretch::of(&grid, ramp, 98.0);
+        let stretch = Stretch::of(&grid, ramp, 98.0, None);
         let any_missing = grid.values.iter().any(|v| v.is_nan());
         let legend = Legend {
             title: "ProfileCurvature",
             unit: "1/m",
             clip_percentile: 98.0,
+            fixed: None,
+            statistic: "cell mean of the points",
         };
         let notes = Notes {
             stretch: &stretch,
@@ -298,29 +316,61 @@ mod tests {
         Panel::new(&legend, &notes, 2)
     }
 
+    /// A direction spans 0 to 360 on a cyclic ramp whatever its values, labelled by compass
+    /// point; a fixed scale replaces the percentiles and says so, symmetric when diverging.
+    #[test]
+    fn cyclic_and_fixed_scales_ignore_the_percentiles() {
+        let grid = |values: Vec<f32>| Grid {
+            width: values.len() as u32,
+            height: 1,
+            values,
+        };
+        let aspect = Stretch::of(&grid(vec![10.0, 20.0, 350.0]), Ramp::Cyclic, 98.0, None);
+        assert_eq!((aspect.low, aspect.high), (0.0, 360.0));
+        assert_eq!(clip_note(&aspect), "cyclic: 0 and 360 are north");
+        let labels: Vec<String> = ticks_of(&aspect).into_iter().map(|(_, l)| l).collect();
+        assert_eq!(labels, ["360 N", "270 W", "180 S", "90 E", "0 N"]);
+        // 0 and 360 are one colour: the ramp's ends meet.
+        let lut = super::super::colour::lut(Ramp::Cyclic);
+        assert_eq!(lut[0], lut[lut.len() - 1]);
+        let si = grid(vec![-0.2, 0.1, 0.3]);
+        let s = Stretch::of(&si, Ramp::Diverging, 98.0, Some((-1.0, 1.0)));
+        assert_eq!((s.low, s.high), (-1.0, 1.0));
+        assert_eq!(clip_note(&s), "fixed scale -1 to 1");
+        assert_eq!(s.position(0.5), Some(0.75));
+        let s = Stretch::of(&si, Ramp::Diverging, 98.0, Some((-0.5, 2.0)));
+        assert_eq!((s.low, s.high), (-2.0, 2.0));
+    }
+
     #[test]
     fn the_legend_states_name_range_clipping_and_no_data() {
         let p = panel(vec![-0.31, 0.0, 0.27, f32::NAN], Ramp::Diverging, true);
         assert_eq!(p.title, "ProfileCurvature (1/m)");
-        assert_eq!(p.lines[0], "data -0.31 to 0.27");
-        assert_eq!(p.lines[1], "clipped at 98th pct |value|");
-        assert_eq!(p.lines[2], "no data: transparent, grey edge");
-        assert_eq!(p.lines[3], "hillshade: sun az 315, alt 45");
+        assert_eq!(p.lines[0], "cell mean of the points");
+        assert_eq!(p.lines[1], "data -0.31 to 0.27");
+        assert_eq!(p.lines[2], "clipped at 98th pct |value|");
+        assert_eq!(p.lines[3], "no data: transparent, grey edge");
+        assert_eq!(p.lines[4], "hillshade: sun az 315, alt 45");
         let labels: Vec<&str> = p.ticks.iter().map(|(_, l)| l.as_str()).collect();
         // 98th percentile of |v| over {0, 0.27, 0.31}: rank 1.96, 0.27 + 0.96 * 0.04.
         assert_eq!(labels, ["0.308", "0", "-0.308"]);
         assert_eq!(p.saturated, (true, false));
 
         let p = panel(vec![0.0, 10.0, 20.0, 30.0], Ramp::Sequential, false);
-        assert_eq!(p.lines, ["data 0 to 30", "clipped at 2nd-98th pct"]);
+        let lines = [
+            "cell mean of the points",
+            "data 0 to 30",
+            "clipped at 2nd-98th pct",
+        ];
+        assert_eq!(p.lines, lines);
         let labels: Vec<&str> = p.ticks.iter().map(|(_, l)| l.as_str()).collect();
         assert_eq!(labels, ["29.4", "0.6"]);
 
         let p = panel(vec![f32::NAN; 3], Ramp::Diverging, false);
-        assert_eq!(p.lines, ["no data in any cell"]);
+        assert_eq!(p.lines, ["cell mean of the points", "no data in any cell"]);
         assert!(p.ticks.is_empty());
         let p = panel(vec![0.0; 3], Ramp::Diverging, false);
-        assert_eq!(p.lines, ["all values 0"]);
+        assert_eq!(p.lines, ["cell mean of the points", "all values 0"]);
         assert_eq!(p.ticks.len(), 1);
     }
 }

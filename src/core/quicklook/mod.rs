@@ -4,8 +4,10 @@
 //! RGBA pixels in memory; writing the PNG is `io`'s job. Pure: no file, no thread.
 //!
 //! The colours: a diverging ramp (blue, white at 0, red for positive = convex) for signed
-//! quantities, clipped at ±(a percentile of |value|), and a sequential ramp (dark violet to
-//! light yellow, lightness rising evenly) for unsigned ones, clipped between two percentiles.
+//! quantities, clipped at ±(a percentile of |value|), a sequential ramp (dark violet to
+//! light yellow, lightness rising evenly) for unsigned ones, clipped between two percentiles,
+//! and a cyclic one (a wheel of hues) for directions; a quantity with natural bounds (shape
+//! index) may keep them instead of percentiles.
 //! Percentiles are exact: selected from a copy of the thumbnail's defined values (a few
 //! million at most), interpolating between ranks. Values beyond the clip limits saturate, and
 //! no data is transparent.
@@ -61,6 +63,9 @@ pub enum Ramp {
     /// For unsigned quantities (slope, curvedness, counts): dark violet to light yellow,
     /// clipped between the `100 - clip` and `clip` percentiles.
     Sequential,
+    /// For directions in degrees (aspect): a wheel of hues at one lightness over 0 to 360,
+    /// whose ends meet, so that north reads alike on both sides of 0.
+    Cyclic,
 }
 
 /// What the legend says.
@@ -75,6 +80,11 @@ pub struct Legend<'a> {
     /// diverging ramp (0 to 100), the upper one for a sequential ramp (50 to 100, the lower
     /// being 100 minus it). Out of range it is bounded; NaN means the default.
     pub clip_percentile: f64,
+    /// A fixed scale (low, high) instead of the percentiles, for quantities with natural bounds
+    /// (shape index -1 to 1); a cyclic ramp always spans 0 to 360.
+    pub fixed: Option<(f64, f64)>,
+    /// How a cell's value was formed ("cell mean"), a line of its own; empty for none.
+    pub statistic: &'a str,
 }
 
 /// An RGBA image, 8 bits per channel, row-major from the top, not premultiplied.
@@ -94,7 +104,7 @@ pub struct Picture {
 /// whole factor, each value a square of pixels; the legend's text grows with the map. A
 /// `shade` on a grid of another size than `values` is a caller's mistake and is left out.
 pub fn render(values: &Grid, ramp: Ramp, legend: &Legend<'_>, shade: Option<&Shade>) -> Picture {
-    let stretch = Stretch::of(values, ramp, legend.clip_percentile);
+    let stretch = Stretch::of(values, ramp, legend.clip_percentile, legend.fixed);
     let lut = colour::lut(ramp);
     let shading = shade
         .filter(|s| {

@@ -17,6 +17,8 @@ fn legend() -> Legend<'static> {
         title: "MeanCurvature",
         unit: "1/m",
         clip_percentile: DEFAULT_CLIP_PERCENTILE,
+        fixed: None,
+        statistic: "",
     }
 }
 
@@ -157,7 +159,7 @@ fn clip_limits_are_exact_percentiles_and_values_beyond_saturate() {
     // |v| over -100..=100: 0 once, every k in 1..=100 twice; rank 0.98 * 200 = 196 is 98.
     let values: Vec<f32> = (-100..=100).map(|k| k as f32).collect();
     let g = grid(201, 1, values);
-    let s = Stretch::of(&g, Ramp::Diverging, 98.0);
+    let s = Stretch::of(&g, Ramp::Diverging, 98.0, None);
     assert_eq!(
         (s.low, s.high, s.range),
         (-98.0, 98.0, Some((-100.0, 100.0)))
@@ -165,13 +167,13 @@ fn clip_limits_are_exact_percentiles_and_values_beyond_saturate() {
     assert_eq!(s.position(99.0), s.position(98.0));
     assert_eq!(s.position(-100.0), Some(0.0));
     assert_eq!(s.position(49.0), Some(0.75));
-    let s = Stretch::of(&g, Ramp::Diverging, 90.0);
+    let s = Stretch::of(&g, Ramp::Diverging, 90.0, None);
     assert_eq!(s.high, 90.0);
     // 0..=100 with NaN holes: the 2nd and 98th percentiles are 2 and 98.
     let mut values: Vec<f32> = (0..=100).map(|k| k as f32).collect();
     values.extend([NAN; 9]);
     let g = grid(110, 1, values);
-    let s = Stretch::of(&g, Ramp::Sequential, 98.0);
+    let s = Stretch::of(&g, Ramp::Sequential, 98.0, None);
     assert_eq!((s.low, s.high), (2.0, 98.0));
     assert_eq!(s.position(1.0), Some(0.0));
     assert_eq!(s.position(50.0), Some(0.5));

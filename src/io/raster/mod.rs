@@ -8,23 +8,21 @@
 mod bins;
 pub(crate) mod geokeys;
 pub(crate) mod geotiff;
+mod rows;
 mod sums;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::core::quicklook::{
-    render, Grid, Legend, Ramp, Shade, Thumbnail, DEFAULT_CLIP_PERCENTILE, DEFAULT_MAX_SIDE,
-};
 use crate::core::raster::{
     max_cells, Cell, CellGrid, Integers, Stat, Tally, MAX_CELL_POINTS, UNDEFINED,
 };
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnChoice, ColumnSet, Group, TerrainValue, Value};
-use crate::io::quicklook_png::write_png;
 use bins::{from_words, words_of, Bins, Cells};
 use geokeys::RasterCrs;
-use geotiff::{rows_per_strip, GeoTiff};
+use geotiff::GeoTiff;
+use rows::{quick_looks, Rows};
 use sums::{CellSums, SumCells};
 
 /// The name of the point-count raster.
@@ -39,8 +37,11 @@ pub(crate) struct RasterColumn {
     pub(crate) unit: String,
     /// Whether its values have a sign that means something (curvatures): a diverging ramp.
     pub(crate) signed: bool,
-    /// Whether it is a direction in degrees (aspect): its mean is circular.
+    /// Whether it is a direction in degrees (aspect): its mean is circular, its ramp cyclic.
     pub(crate) angle: bool,
+    /// The fixed scale (low, high) of its quick look, for values with natural bounds (shape
+    /// index); None: the percentiles of the values.
+    pub(crate) scale: Option<(f64, f64)>,
     /// Set when the points' values are integers of this scale and offset in every input and
     /// the statistic tallies them ([`Stat::tallies`]): the cells tally the integers
     /// ([`crate::core::raster::Tally`]) instead of keeping every value.
@@ -77,11 +78,13 @@ pub(crate) fn known_columns(unit: &str) -> Vec<(RasterColumn, bool)> {
                 _ => return None,
             };
             let angle = c.value == Value::Terrain(Aspect);
+            let scale = (c.value == Value::Terrain(ShapeIndex)).then_some((-1.0, 1.0));
             let col = RasterColumn {
                 name: c.name.into(),
                 unit,
                 signed,
                 angle,
+                scale,
                 integers: None,
             };
             Some((col, curvature))
@@ -441,14 +444,24 @@ impl Rasterizer {
             count += 1;
         }
         let (looks, factor) = rows.finish()?;
-        let mut shown: Vec<RasterColumn> = req.columns.clone();
-        shown.push(RasterColumn {
-            name: COUNT_NAME.into(),
+        let counts = |name: &str| RasterColumn {
+            name: name.into(),
             unit: "points".into(),
             signed: false,
             angle: false,
+            scale: None,
             integers: None,
-        });
+        };
+        // A count is of points whatever the column: shown as one, on a sequential ramp.
+        let mut shown: Vec<(RasterColumn, String)> = match req.stat {
+            Stat::Count => (req.columns.iter())
+                .map(|c| (counts(&c.name), "points with a value, per cell".into()))
+                .collect(),
+            stat => (req.columns.iter())
+                .map(|c| (c.clone(), format!("cell {stat} of the points")))
+                .collect(),
+        };
+        shown.push((counts(COUNT_NAME), "points per cell".into()));
         files.extend(quick_looks(
             &req.dir,
             &shown,
@@ -462,125 +475,6 @@ impl Rasterizer {
             cells: count,
             files,
         })
-    }
-}
-
-/// Writes a PNG quick look of each raster of `columns` from its thumbnail (`looks`: one per
-/// column, then the elevation's, whose pixels are `pixel` CRS units wide), shaded by the
-/// elevation; returns the files.
-fn quick_looks(
-    dir: &Path,
-    columns: &[RasterColumn],
-    mut looks: Vec<Grid>,
-    pixel: f64,
-) -> Result<Vec<PathBuf>> {
-    let Some(elevation) = looks.pop() else {
-        return Ok(Vec::new());
-    };
-    let shade = Shade::of(&elevation, pixel);
-    let mut files = Vec::new();
-    for (c, g) in columns.iter().zip(&looks) {
-        let ramp = if c.signed {
-            Ramp::Diverging
-        } else {
-            Ramp::Sequential
-        };
-        let legend = Legend {
-            title: &c.name,
-            unit: &c.unit,
-            clip_percentile: DEFAULT_CLIP_PERCENTILE,
-        };
-        let path = dir.join(format!("{}.png", c.name));
-        write_png(&path, &render(g, ramp, &legend, Some(&shade)))?;
-        files.push(path);
-    }
-    Ok(files)
-}
-
-/// The strips of every raster being filled, cell by cell in row order.
-struct Rows<'a> {
-    width: usize,
-    height: u32,
-    per_strip: u32,
-    /// The first row of the strips being filled.
-    first: u32,
-    strips: Vec<Vec<f32>>,
-    /// The GeoTIFFs of the first strips (the last strip, the elevation, has none).
-    writers: Vec<GeoTiff>,
-    /// A quick-look thumbnail of every strip's raster.
-    thumbs: Vec<Thumbnail>,
-    /// Set to stop: checked at every strip, since rows without a point come between cells.
-    cancel: &'a AtomicBool,
-}
-
-impl<'a> Rows<'a> {
-    fn new(grid: &CellGrid, writers: Vec<GeoTiff>, cancel: &'a AtomicBool) -> Rows<'a> {
-        let mut r = Rows {
-            cancel,
-            width: grid.width as usize,
-            height: grid.height,
-            per_strip: rows_per_strip(grid.width),
-            first: 0,
-            strips: Vec::new(),
-            thumbs: (0..=writers.len())
-                .map(|_| Thumbnail::new(grid.width, grid.height, DEFAULT_MAX_SIDE))
-                .collect(),
-            writers,
-        };
-        r.strips = (0..r.thumbs.len()).map(|_| r.blank(0)).collect();
-        r
-    }
-
-    /// Cells of the strip starting at row `first`, all without data.
-    fn blank(&self, first: u32) -> Vec<f32> {
-        let rows = self.per_strip.min(self.height.saturating_sub(first)) as usize;
-        vec![f32::NAN; rows * self.width]
-    }
-
-    /// Sets the cell at `row`, `col` of every raster (rows never go back).
-    fn put(&mut self, row: u32, col: u32, values: &[f32]) -> Result<()> {
-        while row >= self.first + self.per_strip {
-            self.flush()?;
-        }
-        let at = (row - self.first) as usize * self.width + col as usize;
-        for (s, &v) in self.strips.iter_mut().zip(values) {
-            s[at] = v;
-        }
-        Ok(())
-    }
-
-    /// Hands the full strips to their writers and starts the next ones.
-    fn flush(&mut self) -> Result<()> {
-        if self.cancel.load(Ordering::Relaxed) {
-            return Err(Error::Interrupted);
-        }
-        let next = self.first + self.per_strip;
-        for i in 0..self.strips.len() {
-            let blank = self.blank(next);
-            let strip = std::mem::replace(&mut self.strips[i], blank);
-            self.thumbs[i].push_rows(self.first, &strip);
-            if let Some(w) = self.writers.get(i) {
-                w.strip(strip)?;
-            }
-        }
-        self.first = next;
-        Ok(())
-    }
-
-    /// Writes the remaining strips and waits for every raster to be complete. Returns the
-    /// thumbnails and how many cells a side each of their pixels covers.
-    fn finish(mut self) -> Result<(Vec<Grid>, u32)> {
-        while self.first < self.height {
-            self.flush()?;
-        }
-        for w in self.writers {
-            w.finish()?;
-        }
-        let factor = self.thumbs.first().map_or(1, Thumbnail::factor);
-        Ok((
-            self.thumbs.into_iter().map(Thumbnail::finish).collect(),
-            factor,
-        ))
     }
 }
 

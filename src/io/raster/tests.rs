@@ -14,6 +14,7 @@ fn tallies_as_points_come_or_at_the_end_give_the_same_rasters() {
         unit: String::new(),
         signed: true,
         angle: false,
+        scale: None,
         integers,
     };
     let columns = vec![
