@@ -2,7 +2,7 @@
 
 use super::args::RasterArgs;
 use super::{fail, reporter, CANCEL};
-use crate::progress::say;
+use crate::progress::{say, Reporter};
 use crate::run::raster::{raster, RasterJob};
 
 /// Runs `tilecurv raster`.
@@ -25,6 +25,9 @@ pub(super) fn run(a: RasterArgs) -> Result<i32, i32> {
         &CANCEL,
     )
     .map_err(|e| fail(&e))?;
+    if let Some(w) = s.sparse_warning() {
+        reporter.warn(&w);
+    }
     if !a.exec.quiet() {
         say!(
             "done: {} points in {} of {}x{} cells of {} ({} files) in {:.1} s -> {}",

@@ -18,7 +18,9 @@ use crate::core::plan::TilePlan;
 use crate::core::select::ClassFilter;
 use crate::error::{Error, Result};
 use crate::io::columns::output::{Encoding, OutputColumns, Steps};
-use crate::io::columns::{ColumnSet, ColumnType, Group, ResultLayout, Stored, Transcoder};
+use crate::io::columns::{
+    ColumnSet, ColumnType, Group, ResultLayout, Stored, TerrainValue, Transcoder, Value,
+};
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::results::{record_size, scene_stats, Merger};
@@ -28,6 +30,43 @@ use crate::run::bucket::chunk_points;
 use crate::run::orientation::resolve_orientation;
 use crate::run::raster::{default_dir, OutputRasters, Tap};
 use crate::run::{Exec, Run};
+
+/// The steps of the scaled curvature columns `cols` writes, for the log ("H 1.5e-5 1/m; K ...";
+/// k1, k2 and the terrain curvatures share k1's step); None when it writes none.
+fn steps_note(cols: &ColumnSet, steps: &Steps) -> Option<String> {
+    let has = |g| cols.choice.has(g);
+    let u = &cols.unit;
+    let mut parts = Vec::new();
+    if has(Group::H) {
+        parts.push(format!("H {:e} 1/{u}", steps.h));
+    }
+    if has(Group::K) {
+        parts.push(format!("K {:e} 1/{u}^2", steps.k));
+    }
+    let principal: Vec<&str> = (cols.columns().into_iter())
+        .filter(|c| {
+            use TerrainValue::*;
+            matches!(
+                c.value,
+                Value::K1 | Value::K2 | Value::Terrain(Profile | Tangential | Plan | Curvedness)
+            )
+        })
+        .map(|c| c.name)
+        .collect();
+    if !principal.is_empty() {
+        parts.push(format!(
+            "{} {:e} 1/{u}",
+            principal.join(", "),
+            steps.principal
+        ));
+    }
+    (!parts.is_empty()).then(|| {
+        format!(
+            "scaled curvature columns (LAS/LAZ outputs), i32 steps: {} (the error is at most half a step)",
+            parts.join("; ")
+        )
+    })
+}
 
 /// Writes every output of `run` from its tile results (the tiles of `tiles`, all finished).
 /// Returns the number of points written whose curvature is undefined (from every tile's
@@ -40,14 +79,10 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
         flips,
     } = finished(run, tiles, exec.reporter)?;
     let steps = Steps::from_stats(&scene_stats(&files, &spec.cols)?);
-    let curvature = [Group::H, Group::K, Group::K1, Group::K2];
-    if spec.params.column_type == ColumnType::Scaled
-        && curvature.iter().any(|&g| spec.cols.choice.has(g))
-    {
-        exec.reporter.info(&format!(
-            "scaled columns (LAS/LAZ outputs): unit vectors i16 at 1/32767; H, K, and k1 with k2 i32 at steps {:e}, {:e}, {:e} (the error is at most half a step)",
-            steps.h, steps.k, steps.principal
-        ));
+    if spec.params.column_type == ColumnType::Scaled {
+        if let Some(note) = steps_note(&spec.cols, &steps) {
+            exec.reporter.info(&note);
+        }
     }
     let encoding = Encoding::new(spec.params.column_type, steps);
     let outs = (spec.outputs.iter())
@@ -100,13 +135,27 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
     }
     exec.reporter.finish_phase();
     if let Some(r) = rasters {
-        let s = r.finish(exec.reporter, exec.cancel)?;
+        let s = r.finish(exec.reporter, exec.cancel).inspect_err(|e| {
+            if !matches!(e, Error::Interrupted) {
+                exec.reporter.warn(&format!(
+                    "the point outputs are complete ({}), the rasters failed: once the cause is fixed, `tilecurv raster` makes them from the outputs",
+                    (spec.outputs.iter())
+                        .map(|o| o.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            }
+        })?;
+        if let Some(w) = s.sparse_warning() {
+            exec.reporter.warn(&w);
+        }
         exec.reporter.info(&format!(
-            "rasters: {} files of {}x{} cells of {} in {}",
+            "rasters: {} files of {}x{} cells of {} ({} with a point) in {}",
             s.files.len(),
             s.grid.width,
             s.grid.height,
             s.cell_text(),
+            s.cells,
             s.files
                 .first()
                 .and_then(|f| f.parent())

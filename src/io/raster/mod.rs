@@ -145,10 +145,44 @@ pub(crate) fn check_size(
 impl RasterSummary {
     /// The cell size with its unit, for messages: "1 m", or "2 file units" without a CRS unit.
     pub fn cell_text(&self) -> String {
+        let cell = six_digits(self.grid.cell);
         match self.unit.as_str() {
-            "unit" => format!("{} file units", self.grid.cell),
-            u => format!("{} {u}", self.grid.cell),
+            "unit" => format!("{cell} file units"),
+            u => format!("{cell} {u}"),
         }
+    }
+
+    /// A warning when fewer than a quarter of the cells hold a point: the cell is finer than
+    /// the points' spacing over much of the area, and the rasters are mostly no-data.
+    pub fn sparse_warning(&self) -> Option<String> {
+        let all = self.grid.cells();
+        (self.cells.saturating_mul(4) < all).then(|| {
+            format!(
+                "only {:.1}% of the {}x{} cells hold a point: cells of {} are finer than the points' spacing over much of the area, so the rasters are mostly no-data; a larger cell fills more",
+                100.0 * self.cells as f64 / all as f64,
+                self.grid.width,
+                self.grid.height,
+                self.cell_text()
+            )
+        })
+    }
+}
+
+/// `x` to six significant digits, without trailing zeros; in exponent form below 1e-4 and from
+/// 1e7 on.
+fn six_digits(x: f64) -> String {
+    let a = x.abs();
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    if !(1e-4..1e7).contains(&a) {
+        return format!("{x:e}");
+    }
+    let decimals = (5 - a.log10().floor() as i32).max(0) as usize;
+    let text = format!("{x:.decimals$}");
+    match text.contains('.') {
+        true => text.trim_end_matches('0').trim_end_matches('.').to_string(),
+        false => text,
     }
 }
 

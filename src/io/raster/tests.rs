@@ -1,4 +1,4 @@
-//! The rasterizer's two ways of tallying give the same rasters.
+//! The rasterizer's two ways of tallying give the same rasters; what its summary says.
 
 use super::*;
 use crate::core::rng::Rng;
@@ -89,4 +89,32 @@ fn tallies_as_points_come_or_at_the_end_give_the_same_rasters() {
             }
         }
     }
+}
+
+/// Cell sizes print to six significant digits with their unit (a metre in feet is not 16
+/// digits long, nor 1e300 three hundred), and a grid under a quarter filled is warned about.
+#[test]
+fn cell_sizes_read_and_sparse_grids_are_warned_about() {
+    let summary = |cell: f64, unit: &str, cells: u64| RasterSummary {
+        grid: CellGrid {
+            cell,
+            west: 0,
+            north: 0,
+            width: 10,
+            height: 10,
+        },
+        unit: unit.into(),
+        points: 500,
+        cells,
+        files: Vec::new(),
+    };
+    assert_eq!(summary(1.0 / 0.3048, "ft", 50).cell_text(), "3.28084 ft");
+    assert_eq!(summary(1e300, "m", 50).cell_text(), "1e300 m");
+    assert_eq!(summary(0.25, "unit", 50).cell_text(), "0.25 file units");
+    assert_eq!(summary(2.0, "m", 25).sparse_warning(), None);
+    let w = summary(2.0, "m", 24).sparse_warning().expect("a warning");
+    assert!(
+        w.starts_with("only 24.0% of the 10x10 cells hold a point: cells of 2 m "),
+        "{w}"
+    );
 }
