@@ -415,3 +415,32 @@ fn every_real_survey_gives_rasters_gdal_reads() {
         eprintln!("{name}: {report}");
     }
 }
+
+/// A column named in another case is the file's column, and its raster carries the file's
+/// spelling (`Z` makes `z.tif`, `h` makes `H.tif`), so that one column has one file name.
+#[test]
+fn rasters_take_the_files_spelling_of_a_column() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("t.las");
+    process(&input, &out, &["--columns", "H", "-k", "10"]);
+    let r = dir.path().join("r");
+    raster(&[
+        s(&out),
+        "--cell",
+        "5m",
+        "--columns",
+        "Z,h,INTENSITY",
+        "-o",
+        s(&r),
+    ]);
+    let mut names: Vec<String> = std::fs::read_dir(&r)
+        .expect("rasters")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tif"))
+        .collect();
+    names.sort();
+    assert_eq!(names, ["H.tif", "PointCount.tif", "intensity.tif", "z.tif"]);
+}

@@ -165,7 +165,7 @@ fn choose_columns(
 ) -> Result<Vec<RasterColumn>> {
     let known = known_columns(unit);
     let chosen: Vec<RasterColumn> = match names {
-        Some(names) => names.iter().map(|n| describe(&known, n, unit)).collect(),
+        Some(names) => names.iter().map(|n| describe(&known, n, s)).collect(),
         None => known
             .iter()
             .filter(|(k, curvature)| *curvature && reader(s, &k.name).is_some())
@@ -193,20 +193,22 @@ fn choose_columns(
 
 /// How the column `name` is shown: as tilecurv's own column of that name (`known`), else on a
 /// sequential ramp (a sign means nothing known of another's column, nor of an elevation), in
-/// the file's `unit` for x, y and z and without a unit for the others.
-fn describe(known: &[(RasterColumn, bool)], name: &str, unit: &str) -> RasterColumn {
+/// the unit of the file `s` for x, y and z and without a unit for the others.
+fn describe(known: &[(RasterColumn, bool)], name: &str, s: &dyn PointSource) -> RasterColumn {
     let coordinate = ["x", "y", "z"].iter().any(|c| c.eq_ignore_ascii_case(name));
+    let unit = s.unit().unit().map_or("unit".into(), |u| u.symbol());
+    // Named as the file names it (`Z` as `z`), as tilecurv's own columns are.
+    let names = column_names(s);
+    let name = (names.iter())
+        .find(|n| n.eq_ignore_ascii_case(name))
+        .map_or(name, String::as_str);
     known
         .iter()
         .find(|(k, _)| k.name.eq_ignore_ascii_case(name))
         .map(|(k, _)| k.clone())
         .unwrap_or_else(|| RasterColumn {
             name: name.to_string(),
-            unit: if coordinate {
-                unit.into()
-            } else {
-                String::new()
-            },
+            unit: if coordinate { unit } else { String::new() },
             signed: false,
             angle: false,
             scale: None,
@@ -263,7 +265,7 @@ fn output_raster_columns(
                 let known_here = known.iter().find(|(k, _)| k.name.eq_ignore_ascii_case(n));
                 match known_here {
                     Some((k, _)) if written.contains(&k.name.as_str()) => Ok(k.clone()),
-                    _ if reader(first, n).is_some() => Ok(describe(&known, n, &cols.unit)),
+                    _ if reader(first, n).is_some() => Ok(describe(&known, n, first)),
                     _ => Err(Error::Usage(format!(
                         "--raster-columns {n}: the outputs have no such column; they have {}, and the input's {}",
                         written.join(", "),
