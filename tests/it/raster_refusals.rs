@@ -17,8 +17,9 @@ fn listing(dir: &Path) -> Vec<String> {
 
 /// Runs `args`, which must be refused with exit 2 before the curvature work (no `curvature:`
 /// phase in the log) with a message holding every one of `says`; returns the message.
-fn refused(args: &[&str], says: &[&str]) -> String {
-    let out = tilecurv(args);
+fn refused<A: AsRef<str>>(args: &[A], says: &[&str]) -> String {
+    let args: Vec<&str> = args.iter().map(AsRef::as_ref).collect();
+    let out = tilecurv(&args);
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
     assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
     assert!(!err.contains("curvature:"), "refused after the work: {err}");
@@ -26,6 +27,22 @@ fn refused(args: &[&str], says: &[&str]) -> String {
         assert!(err.contains(s), "{args:?}: no {s:?} in {err}");
     }
     err
+}
+
+/// `tilecurv raster` of `z` in 2 m cells of the inputs `a` and `b` into `out`.
+fn raster_z(a: &Path, b: &Path, out: &Path) -> Vec<String> {
+    let args = [
+        "raster",
+        s(a),
+        s(b),
+        "--cell",
+        "2m",
+        "--columns",
+        "z",
+        "-o",
+        s(out),
+    ];
+    args.map(String::from).to_vec()
 }
 
 /// A raster directory that is a file, or cannot be made, and an unknown raster column stop
@@ -42,24 +59,21 @@ fn process_refuses_bad_raster_requests_before_the_work() {
     let base = ["process", s(&input), "-o", s(&out), "--raster", "2m"];
     let run =
         |more: &[&str]| -> Vec<String> { base.iter().chain(more).map(|a| a.to_string()).collect() };
-    let refused = |args: Vec<String>, says: &[&str]| {
-        refused(&args.iter().map(String::as_str).collect::<Vec<_>>(), says)
-    };
     refused(
-        run(&["--raster-dir", s(&file)]),
+        &run(&["--raster-dir", s(&file)]),
         &["exists and is not a directory", "--raster-dir"],
     );
     let under_file = file.join("r");
     refused(
-        run(&["--raster-dir", s(&under_file)]),
+        &run(&["--raster-dir", s(&under_file)]),
         &["is not a directory"],
     );
     refused(
-        run(&["--raster-columns", "Foo,H"]),
+        &run(&["--raster-columns", "Foo,H"]),
         &["--raster-columns Foo", "intensity"],
     );
     refused(
-        run(&["--columns", "normals"]),
+        &run(&["--columns", "normals"]),
         &["is a curvature column", "NormalX"],
     );
     assert_eq!(listing(dir.path()), ["afile"]);
@@ -91,24 +105,8 @@ fn inputs_in_two_crss_or_named_twice_are_refused() {
     );
     assert!(err.contains("Haystack_Rock.las"), "{err}");
     let r = dir.path().join("r");
-    let raster = |a: &Path, b: &Path| {
-        [
-            "raster",
-            s(a),
-            s(b),
-            "--cell",
-            "2m",
-            "--columns",
-            "z",
-            "-o",
-            s(&r),
-        ]
-        .map(String::from)
-    };
-    let args = raster(&topo, &hay);
-    refused(&args.each_ref().map(|a| a.as_str()), &["in another CRS"]);
-    let args = raster(&topo, &topo);
-    refused(&args.each_ref().map(|a| a.as_str()), &["named twice"]);
+    refused(&raster_z(&topo, &hay, &r), &["in another CRS"]);
+    refused(&raster_z(&topo, &topo, &r), &["named twice"]);
     assert!(listing(dir.path()).is_empty(), "{:?}", listing(dir.path()));
 }
 
@@ -124,17 +122,7 @@ fn an_all_but_empty_grid_is_refused() {
     let dir = tempfile::tempdir().expect("temp dir");
     let r = dir.path().join("r");
     let err = refused(
-        &[
-            "raster",
-            s(&topo),
-            s(&other),
-            "--cell",
-            "2m",
-            "--columns",
-            "z",
-            "-o",
-            s(&r),
-        ],
+        &raster_z(&topo, &other, &r),
         &["almost all empty", "share a CRS", "larger --cell"],
     );
     assert!(err.contains("has no CRS"), "{err}");
