@@ -43,9 +43,10 @@ impl RasterCrs {
     }
 
     /// Whether the points of a file in `other` are placed on the same map as this CRS's (the
-    /// horizontal CRS: a vertical CRS does not move a point on the map). None when either
-    /// declares no CRS. Compared by EPSG code, so that the keys of one file and the WKT of
-    /// another naming the same code agree; user-defined CRSs by their keys and parameters.
+    /// horizontal CRS: a vertical CRS does not move a point on the map). Compared by EPSG code,
+    /// so that the keys of one file and the WKT of another naming the same code agree. None
+    /// when it cannot be told: either declares no CRS, or one is user-defined (its parameters
+    /// in the keys) and the keys differ, which two writers may do for one projection.
     pub(crate) fn same_map(&self, other: &RasterCrs) -> Option<bool> {
         let none = no_keys().directory;
         if self.directory == none || other.directory == none {
@@ -55,10 +56,11 @@ impl RasterCrs {
             Some(p) => Some((PROJECTED, p)),
             None => c.key(GEOGRAPHIC).map(|g| (GEOGRAPHIC, g)),
         };
-        Some(match (code(self), code(other)) {
-            (Some(a), Some(b)) if a.1 != USER_DEFINED && b.1 != USER_DEFINED => a == b,
-            _ => (&self.directory, &self.doubles) == (&other.directory, &other.doubles),
-        })
+        match (code(self), code(other)) {
+            (Some(a), Some(b)) if a.1 != USER_DEFINED && b.1 != USER_DEFINED => Some(a == b),
+            _ => ((&self.directory, &self.doubles) == (&other.directory, &other.doubles))
+                .then_some(true),
+        }
     }
 }
 
@@ -366,7 +368,8 @@ mod tests {
 
     /// Two CRSs place points on the same map when their horizontal EPSG codes agree, whether
     /// from a WKT or from keys and whatever their vertical CRS; user-defined ones when their
-    /// keys and parameters do; a file without a CRS is undecided.
+    /// keys and parameters do (else undecided: two writers may spell one projection apart); a
+    /// file without a CRS is undecided.
     #[test]
     fn same_map_compares_horizontal_codes() {
         let wkt = from_wkt(UTM);
@@ -385,8 +388,8 @@ mod tests {
             ..keys(&[(MODEL_TYPE, 1), (PROJECTED, USER_DEFINED)])
         };
         assert_eq!(user(43.0).same_map(&user(43.0)), Some(true));
-        assert_eq!(user(43.0).same_map(&user(44.0)), Some(false));
-        assert_eq!(user(43.0).same_map(&wkt), Some(false));
+        assert_eq!(user(43.0).same_map(&user(44.0)), None);
+        assert_eq!(user(43.0).same_map(&wkt), None);
     }
 
     /// A WKT 1 projected CRS gives its own code, not a nested one (the datum's, the unit's).

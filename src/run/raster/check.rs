@@ -54,7 +54,8 @@ fn probe(dir: &Path) -> std::io::Result<()> {
 /// file twice (its points would count twice), a file in another CRS (one raster has one CRS:
 /// the other's points would land at the wrong place), or a grid of cells of `cell` file units
 /// (`unit`) over their declared bounds beyond [`crate::core::raster::max_cells`]. A file
-/// without a CRS beside one with it is warned about: its coordinates may well be the other's.
+/// without a CRS beside one with it, or user-defined CRSs whose keys differ, are warned about:
+/// the coordinates may well be in one CRS.
 pub(super) fn check_inputs(
     sources: &[Box<dyn PointSource>],
     (cell, unit): (f64, &str),
