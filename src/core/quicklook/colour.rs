@@ -158,8 +158,9 @@ impl Stretch {
         let range = range.map(|(lo, hi)| (f64::from(lo), f64::from(hi)));
         let fixed = fixed.or((ramp == Ramp::Cyclic).then_some((0.0, 360.0)));
         if let Some((low, high)) = fixed {
+            let limit = low.abs().max(high.abs());
             let (low, high) = match ramp {
-                Ramp::Diverging => (-low.abs().max(high.abs()), low.abs().max(high.abs())),
+                Ramp::Diverging => (-limit, limit),
                 _ => (low, high),
             };
             return Stretch {

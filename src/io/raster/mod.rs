@@ -122,20 +122,29 @@ pub struct RasterSummary {
     pub files: Vec<PathBuf>,
 }
 
-/// Refuses a raster `width` x `height` cells of `cell` file units (`unit`) for `points`
-/// points when it has more than [`max_cells`] cells.
-pub(crate) fn check_size(
-    (width, height): (u64, u64),
-    (cell, unit): (f64, &str),
-    points: u64,
-) -> Result<()> {
+/// A length in `unit` (a symbol: "m", "ft", or "unit" without a CRS unit) for messages:
+/// "1 m", "6.56167 ftUS", "2 file units".
+pub(crate) fn length_text(x: f64, unit: &str) -> String {
+    let x = six_digits(x);
+    match unit {
+        "unit" => format!("{x} file units"),
+        u => format!("{x} {u}"),
+    }
+}
+
+/// Refuses a raster over the cells `lo` to `hi` (south-west, north-east) of `cell` file units
+/// (`unit`) for `points` points when it has more than [`max_cells`] cells.
+pub(crate) fn check_size(lo: Cell, hi: Cell, (cell, unit): (f64, &str), points: u64) -> Result<()> {
+    let side = |a: i64, b: i64| b.abs_diff(a).saturating_add(1);
+    let (width, height) = (side(lo.ix, hi.ix), side(lo.iy, hi.iy));
     let cells = width.saturating_mul(height);
     if cells <= max_cells(points) {
         return Ok(());
     }
-    let span = |n: u64| n as f64 * cell;
+    let span = |n: u64| length_text(n as f64 * cell, unit);
     Err(Error::Usage(format!(
-        "a raster of {width} x {height} cells of {cell} {unit} ({cells} cells) for {points} points would be almost all empty (at most {} cells): the points spread over {:.0} x {:.0} {unit}. Check that the inputs share a CRS and that no point lies far from the others (`tilecurv info FILE` shows each file's bounds), or use a larger --cell",
+        "a raster of {width} x {height} cells of {} ({cells} cells) for {points} points would be almost all empty (at most {} cells): the points spread over {} by {}. Check that the inputs share a CRS and that no point lies far from the others (`tilecurv info FILE` shows each file's bounds), or use a larger --cell",
+        length_text(cell, unit),
         max_cells(points),
         span(width),
         span(height)
@@ -145,11 +154,7 @@ pub(crate) fn check_size(
 impl RasterSummary {
     /// The cell size with its unit, for messages: "1 m", or "2 file units" without a CRS unit.
     pub fn cell_text(&self) -> String {
-        let cell = six_digits(self.grid.cell);
-        match self.unit.as_str() {
-            "unit" => format!("{cell} file units"),
-            u => format!("{cell} {u}"),
-        }
+        length_text(self.grid.cell, &self.unit)
     }
 
     /// A warning when fewer than a quarter of the cells hold a point: the cell is finer than
@@ -379,10 +384,9 @@ impl Rasterizer {
     ) -> Result<()> {
         let Some(c) = Cell::of(x, y, self.request.cell) else {
             return Err(Error::Usage(format!(
-                "{}: ({x}, {y}) lies more than 2^31 cells of {} {} from the origin; use a larger --cell",
+                "{}: ({x}, {y}) lies more than 2^31 cells of {} from the origin; use a larger --cell",
                 what(),
-                self.request.cell,
-                self.request.unit
+                length_text(self.request.cell, &self.request.unit)
             )));
         };
         self.lo = Some(self.lo.map_or(c, |l| Cell {
@@ -416,13 +420,11 @@ impl Rasterizer {
             return Err(Error::Usage("no point to make a raster of".into()));
         };
         let req = self.request;
-        let side = |lo: i64, hi: i64| hi.abs_diff(lo).saturating_add(1);
-        let (width, height) = (side(lo.ix, hi.ix), side(lo.iy, hi.iy));
-        check_size((width, height), (req.cell, &req.unit), self.points)?;
+        check_size(lo, hi, (req.cell, &req.unit), self.points)?;
         let grid = CellGrid::covering(req.cell, lo, hi).ok_or_else(|| {
             Error::Usage(format!(
-                "a raster of cells of {} {} over the points would have more than 2^31 cells on a side; use a larger --cell",
-                req.cell, req.unit
+                "a raster of cells of {} over the points would have more than 2^31 cells on a side; use a larger --cell",
+                length_text(req.cell, &req.unit)
             ))
         })?;
         std::fs::create_dir_all(&req.dir).map_err(|e| Error::write(&req.dir, e))?;

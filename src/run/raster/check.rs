@@ -6,8 +6,8 @@ use std::path::Path;
 
 use crate::core::raster::Cell;
 use crate::error::{Error, Result};
-use crate::io::raster::check_size;
 use crate::io::raster::geokeys::RasterCrs;
+use crate::io::raster::{check_size, length_text};
 use crate::io::source::{declared_bounds, PointSource};
 use crate::progress::Reporter;
 use crate::run::prepare::same_file;
@@ -105,16 +105,12 @@ pub(super) fn check_inputs(
         let (Some(lo), Some(hi)) = (Cell::of(west, south, cell), Cell::of(east, north, cell))
         else {
             return Err(Error::Usage(format!(
-                "the inputs' declared bounds ({west}, {south}) to ({east}, {north}) lie more than 2^31 cells of {cell} {unit} from the origin; use a larger --cell"
+                "the inputs' declared bounds ({west}, {south}) to ({east}, {north}) lie more than 2^31 cells of {} from the origin; use a larger --cell",
+                length_text(cell, unit)
             )));
         };
-        let side = |a: i64, b: i64| b.abs_diff(a).saturating_add(1);
         let points = sources.iter().map(|s| s.len()).sum();
-        check_size(
-            (side(lo.ix, hi.ix), side(lo.iy, hi.iy)),
-            (cell, unit),
-            points,
-        )?;
+        check_size(lo, hi, (cell, unit), points)?;
     }
     Ok(crs)
 }

@@ -97,7 +97,7 @@ fn make_rasters(
             job.cell
         ));
     }
-    let symbol = unit.unit().map_or("unit".into(), |u| u.symbol());
+    let symbol = unit_symbol(first);
     let mut columns = choose_columns(first, job.columns.as_deref(), &symbol)?;
     check::check_dir(&job.dir, "-o")?;
     let crs = check::check_inputs(&sources, (cell, &symbol), reporter)?;
@@ -142,6 +142,11 @@ fn declared_area(sources: &[Box<dyn PointSource>]) -> Option<f64> {
         .iter()
         .map(|s| declared_bounds(s.as_ref()).map(|[lo, hi]| (hi[0] - lo[0]) * (hi[1] - lo[1])))
         .sum()
+}
+
+/// The symbol of the CRS unit of `s` ("m", "ftUS"), "unit" when it has none.
+fn unit_symbol(s: &dyn PointSource) -> String {
+    s.unit().unit().map_or("unit".into(), |u| u.symbol())
 }
 
 /// The raster CRS of a source: its LAS CRS ([`raster_crs`]); none for other formats.
@@ -196,7 +201,7 @@ fn choose_columns(
 /// the unit of the file `s` for x, y and z and without a unit for the others.
 fn describe(known: &[(RasterColumn, bool)], name: &str, s: &dyn PointSource) -> RasterColumn {
     let coordinate = ["x", "y", "z"].iter().any(|c| c.eq_ignore_ascii_case(name));
-    let unit = s.unit().unit().map_or("unit".into(), |u| u.symbol());
+    let unit = unit_symbol(s);
     // Named as the file names it (`Z` as `z`), as tilecurv's own columns are.
     let names = column_names(s);
     let name = (names.iter())
