@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::{process, root, s, shared, tilecurv, under_ci};
+use crate::common::{listing, process, root, s, shared, tilecurv, under_ci};
 use crate::offsets::regrid;
 
 /// rasterio and laspy are importable: a failure under CI=true, else a loud skip.
@@ -436,11 +436,8 @@ fn rasters_take_the_files_spelling_of_a_column() {
         "-o",
         s(&r),
     ]);
-    let mut names: Vec<String> = std::fs::read_dir(&r)
-        .expect("rasters")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+    let names: Vec<String> = (listing(&r).into_iter())
         .filter(|n| n.ends_with(".tif"))
         .collect();
-    names.sort();
     assert_eq!(names, ["H.tif", "PointCount.tif", "intensity.tif", "z.tif"]);
 }

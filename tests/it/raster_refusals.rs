@@ -3,17 +3,7 @@
 
 use std::path::Path;
 
-use crate::common::{s, shared, tilecurv};
-
-/// The names in `dir`, sorted.
-fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .expect("list")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
+use crate::common::{listing, s, shared, tilecurv};
 
 /// Runs `args`, which must be refused with exit 2 before the curvature work (no `curvature:`
 /// phase in the log) with a message holding every one of `says`; returns the message.
