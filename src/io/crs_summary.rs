@@ -153,12 +153,21 @@ pub fn wkt_vertical_unit(wkt: &str) -> Result<LengthUnit, String> {
 }
 
 /// The EPSG codes a GeoTIFF directory names: projected (3072) or geographic (2048), and
-/// vertical (4096).
+/// vertical (4096); "user-defined" for GeoTIFF's code 32767.
 pub(crate) fn geotiff_name(keys: &GeoKeys) -> Option<String> {
+    // 32767 is GeoTIFF's "user-defined": the CRS is in other keys, not an EPSG code.
+    let code = |c: u16, user: &str| match c {
+        32767 => user.to_string(),
+        c => format!("EPSG:{c}"),
+    };
     let horizontal = (keys.value(3072))
-        .map(|c| format!("EPSG:{c}"))
-        .or_else(|| keys.value(2048).map(|c| format!("EPSG:{c} (geographic)")));
-    let vertical = keys.value(4096).map(|c| format!("EPSG:{c}"));
+        .map(|c| code(c, "user-defined"))
+        .or_else(|| {
+            (keys.value(2048)).map(|c| format!("{} (geographic)", code(c, "user-defined")))
+        });
+    let vertical = keys
+        .value(4096)
+        .map(|c| code(c, "user-defined vertical CRS"));
     match (horizontal, vertical) {
         (Some(h), Some(v)) => Some(format!("{h} + {v}")),
         (h, v) => h.or(v),
@@ -214,5 +223,21 @@ mod tests {
         assert_eq!(s.stored_as, "GeoTIFF");
         assert_eq!(s.name.as_deref(), Some("EPSG:26910 + EPSG:5703"));
         assert_eq!(s.vertical.expect("vertical").symbol(), "ftUS");
+    }
+
+    /// GeoTIFF's code 32767 is a user-defined CRS (its parameters in other keys), which no EPSG
+    /// code names: autzen_trim.las's projection.
+    #[test]
+    fn a_user_defined_code_is_named_so() {
+        let mut k = Vec::new();
+        for w in [1u16, 1, 0, 2, 3072, 0, 1, 32767, 4096, 0, 1, 32767] {
+            k.extend_from_slice(&w.to_le_bytes());
+        }
+        let v = Vlr::new("LASF_Projection", 34735, "", k);
+        let s = crs_summary([&v], false);
+        assert_eq!(
+            s.name.as_deref(),
+            Some("user-defined + user-defined vertical CRS")
+        );
     }
 }
