@@ -21,6 +21,7 @@ pub mod cluster;
 pub(crate) mod dry_run;
 pub(crate) mod limits;
 pub mod memory;
+pub(crate) mod one_map;
 pub(crate) mod orientation;
 pub(crate) mod prepare;
 pub mod raster;
@@ -115,7 +116,7 @@ impl<'a> Exec<'a> {
     ) -> Result<Self> {
         opts.validate()?;
         if let Some(r) = &opts.rasters {
-            raster::check_output_rasters(r, spec, reporter)?;
+            raster::check_output_rasters(r, spec)?;
         }
         let budget = limits::fit_memory(opts, spec, reporter)?;
         let pool = rayon::ThreadPoolBuilder::new()

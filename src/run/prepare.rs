@@ -13,6 +13,7 @@ use crate::io::crs::UnitSource;
 use crate::io::sink::OutputOptions;
 use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
+use crate::run::one_map::{check_one_map, Joined};
 use crate::run::spec::RunSpec;
 
 /// Whether `a` and `b` name the same existing file.
@@ -80,6 +81,12 @@ struct CommonUnit {
     words: String,
 }
 
+/// A unit's symbol for a message, "no length unit" without one.
+fn unit_words(u: &UnitSource) -> String {
+    u.unit()
+        .map_or_else(|| "no length unit".into(), |u| u.symbol())
+}
+
 /// The horizontal unit shared by every input (the first one decides; another unit is an
 /// error).
 fn common_unit(
@@ -92,11 +99,11 @@ fn common_unit(
         let u = s.unit();
         if u.unit().map(|u| u.metres) != unit.unit().map(|u| u.metres) {
             return Err(Error::Usage(format!(
-                "{} and {} have different horizontal units ({:?} and {:?}); process them separately",
+                "{} and {} have different horizontal units ({} and {}); process them separately",
                 sources[0].path().display(),
                 s.path().display(),
-                unit.unit().map(|u| u.symbol()),
-                u.unit().map(|u| u.symbol())
+                unit_words(&unit),
+                unit_words(&u)
             )));
         }
     }
@@ -417,6 +424,8 @@ pub(crate) fn resolve(
     outputs: Vec<PathBuf>,
     reporter: &dyn Reporter,
 ) -> Result<RunSpec> {
+    // First: inputs in two CRSs differ in more than their units.
+    check_one_map(&sources, Joined::Scene, reporter)?;
     let CommonUnit {
         symbol: unit_name,
         unit,

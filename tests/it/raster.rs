@@ -380,8 +380,10 @@ fn rasters_of_a_text_input_equal_those_of_its_output() {
 /// Every real survey of the shared data gives rasters that GDAL reads with the survey's CRS and
 /// numpy's cell means, whatever its GeoTIFF text holds (padding NULs: autzen, bcts, hexbin;
 /// Latin-1: the Norwegian survey), its point format or LAS version. The WKTs of autzen_trim_7
-/// and las14_pdrf6 name no EPSG code, which GeoTIFF keys need: their rasters have none, as the
-/// run warns.
+/// and las14_pdrf6 name no EPSG code, which GeoTIFF keys need, as the run warns: autzen's
+/// reaches GDAL through each raster's sidecar (NAME.tif.aux.xml), which GDAL reads as the same
+/// projection; las14_pdrf6's is malformed (it closes before its vertical CRS), so its rasters
+/// have no CRS and no sidecar.
 #[test]
 fn every_real_survey_gives_rasters_gdal_reads() {
     if !rasterio_available() {
@@ -407,10 +409,24 @@ fn every_real_survey_gives_rasters_gdal_reads() {
         ]);
         let log = String::from_utf8_lossy(&run.stderr);
         assert!(run.status.success(), "{name}: {log}");
-        let no_crs = ["autzen_trim_7.las", "las14_pdrf6.laz"].contains(&name);
-        assert_eq!(log.contains("names no EPSG code"), no_crs, "{name}: {log}");
+        let no_code = ["autzen_trim_7.las", "las14_pdrf6.laz"].contains(&name);
+        assert_eq!(log.contains("names no EPSG code"), no_code, "{name}: {log}");
+        let no_crs = name == "las14_pdrf6.laz";
+        assert_eq!(
+            log.contains("GDAL cannot read it either"),
+            no_crs,
+            "{name}: {log}"
+        );
         let more: &[&str] = if no_crs { &["--no-crs"] } else { &[] };
         let rasters = dir.path().join("out.rasters");
+        let sidecars = (listing(&rasters).into_iter())
+            .filter(|f| f.ends_with(".tif.aux.xml"))
+            .count();
+        assert_eq!(
+            sidecars,
+            if name == "autzen_trim_7.las" { 2 } else { 0 },
+            "{name}"
+        );
         let report = check_with(&out, &rasters, (8.0, "mean", "H"), more);
         eprintln!("{name}: {report}");
     }

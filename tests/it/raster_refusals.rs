@@ -69,8 +69,9 @@ fn process_refuses_bad_raster_requests_before_the_work() {
     assert_eq!(listing(dir.path()), ["afile"]);
 }
 
-/// Inputs in two CRSs make no raster (their points would land on another map): `process` and
-/// `raster` refuse them before reading a point; the same file twice is refused too.
+/// Inputs in two CRSs make no raster (their points would land on another map) and no scene
+/// (`process` without rasters: a neighbourhood would join two maps): `process` and `raster`
+/// refuse them before reading a point; the same file twice is refused too.
 #[test]
 fn inputs_in_two_crss_or_named_twice_are_refused() {
     let (Some(topo), Some(hay)) = (
@@ -94,10 +95,79 @@ fn inputs_in_two_crss_or_named_twice_are_refused() {
         &["in another CRS", "EPSG:3645", "EPSG:2949", "Reproject"],
     );
     assert!(err.contains("Haystack_Rock.las"), "{err}");
+    // Without rasters too: the curvature of one scene would take points of two maps.
+    let plain = [
+        "process",
+        s(&topo),
+        s(&hay),
+        "-o",
+        &format!("{}/", out.display()),
+    ];
+    refused(
+        &plain,
+        &["in another CRS", "one scene", "process each file apart"],
+    );
+    // The same file under another name (a link) would count its points twice.
+    let link = dir.path().join("link.las");
+    std::os::unix::fs::symlink(&topo, &link).expect("symlink");
+    let twice = [
+        "process",
+        s(&topo),
+        s(&link),
+        "-o",
+        &format!("{}/", out.display()),
+    ];
+    refused(&twice, &["named twice", "link.las"]);
+    std::fs::remove_file(&link).expect("link removed");
     let r = dir.path().join("r");
     refused(&raster_z(&topo, &hay, &r), &["in another CRS"]);
     refused(&raster_z(&topo, &topo, &r), &["named twice"]);
     assert!(listing(dir.path()).is_empty(), "{:?}", listing(dir.path()));
+}
+
+/// Two surveys of one place whose CRSs cannot be compared (autzen's user-defined GeoTIFF keys
+/// and its LAS 1.4 copy's WKT without an EPSG code) are processed as one scene, with a warning
+/// that names both CRSs; files in different units are refused with both units named.
+#[test]
+fn undecided_crss_are_warned_about_and_other_units_refused() {
+    let (Some(keys), Some(wkt), Some(metres), Some(none)) = (
+        shared("las/autzen_trim.las"),
+        shared("las/autzen_trim_7.las"),
+        shared("las/Megaplot.las"),
+        shared("las/extrabytes.las"),
+    ) else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = format!("{}/", dir.path().join("both").display());
+    let run = tilecurv(&["process", s(&keys), s(&wkt), "-o", &out, "-k", "10"]);
+    let log = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{log}");
+    let warning = "has the CRS user-defined, from the input's GeoTIFF keys and";
+    assert!(log.contains(warning), "{log}");
+    assert!(
+        log.contains(
+            "NAD_1983_HARN_Lambert_Conformal_Conic (the input's WKT, which names no EPSG code)"
+        ),
+        "{log}"
+    );
+    assert_eq!(
+        listing(&dir.path().join("both")),
+        ["autzen_trim.las", "autzen_trim_7.las"]
+    );
+    let other = dir.path().join("other");
+    let args = [
+        "process",
+        s(&metres),
+        s(&none),
+        "-o",
+        &format!("{}/", other.display()),
+    ];
+    refused(
+        &args,
+        &["different horizontal units (m and no length unit)"],
+    );
+    assert!(!other.exists());
 }
 
 /// A grid that would be all but empty (a file without a CRS, 4,400 km from the other's points)

@@ -7,6 +7,7 @@
 use crate::io::crs::GeoKeys;
 use crate::io::crs_summary::{crs_record, geotiff_name, CrsRecord};
 use crate::io::las::vlr::Vlr;
+use crate::io::source::{PointSource, SourceLayout};
 
 /// GTModelTypeGeoKey, GTRasterTypeGeoKey, GeographicTypeGeoKey, ProjectedCSTypeGeoKey,
 /// VerticalCSTypeGeoKey.
@@ -32,6 +33,9 @@ pub(crate) struct RasterCrs {
     pub(crate) described: String,
     /// What the keys cannot say, if anything, and what to do about it.
     pub(crate) warning: Option<String>,
+    /// The input's WKT when the keys cannot hold its CRS (it names no EPSG code): written beside
+    /// each raster for GDAL ([`crate::io::raster::sidecar`]).
+    pub(crate) wkt: Option<String>,
 }
 
 impl RasterCrs {
@@ -45,9 +49,13 @@ impl RasterCrs {
     /// Whether the points of a file in `other` are placed on the same map as this CRS's (the
     /// horizontal CRS: a vertical CRS does not move a point on the map). Compared by EPSG code,
     /// so that the keys of one file and the WKT of another naming the same code agree. None
-    /// when it cannot be told: either declares no CRS, or one is user-defined (its parameters
-    /// in the keys) and the keys differ, which two writers may do for one projection.
+    /// when it cannot be told: either declares no CRS or a WKT without an EPSG code (unless both
+    /// have the same WKT), or one is user-defined (its parameters in the keys) and the keys
+    /// differ, which two writers may do for one projection.
     pub(crate) fn same_map(&self, other: &RasterCrs) -> Option<bool> {
+        if self.wkt.is_some() && self.wkt == other.wkt {
+            return Some(true);
+        }
         let none = no_keys().directory;
         if self.directory == none || other.directory == none {
             return None;
@@ -66,6 +74,18 @@ impl RasterCrs {
 
 /// The code of a user-defined CRS, datum or unit in GeoTIFF keys.
 const USER_DEFINED: u16 = 32767;
+
+/// The raster CRS of a source: its LAS CRS ([`raster_crs`]); none for other formats.
+pub(crate) fn source_crs(s: &dyn PointSource) -> RasterCrs {
+    match s.layout() {
+        SourceLayout::Las(p) => {
+            let h = p.header;
+            let records = p.vlrs.iter().chain(p.evlrs.iter().map(|(_, v)| v));
+            raster_crs(records, h.version.1 >= 4 && h.global_encoding & 0x10 != 0)
+        }
+        SourceLayout::Converted => raster_crs(std::iter::empty(), false),
+    }
+}
 
 /// The raster CRS of a LAS file whose VLRs and EVLRs are `records`. As `crs_summary` chooses:
 /// the WKT when LAS 1.4's WKT bit is set, the GeoTIFF keys otherwise, either when there is only
@@ -155,11 +175,12 @@ fn from_keys(keys: Result<GeoKeys, String>, doubles: Vec<f64>, ascii: String) ->
         doubles,
         ascii,
         described: format!("{name}, from the input's GeoTIFF keys"),
-        warning: None,
+        ..RasterCrs::default()
     }
 }
 
-/// Keys naming the EPSG codes of a WKT's horizontal (and vertical) CRS.
+/// Keys naming the EPSG codes of a WKT's horizontal (and vertical) CRS; the WKT itself, for
+/// the sidecar, when it names no horizontal code.
 fn from_wkt(wkt: &str) -> RasterCrs {
     let tree = parse(wkt);
     let (horizontal, vertical) = match &tree {
@@ -175,11 +196,7 @@ fn from_wkt(wkt: &str) -> RasterCrs {
     let h = horizontal.and_then(|n| Some((horizontal_kind(n)?, epsg(n)?)));
     let v = vertical.and_then(epsg);
     let Some((kind, code)) = h else {
-        return RasterCrs {
-            described: "none".into(),
-            warning: Some(format!("the input's WKT CRS ({}) names no EPSG code, which GeoTIFF keys need, so the rasters have no CRS: assign it in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs with the WKT)", name_of(horizontal.or(tree.as_ref())))),
-            ..no_keys()
-        };
+        return without_code(wkt, name_of(horizontal.or(tree.as_ref())));
     };
     let mut keys = vec![
         (MODEL_TYPE, kind.0),
@@ -232,6 +249,42 @@ fn epsg(n: &Node) -> Option<u16> {
                 .is_some_and(|a| a.eq_ignore_ascii_case("EPSG"))
         })
         .and_then(|c| c.values.get(1)?.trim().parse().ok())
+}
+
+/// The CRS of a WKT that names no EPSG code for its horizontal CRS (`name`): no keys, and the
+/// WKT for GDAL's sidecar when it is whole. A WKT whose brackets close before its end (the
+/// root node ends early: las14_pdrf6's vertical CRS is outside it) is one GDAL refuses too.
+fn without_code(wkt: &str, name: String) -> RasterCrs {
+    let gis =
+        "assign it in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs with the CRS)";
+    let (warning, wkt) = match whole_end(wkt) {
+        Ok(()) => (format!("the input's WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need: each raster's CRS is that WKT in the file beside it (NAME.tif.aux.xml), which GDAL (QGIS, rasterio, R terra) and ArcGIS read; a program that reads only GeoTIFF keys sees no CRS"), Some(wkt.to_string())),
+        Err(why) => (format!("the input's WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need, and {why}, so GDAL cannot read it either: the rasters have no CRS; {gis}"), None),
+    };
+    RasterCrs {
+        described: format!("{name} (the input's WKT, which names no EPSG code)"),
+        warning: Some(warning),
+        wkt,
+        ..no_keys()
+    }
+}
+
+/// Whether `wkt` is one node and nothing after it; else what is wrong, for a message.
+fn whole_end(wkt: &str) -> Result<(), String> {
+    let chars: Vec<char> = wkt.chars().collect();
+    let mut at = 0;
+    if node(&chars, &mut at).is_none() {
+        return Err("is not well-formed".into());
+    }
+    skip_spaces(&chars, &mut at);
+    match at == chars.len() {
+        true => Ok(()),
+        false => Err(format!(
+            "its brackets close at character {} of {}, before its end",
+            at,
+            chars.len()
+        )),
+    }
 }
 
 /// A node's name (its first quoted value), for messages.

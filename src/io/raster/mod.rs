@@ -9,6 +9,7 @@ mod bins;
 pub(crate) mod geokeys;
 pub(crate) mod geotiff;
 mod rows;
+pub(crate) mod sidecar;
 mod sums;
 
 use std::path::{Path, PathBuf};
@@ -413,7 +414,8 @@ impl Rasterizer {
     }
 
     /// Writes one GeoTIFF per column and the point count into the request's directory (made if
-    /// missing), each complete or absent. Returns what was written; an error when no point came.
+    /// missing), each complete or absent, with GDAL's sidecar of each when the keys cannot hold
+    /// the CRS ([`sidecar`]). Returns what was written; an error when no point came.
     /// A set `cancel` stops the writing (nothing appears).
     pub(crate) fn finish(self, crs: &RasterCrs, cancel: &AtomicBool) -> Result<RasterSummary> {
         let (Some(lo), Some(hi)) = (self.lo, self.hi) else {
@@ -480,6 +482,7 @@ impl Rasterizer {
             count += 1;
         }
         let (looks, factor) = rows.finish()?;
+        files.extend(sidecar::write_all(&files, crs.wkt.as_deref())?);
         let counts = |name: &str| RasterColumn {
             name: name.into(),
             unit: "points".into(),

@@ -1,18 +1,13 @@
-//! What would make rasters fail or come out wrong, checked before any point is read (for
-//! `process --raster`, before the curvature work): the raster directory, the inputs' CRSs and
-//! the size of the grid their declared bounds span.
+//! What would make rasters fail, checked before any point is read (for `process --raster`,
+//! before the curvature work): the raster directory and the size of the grid the inputs'
+//! declared bounds span. The inputs' CRSs are checked by `run::one_map`.
 
 use std::path::Path;
 
 use crate::core::raster::Cell;
 use crate::error::{Error, Result};
-use crate::io::raster::geokeys::RasterCrs;
 use crate::io::raster::{check_size, length_text};
 use crate::io::source::{declared_bounds, PointSource};
-use crate::progress::Reporter;
-use crate::run::prepare::same_file;
-
-use super::source_crs;
 
 /// Refuses a raster directory `dir` (given by `option`) that is a file or cannot be made: the
 /// nearest existing folder on its path gets a directory made and removed at once, so that the
@@ -50,48 +45,13 @@ fn probe(dir: &Path) -> std::io::Result<()> {
     std::fs::remove_dir(&p)
 }
 
-/// The CRS of the rasters of `sources` (the first's), refusing inputs it cannot hold: the same
-/// file twice (its points would count twice), a file in another CRS (one raster has one CRS:
-/// the other's points would land at the wrong place), or a grid of cells of `cell` file units
-/// (`unit`) over their declared bounds beyond [`crate::core::raster::max_cells`]. A file
-/// without a CRS beside one with it, or user-defined CRSs whose keys differ, are warned about:
-/// the coordinates may well be in one CRS.
-pub(super) fn check_inputs(
+/// Refuses a grid of cells of `cell` file units (`unit`) over the declared bounds of `sources`
+/// beyond [`crate::core::raster::max_cells`] (files that declare no bounds are checked once
+/// their points are binned).
+pub(super) fn check_grid(
     sources: &[Box<dyn PointSource>],
     (cell, unit): (f64, &str),
-    reporter: &dyn Reporter,
-) -> Result<RasterCrs> {
-    let Some(first) = sources.first() else {
-        return Err(Error::Usage("raster: name at least one input file".into()));
-    };
-    let crs = source_crs(first.as_ref());
-    for (i, s) in sources.iter().enumerate().skip(1) {
-        if let Some(twin) = sources[..i].iter().find(|t| same_file(t.path(), s.path())) {
-            return Err(Error::Usage(format!(
-                "{} is named twice (also as {}): its points would count twice; name each file once",
-                s.path().display(),
-                twin.path().display()
-            )));
-        }
-        let other = source_crs(s.as_ref());
-        match crs.same_map(&other) {
-            Some(false) => return Err(Error::Usage(format!(
-                "{} is in another CRS ({}) than {} ({}): one raster has one CRS, and this file's points would land elsewhere on its map. Reproject one of them first (PDAL: filters.reprojection; LAStools: las2las -target_epsg), or make the rasters of each file apart",
-                s.path().display(),
-                other.described,
-                first.path().display(),
-                crs.described
-            ))),
-            None if other.directory != crs.directory => reporter.warn(&format!(
-                "{} has {} and {} has {}: the rasters take the first's, and the points of both are placed by their coordinates as they are",
-                first.path().display(),
-                crs_words(&crs),
-                s.path().display(),
-                crs_words(&other)
-            )),
-            _ => {}
-        }
-    }
+) -> Result<()> {
     let bounds: Option<Vec<[[f64; 3]; 2]>> = sources
         .iter()
         .map(|s| declared_bounds(s.as_ref()))
@@ -112,13 +72,5 @@ pub(super) fn check_inputs(
         let points = sources.iter().map(|s| s.len()).sum();
         check_size(lo, hi, (cell, unit), points)?;
     }
-    Ok(crs)
-}
-
-/// "the CRS EPSG:2949, from ..." or "no CRS".
-fn crs_words(c: &RasterCrs) -> String {
-    match c.described.as_str() {
-        "none" => "no CRS".into(),
-        d => format!("the CRS {d}"),
-    }
+    Ok(())
 }

@@ -13,11 +13,12 @@ use crate::io::columns::output::OutputColumns;
 use crate::io::columns::ColumnSet;
 use crate::io::durable::{sweep_dead_temps, tmp_name};
 use crate::io::las::extra_bytes;
-use crate::io::raster::geokeys::{raster_crs, RasterCrs};
+use crate::io::raster::geokeys::{source_crs, RasterCrs};
 pub use crate::io::raster::RasterSummary;
 use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
-use crate::io::source::{declared_bounds, PointSource, SourceLayout};
+use crate::io::source::{declared_bounds, PointSource};
 use crate::progress::Reporter;
+use crate::run::one_map::{check_one_map, Joined};
 use crate::run::spec::RunSpec;
 use read::{column_names, reader, reader_of_later, tally_integers, Binner, Reader};
 
@@ -100,7 +101,8 @@ fn make_rasters(
     let symbol = unit_symbol(first);
     let mut columns = choose_columns(first, job.columns.as_deref(), &symbol)?;
     check::check_dir(&job.dir, "-o")?;
-    let crs = check::check_inputs(&sources, (cell, &symbol), reporter)?;
+    let crs = check_one_map(&sources, Joined::Rasters, reporter)?;
+    check::check_grid(&sources, (cell, &symbol))?;
     let readers = sources
         .iter()
         .map(|s| {
@@ -147,18 +149,6 @@ fn declared_area(sources: &[Box<dyn PointSource>]) -> Option<f64> {
 /// The symbol of the CRS unit of `s` ("m", "ftUS"), "unit" when it has none.
 fn unit_symbol(s: &dyn PointSource) -> String {
     s.unit().unit().map_or("unit".into(), |u| u.symbol())
-}
-
-/// The raster CRS of a source: its LAS CRS ([`raster_crs`]); none for other formats.
-pub(crate) fn source_crs(s: &dyn PointSource) -> RasterCrs {
-    match s.layout() {
-        SourceLayout::Las(p) => {
-            let h = p.header;
-            let records = p.vlrs.iter().chain(p.evlrs.iter().map(|(_, v)| v));
-            raster_crs(records, h.version.1 >= 4 && h.global_encoding & 0x10 != 0)
-        }
-        SourceLayout::Converted => raster_crs(std::iter::empty(), false),
-    }
 }
 
 /// The columns to raster: those named (each must be in `s`), or every curvature column `s`
@@ -295,14 +285,11 @@ fn output_raster_columns(
 }
 
 /// Checks the rasters `opts` asks of the run `spec` before any work (run by every command that
-/// runs a stage, so that a dry run checks them too): their columns, their directory, the
-/// inputs' CRSs and the grid's size by the declared bounds. The same failures found only once
-/// the outputs are written would have cost the whole run.
-pub(crate) fn check_output_rasters(
-    opts: &RasterOptions,
-    spec: &RunSpec,
-    reporter: &dyn Reporter,
-) -> Result<()> {
+/// runs a stage, so that a dry run checks them too): their columns, their directory and the
+/// grid's size by the declared bounds (the inputs' CRSs were checked when the run was
+/// resolved: `run::one_map`). The same failures found only once the outputs are written would
+/// have cost the whole run.
+pub(crate) fn check_output_rasters(opts: &RasterOptions, spec: &RunSpec) -> Result<()> {
     let Some(first) = spec.sources.first().map(|s| s.as_ref()) else {
         return Err(Error::Usage("raster: name at least one input file".into()));
     };
@@ -313,7 +300,7 @@ pub(crate) fn check_output_rasters(
         .unwrap_or_else(|| default_dir(&spec.outputs));
     check::check_dir(&dir, "--raster-dir")?;
     let cell = opts.cell.in_file_units(first.unit().unit());
-    check::check_inputs(&spec.sources, (cell, &spec.cols.unit), reporter).map(drop)
+    check::check_grid(&spec.sources, (cell, &spec.cols.unit))
 }
 
 /// The rasters of a run's outputs (`process --raster`, `assemble --raster`), binned from each
