@@ -124,8 +124,8 @@ def main():
     p.add_argument("--stat", default="mean")
     p.add_argument("--columns", required=True)
     p.add_argument("--no-crs", action="store_true",
-                   help="expect rasters without a CRS (a WKT naming no EPSG code, which tilecurv "
-                        "cannot put in GeoTIFF keys)")
+                   help="expect rasters without a CRS (a malformed WKT naming no EPSG code, "
+                        "which neither GeoTIFF keys nor GDAL's sidecar can carry)")
     a = p.parse_args()
     las = laspy.read(a.points)
     ix = np.floor(np.asarray(las.x) / a.cell).astype(np.int64)
