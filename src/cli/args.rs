@@ -375,7 +375,8 @@ pub(super) struct RasterOut {
     #[arg(long = "raster-columns", value_name = "LIST", help = COLUMNS_HELP, requires = "cell", value_parser = parse_columns)]
     raster_columns: Option<Names>,
 
-    #[arg(long = "raster-stat", value_name = "STAT", help = STAT_HELP, default_value = "mean", value_parser = Stat::parse)]
+    // `--stat` too: `tilecurv raster`'s name for it, which the issue and users carry over.
+    #[arg(long = "raster-stat", alias = "stat", value_name = "STAT", help = STAT_HELP, default_value = "mean", requires = "cell", value_parser = Stat::parse)]
     raster_stat: Stat,
 }
 

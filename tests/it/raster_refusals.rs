@@ -188,3 +188,60 @@ fn an_all_but_empty_grid_is_refused() {
     assert!(err.contains("has no CRS"), "{err}");
     assert!(!r.exists());
 }
+
+/// `process --raster-stat` without `--raster` is refused (it would be ignored), and `--stat`,
+/// `tilecurv raster`'s name for it, is the same option: the rasters are byte for byte those of
+/// `--raster-stat`.
+#[test]
+fn the_raster_statistic_needs_a_raster_and_answers_to_stat() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("t.laz");
+    let alone = [
+        "process",
+        s(&input),
+        "-o",
+        s(&out),
+        "--raster-stat",
+        "median",
+    ];
+    let out_run = tilecurv(&alone);
+    let err = String::from_utf8_lossy(&out_run.stderr);
+    assert_eq!(out_run.status.code(), Some(2), "{err}");
+    assert!(err.contains("--raster <CELL>"), "{err}");
+    assert!(listing(dir.path()).is_empty());
+    let mut rasters = Vec::new();
+    // The third run takes the default, mean: the median must have been used, not ignored.
+    for (i, option) in ["--raster-stat", "--stat", "--raster-stat"]
+        .into_iter()
+        .enumerate()
+    {
+        let out = dir.path().join(format!("t{i}.laz"));
+        let run = tilecurv(&[
+            "process",
+            s(&input),
+            "-o",
+            s(&out),
+            "-k",
+            "10",
+            "--raster",
+            "5m",
+            option,
+            if i < 2 { "median" } else { "mean" },
+        ]);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let h = std::fs::read(dir.path().join(format!("t{i}.rasters/H.tif"))).expect("H.tif");
+        rasters.push(h);
+    }
+    assert!(rasters[0] == rasters[1], "--stat and --raster-stat differ");
+    assert!(
+        rasters[0] != rasters[2],
+        "the median rasters equal the mean's"
+    );
+}
