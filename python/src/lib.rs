@@ -319,7 +319,12 @@ fn process(
     memory: Option<String>,
     quiet: bool,
     progress: Option<Py<PyAny>>,
-    rasters: (Option<String>, Option<PathBuf>, Option<Vec<String>>, String),
+    rasters: (
+        Option<String>,
+        Option<PathBuf>,
+        Option<Vec<String>>,
+        Option<String>,
+    ),
 ) -> PyResult<Bound<'_, PyDict>> {
     let options = run_options(options)?;
     let mut job = tilecurv::run::Process::new(inputs, output, options).map_err(py_error)?;
@@ -327,7 +332,7 @@ fn process(
     job.dry_run = dry_run;
     let (cell, dir, columns, stat) = rasters;
     let exec = ExecOptions {
-        rasters: raster_options(cell, dir, columns, &stat)?,
+        rasters: raster_options(cell, dir, columns, stat.as_deref())?,
         ..exec_options(threads, memory.as_deref())?
     };
     let on_line = |line: &str| -> PyResult<()> {
@@ -364,19 +369,19 @@ fn raster_options(
     cell: Option<String>,
     dir: Option<PathBuf>,
     columns: Option<Vec<String>>,
-    stat: &str,
+    stat: Option<&str>,
 ) -> PyResult<Option<RasterOptions>> {
     let Some(cell) = cell else {
-        if dir.is_some() || columns.is_some() {
+        if dir.is_some() || columns.is_some() || stat.is_some() {
             return Err(UsageError::new_err(
-                "raster_dir and raster_columns need raster (the cell size, e.g. raster=\"1m\")",
+                "raster_dir, raster_columns and raster_stat need raster (the cell size, e.g. raster=\"1m\")",
             ));
         }
         return Ok(None);
     };
     Ok(Some(RasterOptions {
         cell: Length::parse(&cell).map_err(|why| UsageError::new_err(format!("raster: {why}")))?,
-        stat: parse_stat(stat)?,
+        stat: parse_stat(stat.unwrap_or("mean"))?,
         columns: non_empty(columns)?,
         dir,
     }))

@@ -48,3 +48,7 @@ def test_raster_errors_are_usage_errors(tmp_path):
     with pytest.raises(tilecurv.UsageError, match="at least one input"):
         tilecurv.raster([], tmp_path / "r", cell="1m", columns=["z"])
     assert not (tmp_path / "r").exists()
+    # A raster statistic without a raster would be ignored: refused, as --raster-stat is.
+    with pytest.raises(tilecurv.UsageError, match="raster_stat need raster"):
+        tilecurv.process(SAMPLE, tmp_path / "o.laz", raster_stat="median")
+    assert not (tmp_path / "o.laz").exists()

@@ -291,7 +291,7 @@ def process(
     raster: Optional[str] = None,
     raster_dir: Optional[Union[str, os.PathLike]] = None,
     raster_columns: Optional[Sequence[str]] = None,
-    raster_stat: str = "mean",
+    raster_stat: Optional[str] = None,
     **options: Any,
 ) -> Dict[str, Any]:
     """``tilecurv process``: the command line's run of the input files into ``output`` (a file
@@ -299,7 +299,8 @@ def process(
 
     ``raster="1m"`` also writes the GeoTIFF rasters and PNG quick looks of ``--raster``
     (``raster_dir``, ``raster_columns``, ``raster_stat`` as ``--raster-dir``,
-    ``--raster-columns``, ``--raster-stat``), binned as the outputs are written.
+    ``--raster-columns``, ``--raster-stat``: mean unless named; each needs ``raster``), binned
+    as the outputs are written.
 
     ``progress`` is called with each ``--progress-json`` event as a dict (``phase_start``,
     ``progress``, ``phase_end``, then ``summary``). ``quiet`` keeps only warnings on stderr, as
