@@ -16,6 +16,14 @@ use crate::io::source::{PointSource, SourceLayout};
 
 pub(crate) use crate::io::output::PointSink;
 
+/// Whether `a` and `b` name the same existing file.
+pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
 /// The output formats, chosen by the output's extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum OutputFormat {

@@ -5,9 +5,9 @@
 
 use crate::error::{Error, Result};
 use crate::io::raster::geokeys::{source_crs, RasterCrs};
+use crate::io::sink::same_file;
 use crate::io::source::PointSource;
 use crate::progress::Reporter;
-use crate::run::prepare::same_file;
 
 /// What the joined inputs become: the words of the messages about them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

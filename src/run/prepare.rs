@@ -10,19 +10,11 @@ use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnSet, Group};
 use crate::io::crs::UnitSource;
-use crate::io::sink::OutputOptions;
+use crate::io::sink::{same_file, OutputOptions};
 use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
 use crate::run::one_map::{check_one_map, Joined};
 use crate::run::spec::RunSpec;
-
-/// Whether `a` and `b` name the same existing file.
-pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => false,
-    }
-}
 
 /// The output path of each input: `output` itself for one input (or a file in it if it is a
 /// directory), `<output dir>/<input file name>` for several.
