@@ -48,8 +48,9 @@ impl Joined {
 
 /// The CRS of the first of `sources`, refusing inputs that cannot be joined into `joined`: the
 /// same file twice (its points would count twice) or a file in another CRS (by EPSG code:
-/// [`RasterCrs::same_map`]). A file without a CRS beside one with it, or user-defined CRSs
-/// whose keys differ, are warned about: the coordinates may well be in one CRS.
+/// [`RasterCrs::same_map`]). CRSs that cannot be compared are warned about when they differ (a
+/// file without a CRS beside one with it, user-defined keys that differ, WKTs without an EPSG
+/// code that differ): the coordinates may well be in one CRS.
 pub(crate) fn check_one_map(
     sources: &[Box<dyn PointSource>],
     joined: Joined,
@@ -79,14 +80,16 @@ pub(crate) fn check_one_map(
                     crs.described
                 )));
             }
-            None if other.directory != crs.directory => reporter.warn(&format!(
-                "{} has {} and {} has {}: {}",
-                first.path().display(),
-                crs_words(&crs),
-                s.path().display(),
-                crs_words(&other),
-                joined.undecided()
-            )),
+            None if (&other.directory, &other.wkt) != (&crs.directory, &crs.wkt) => {
+                reporter.warn(&format!(
+                    "{} has {} and {} has {}: {}",
+                    first.path().display(),
+                    crs_words(&crs),
+                    s.path().display(),
+                    crs_words(&other),
+                    joined.undecided()
+                ))
+            }
             _ => {}
         }
     }

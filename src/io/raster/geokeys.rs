@@ -258,7 +258,7 @@ fn without_code(wkt: &str, name: String) -> RasterCrs {
     let gis =
         "assign it in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs with the CRS)";
     let (warning, wkt) = match whole_end(wkt) {
-        Ok(()) => (format!("the input's WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need: each raster's CRS is that WKT in the file beside it (NAME.tif.aux.xml), which GDAL (QGIS, rasterio, R terra) and ArcGIS read; a program that reads only GeoTIFF keys sees no CRS"), Some(wkt.to_string())),
+        Ok(()) => (format!("the input's WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need: each raster's CRS is that WKT in GDAL's sidecar beside it (H.tif.aux.xml for H.tif), which GDAL (QGIS, rasterio, R terra) and ArcGIS read; a program that reads only GeoTIFF keys sees no CRS"), Some(wkt.to_string())),
         Err(why) => (format!("the input's WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need, and {why}, so GDAL cannot read it either: the rasters have no CRS; {gis}"), None),
     };
     RasterCrs {
@@ -443,6 +443,42 @@ mod tests {
         assert_eq!(user(43.0).same_map(&user(43.0)), Some(true));
         assert_eq!(user(43.0).same_map(&user(44.0)), None);
         assert_eq!(user(43.0).same_map(&wkt), None);
+        // WKTs without an EPSG code: the same text is the same map, another one undecided.
+        let lcc = |o: f64| {
+            from_wkt(&format!(
+                r#"PROJCS["lcc",GEOGCS["g",DATUM["d",SPHEROID["GRS 1980",6378137,298.257222101]]],PROJECTION["Lambert_Conformal_Conic_2SP"],PARAMETER["latitude_of_origin",{o}],UNIT["foot",0.3048]]"#
+            ))
+        };
+        assert!(lcc(41.75).wkt.is_some());
+        assert_eq!(lcc(41.75).same_map(&lcc(41.75)), Some(true));
+        assert_eq!(lcc(41.75).same_map(&lcc(42.0)), None);
+        assert_eq!(lcc(41.75).same_map(&no_keys()), None);
+    }
+
+    /// A WKT without an EPSG code goes to the sidecar when it is one whole node; one whose
+    /// brackets close early (las14_pdrf6's, its vertical CRS outside the root) does not, and
+    /// the warning says where it ends.
+    #[test]
+    fn only_a_whole_wkt_without_a_code_goes_to_the_sidecar() {
+        let whole = r#"PROJCS["UTM_10N",GEOGCS["WGS84",DATUM["WGS84",SPHEROID["WGS 84",6378137,298.257223563]]],PROJECTION["Transverse_Mercator"],UNIT["metres",1]]"#;
+        let c = from_wkt(whole);
+        assert_eq!(c.wkt.as_deref(), Some(whole));
+        assert!(c.warning.as_deref().is_some_and(|w| w.contains("aux.xml")));
+        let cut = format!(r#"COMPD_CS["P",{whole}],VERT_CS["v",UNIT["metres",1]]]"#);
+        let c = from_wkt(&cut);
+        assert_eq!(c.wkt, None);
+        // `COMPD_CS["P",` (13 characters), the projected CRS, then the `]` that ends the root.
+        let at = format!(
+            "close at character {} of {}",
+            13 + whole.len() + 1,
+            cut.len()
+        );
+        assert!(
+            c.warning.as_deref().is_some_and(|w| w.contains(&at)),
+            "{:?}",
+            c.warning
+        );
+        assert!(c.described.contains("UTM_10N"), "{}", c.described);
     }
 
     /// A WKT 1 projected CRS gives its own code, not a nested one (the datum's, the unit's).
