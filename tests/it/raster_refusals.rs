@@ -95,29 +95,15 @@ fn inputs_in_two_crss_or_named_twice_are_refused() {
         &["in another CRS", "EPSG:3645", "EPSG:2949", "Reproject"],
     );
     assert!(err.contains("Haystack_Rock.las"), "{err}");
+    let into = format!("{}/", out.display());
+    let process_two = |a: &Path, b: &Path| ["process", s(a), s(b), "-o", &into].map(String::from);
     // Without rasters too: the curvature of one scene would take points of two maps.
-    let plain = [
-        "process",
-        s(&topo),
-        s(&hay),
-        "-o",
-        &format!("{}/", out.display()),
-    ];
-    refused(
-        &plain,
-        &["in another CRS", "one scene", "process each file apart"],
-    );
+    let says = ["in another CRS", "one scene", "process each file apart"];
+    refused(&process_two(&topo, &hay), &says);
     // The same file under another name (a link) would count its points twice.
     let link = dir.path().join("link.las");
     std::os::unix::fs::symlink(&topo, &link).expect("symlink");
-    let twice = [
-        "process",
-        s(&topo),
-        s(&link),
-        "-o",
-        &format!("{}/", out.display()),
-    ];
-    refused(&twice, &["named twice", "link.las"]);
+    refused(&process_two(&topo, &link), &["named twice", "link.las"]);
     std::fs::remove_file(&link).expect("link removed");
     let r = dir.path().join("r");
     refused(&raster_z(&topo, &hay, &r), &["in another CRS"]);
