@@ -76,7 +76,7 @@ pub(super) struct ProcessArgs {
     #[arg(long)]
     dry_run: bool,
 
-    /// Work directory for buckets and per-tile results (default: .<output name>.tilecurv beside
+    /// Work directory for buckets and per-tile results (default: `.<output name>.tilecurv` beside
     /// the output). Kept when a run is interrupted or fails, so that the same command resumes
     /// from the finished tiles; removed after success. Work from other inputs or parameters is
     /// detected and discarded.

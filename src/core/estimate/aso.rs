@@ -122,7 +122,7 @@ impl FitScalar for Jet {
 }
 
 /// Gradient and Hessian of F(x) = f(x; x) at x = 0 (eqs. 28-29 at the origin):
-/// g = grad u_c + u_l, Hs = Hess u_c + J + J^T + 2 u_q I with J_ab = d u_l[a]/dx_b.
+/// g = grad u_c + u_l, Hs = Hess u_c + J + J^T + 2 u_q I with J_ab = d u_l\[a\]/dx_b.
 fn field_derivatives(fit: &SphereFit<Jet>) -> FieldDerivatives {
     let g = [0, 1, 2].map(|a| fit.uc.g[a] + fit.ul[a].v);
     let mut hs = fit.uc.h;

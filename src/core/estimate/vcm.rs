@@ -99,7 +99,7 @@ pub struct Buffers {
     points: Vec<V3>,
 }
 
-/// Covariance of Vor(points[c]) ∩ B(points[c], big_r) about points[c], with `points` already
+/// Covariance of Vor(`points[c]`) ∩ B(`points[c]`, big_r) about `points[c]`, with `points` already
 /// in the quadrature frame. Points coinciding with the centre (duplicates) do not clip.
 fn cell_covariance(points: &[V3], c: usize, big_r: f64, planes: &mut Vec<Plane>) -> M3 {
     let p = points[c];

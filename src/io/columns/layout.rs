@@ -9,7 +9,7 @@ use crate::core::compute::{PointResult, NO_PATCH};
 use crate::core::estimate::{Curvature, MAX_EXTRA};
 use crate::core::terrain::TerrainValues;
 
-/// The most values [`ColumnSet::stored`] lists: the normal (3), H, K, k1, k2, the two
+/// The most values [`ColumnSet::stored`](super::ColumnSet::stored) lists: the normal (3), H, K, k1, k2, the two
 /// directions (6), the extra values, the scale and its flags, the terrain values and flags.
 pub(super) const MAX_STORED: usize = 3 + 4 + 6 + MAX_EXTRA + 2 + TerrainValue::ALL.len();
 
@@ -83,7 +83,7 @@ fn terrain_block(results: &[PointResult], records: &mut [u8], (stride, at): (usi
     }
 }
 
-/// The values of a result record in their order and their width ([`ColumnSet::layout`]):
+/// The values of a result record in their order and their width ([`ColumnSet::layout`](super::ColumnSet::layout)):
 /// found once rather than per record (the chain of optional groups was half the cost of a
 /// decode). No allocation, so that it can be made for each piece of an output.
 #[derive(Debug, Clone, Copy)]

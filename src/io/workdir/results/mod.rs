@@ -3,7 +3,7 @@
 //! rename, directory fsync). A tile is done if and only if its result file exists and is whole
 //! (every block decodes and the count is the plan's, [`is_complete`]): this is the resume
 //! journal. [`Merger`] reads them back in id order with a bounded fan-in. The format
-//! ([`file`]): a header with the tile's [`CurvatureStats`] (the magnitudes the outputs' scaled
+//! ([`mod@file`]): a header with the tile's [`CurvatureStats`] (the magnitudes the outputs' scaled
 //! columns take their steps from, core::quantize, so that assemble learns them without reading
 //! every record twice), then blocks of ids (varint gaps) and records (the global patch only
 //! with `--orient propagate`, the column values of
