@@ -376,7 +376,7 @@ pub(super) struct RasterOut {
     raster_columns: Option<Names>,
 
     // `--stat` too: `tilecurv raster`'s name for it, which the issue and users carry over.
-    #[arg(long = "raster-stat", alias = "stat", value_name = "STAT", help = STAT_HELP, default_value = "mean", requires = "cell", value_parser = Stat::parse)]
+    #[arg(long = "raster-stat", visible_alias = "stat", value_name = "STAT", help = STAT_HELP, default_value = "mean", requires = "cell", value_parser = Stat::parse)]
     raster_stat: Stat,
 }
 

@@ -16,8 +16,18 @@ use crate::io::source::{PointSource, SourceLayout};
 
 pub(crate) use crate::io::output::PointSink;
 
-/// Whether `a` and `b` name the same existing file.
+/// Whether `a` and `b` name the same existing file: by device and inode, so that a symbolic
+/// link and a hard link (two names of one file, which a path cannot tell apart) are caught.
 pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (std::fs::metadata(a), std::fs::metadata(b)) {
+            (Ok(x), Ok(y)) => (x.dev(), x.ino()) == (y.dev(), y.ino()),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(x), Ok(y)) => x == y,
         _ => false,

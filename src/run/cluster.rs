@@ -242,6 +242,12 @@ fn set_outputs(spec: &mut RunSpec, output: &Path, reporter: &dyn Reporter) -> Re
     for note in check_output_columns(&spec.params, &spec.sources, &outputs, &spec.cols, ply)? {
         reporter.warn(&note);
     }
+    // The output's folder, made as `process` makes it (there, with the work directory beside).
+    for parent in outputs.iter().filter_map(|o| o.parent()) {
+        if !parent.as_os_str().is_empty() {
+            std::fs::create_dir_all(parent).map_err(|e| Error::write(parent, e))?;
+        }
+    }
     spec.outputs = outputs;
     Ok(())
 }

@@ -7,7 +7,6 @@ use crate::error::{Error, Result};
 use crate::io::raster::geokeys::{source_crs, RasterCrs};
 use crate::io::sink::same_file;
 use crate::io::source::PointSource;
-use crate::progress::Reporter;
 
 /// What the joined inputs become: the words of the messages about them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,16 +45,19 @@ impl Joined {
     }
 }
 
-/// The CRS of the first of `sources`, refusing inputs that cannot be joined into `joined`: the
+/// The CRS of the first of `sources` and the warnings about the others, refusing inputs that
+/// cannot be joined into `joined`: the
 /// same file twice (its points would count twice) or a file in another CRS (by EPSG code:
 /// [`RasterCrs::same_map`]). CRSs that cannot be compared are warned about when they differ (a
 /// file without a CRS beside one with it, user-defined keys that differ, WKTs without an EPSG
-/// code that differ): the coordinates may well be in one CRS.
+/// code that differ): the coordinates may well be in one CRS. The warnings are the caller's to
+/// print once its other checks have passed, so that a run refused later does not first say how
+/// it would have joined the files.
 pub(crate) fn check_one_map(
     sources: &[Box<dyn PointSource>],
     joined: Joined,
-    reporter: &dyn Reporter,
-) -> Result<RasterCrs> {
+) -> Result<(RasterCrs, Vec<String>)> {
+    let mut warnings = Vec::new();
     let Some(first) = sources.first() else {
         return Err(Error::Usage("name at least one input file".into()));
     };
@@ -81,7 +83,7 @@ pub(crate) fn check_one_map(
                 )));
             }
             None if (&other.directory, &other.wkt) != (&crs.directory, &crs.wkt) => {
-                reporter.warn(&format!(
+                warnings.push(format!(
                     "{} has {} and {} has {}: {}",
                     first.path().display(),
                     crs_words(&crs),
@@ -93,7 +95,7 @@ pub(crate) fn check_one_map(
             _ => {}
         }
     }
-    Ok(crs)
+    Ok((crs, warnings))
 }
 
 /// "the CRS EPSG:2949, from ..." or "no CRS".

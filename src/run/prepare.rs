@@ -30,23 +30,42 @@ pub(crate) fn output_paths(inputs: &[PathBuf], output: &Path) -> Result<Vec<Path
             inputs.len()
         )));
     }
+    check_input_names(inputs)?;
     std::fs::create_dir_all(output).map_err(|e| Error::write(output, e))?;
-    let mut outs: Vec<PathBuf> = Vec::new();
-    for input in inputs {
+    Ok(inputs
+        .iter()
+        .filter_map(|i| i.file_name())
+        .map(|name| output.join(name))
+        .collect())
+}
+
+/// Refuses inputs whose outputs would collide, since the outputs of several inputs take their
+/// inputs' file names: the same file named twice (its points would count twice; a link is the
+/// file it names), or two files of one name in different folders. Checked by every stage, so
+/// that a cluster's `plan` refuses what its `assemble` would.
+pub(crate) fn check_input_names(inputs: &[PathBuf]) -> Result<()> {
+    for (i, input) in inputs.iter().enumerate() {
         let name = input
             .file_name()
             .ok_or_else(|| Error::Usage(format!("{}: not a file name", input.display())))?;
-        let out = output.join(name);
-        if outs.contains(&out) {
-            return Err(Error::Usage(format!(
-                "two inputs are named {}: their outputs would collide in {}",
+        let Some(twin) = inputs[..i].iter().find(|t| t.file_name() == Some(name)) else {
+            continue;
+        };
+        return Err(Error::Usage(match same_file(twin, input) {
+            true => format!(
+                "{} is named twice (also as {}): its points would count twice; name each file once",
+                input.display(),
+                twin.display()
+            ),
+            false => format!(
+                "two inputs are named {} ({} and {}): the outputs of several inputs take their inputs' file names, so theirs would collide; rename one, or process them apart",
                 name.to_string_lossy(),
-                output.display()
-            )));
-        }
-        outs.push(out);
+                twin.display(),
+                input.display()
+            ),
+        }));
     }
-    Ok(outs)
+    Ok(())
 }
 
 /// Checks the outputs: a supported extension, and never one of the inputs.
@@ -400,6 +419,9 @@ fn open_checked(
     outputs: Vec<PathBuf>,
     reporter: &dyn Reporter,
 ) -> Result<RunSpec> {
+    if inputs.len() > 1 {
+        check_input_names(inputs)?;
+    }
     let mut notes = Vec::new();
     let sources = open_sources(inputs, &cfg, &mut notes)?;
     resolve(inputs, sources, notes, cfg, outputs, reporter)
@@ -417,7 +439,8 @@ pub(crate) fn resolve(
     reporter: &dyn Reporter,
 ) -> Result<RunSpec> {
     // First: inputs in two CRSs differ in more than their units.
-    check_one_map(&sources, Joined::Scene, reporter)?;
+    let (_, crs_notes) = check_one_map(&sources, Joined::Scene)?;
+    notes.extend(crs_notes);
     let CommonUnit {
         symbol: unit_name,
         unit,

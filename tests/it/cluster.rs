@@ -121,3 +121,53 @@ fn stages_by_hand_give_the_bytes_of_process() {
         "assemble created its output while refusing"
     );
 }
+
+/// The outputs of several inputs take their file names, so `plan` refuses two inputs of one
+/// name (which `assemble` would refuse after all the work) before it makes the work directory;
+/// `assemble` makes a missing output folder, as `process` does, and writes `process`'s bytes.
+#[test]
+fn plan_refuses_one_name_twice_and_assemble_makes_the_output_folder() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (a, other) = (dir.path().join("a.las"), dir.path().join("sub/a.las"));
+    generate_terrain(&a, "5k", 31, 5.0);
+    std::fs::create_dir_all(other.parent().expect("sub")).expect("sub");
+    std::fs::copy(&a, &other).expect("copy");
+    let work = dir.path().join("w");
+    let refused = tilecurv(&["plan", s(&a), s(&other), "--work", s(&work), "-q"]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{err}");
+    assert!(err.contains("two inputs are named a.las"), "{err}");
+    assert!(
+        !work.exists(),
+        "plan made its work directory while refusing"
+    );
+
+    let reference = dir.path().join("ref.las");
+    run(&["process", s(&a), "-o", s(&reference), "-q"], 0);
+    run(&["plan", s(&a), "--work", s(&work), "-q"], 0);
+    run(&["bucket", "--work", s(&work), "--task", "0", "-q"], 0);
+    let status = run(&["status", "--work", s(&work), "--missing"], 0);
+    let last: u64 = (status.trim().rsplit('-').next())
+        .and_then(|t| t.parse().ok())
+        .expect("the tile tasks missing, as FIRST-LAST");
+    for t in 0..=last {
+        run(
+            &[
+                "run-tile",
+                "--work",
+                s(&work),
+                "--task",
+                &t.to_string(),
+                "-q",
+            ],
+            0,
+        );
+    }
+    let out = dir.path().join("new/deeper/a.las");
+    run(&["assemble", "--work", s(&work), "-o", s(&out), "-q"], 0);
+    let (x, y) = (
+        std::fs::read(&out).expect("output"),
+        std::fs::read(&reference).expect("ref"),
+    );
+    assert!(x == y, "assemble's output differs from process's");
+}

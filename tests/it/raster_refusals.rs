@@ -104,6 +104,18 @@ fn inputs_in_two_crss_or_named_twice_are_refused() {
     let link = dir.path().join("link.las");
     std::os::unix::fs::symlink(&topo, &link).expect("symlink");
     refused(&process_two(&topo, &link), &["named twice", "link.las"]);
+    // A hard link is the same file under another name too (made of a copy: a hard link
+    // cannot cross from the shared data's file system).
+    let copy = dir.path().join("copy.las");
+    let hard = dir.path().join("hard.las");
+    std::fs::copy(&topo, &copy).expect("copy");
+    std::fs::hard_link(&copy, &hard).expect("hard link");
+    refused(
+        &process_two(&copy, &hard),
+        &["hard.las is named twice (also as"],
+    );
+    std::fs::remove_file(&copy).expect("copy removed");
+    std::fs::remove_file(&hard).expect("hard link removed");
     std::fs::remove_file(&link).expect("link removed");
     let r = dir.path().join("r");
     refused(&raster_z(&topo, &hay, &r), &["in another CRS"]);

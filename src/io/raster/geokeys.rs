@@ -39,6 +39,15 @@ pub(crate) struct RasterCrs {
 }
 
 impl RasterCrs {
+    /// What the rasters carry, for the log: the keys' CRS, the WKT of the sidecar, or none.
+    pub(crate) fn carried(&self) -> String {
+        match (&self.wkt, self.directory == no_keys().directory) {
+            (Some(_), _) => format!("{}, in GDAL's sidecar of each raster", self.described),
+            (None, true) => "none".into(),
+            (None, false) => self.described.clone(),
+        }
+    }
+
     /// The value of the key `id` stored in the directory itself, if any.
     fn key(&self, id: u16) -> Option<u16> {
         (self.directory.get(4..)?.chunks_exact(4))
@@ -75,16 +84,21 @@ impl RasterCrs {
 /// The code of a user-defined CRS, datum or unit in GeoTIFF keys.
 const USER_DEFINED: u16 = 32767;
 
-/// The raster CRS of a source: its LAS CRS ([`raster_crs`]); none for other formats.
+/// The raster CRS of a source: its LAS CRS ([`raster_crs`]); none for other formats. Its
+/// warning names the file.
 pub(crate) fn source_crs(s: &dyn PointSource) -> RasterCrs {
-    match s.layout() {
+    let mut crs = match s.layout() {
         SourceLayout::Las(p) => {
             let h = p.header;
             let records = p.vlrs.iter().chain(p.evlrs.iter().map(|(_, v)| v));
             raster_crs(records, h.version.1 >= 4 && h.global_encoding & 0x10 != 0)
         }
         SourceLayout::Converted => raster_crs(std::iter::empty(), false),
+    };
+    if let Some(w) = &mut crs.warning {
+        *w = format!("{}: {w}", s.path().display());
     }
+    crs
 }
 
 /// The raster CRS of a LAS file whose VLRs and EVLRs are `records`. As `crs_summary` chooses:
@@ -107,7 +121,7 @@ pub(crate) fn raster_crs<'a>(
         CrsRecord::Wkt(w) => from_wkt(&w),
         CrsRecord::None => RasterCrs {
             described: "none".into(),
-            warning: Some("the input has no CRS, so the rasters have none: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
+            warning: Some("it has no CRS, so the rasters have none: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
             ..no_keys()
         },
     }
@@ -157,7 +171,7 @@ fn from_keys(keys: Result<GeoKeys, String>, doubles: Vec<f64>, ascii: String) ->
     let Ok(mut keys) = keys else {
         return RasterCrs {
             described: "none".into(),
-            warning: Some("the input's GeoTIFF key directory is cut short, so the rasters have no CRS: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
+            warning: Some("its GeoTIFF key directory is cut short, so the rasters have no CRS: assign one in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs EPSG:<code>)".into()),
             ..no_keys()
         };
     };
@@ -258,8 +272,8 @@ fn without_code(wkt: &str, name: String) -> RasterCrs {
     let gis =
         "assign it in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs with the CRS)";
     let (warning, wkt) = match whole_end(wkt) {
-        Ok(()) => (format!("the input's WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need: each raster's CRS is that WKT in GDAL's sidecar beside it (H.tif.aux.xml for H.tif), which GDAL (QGIS, rasterio, R terra) and ArcGIS read; a program that reads only GeoTIFF keys sees no CRS"), Some(wkt.to_string())),
-        Err(why) => (format!("the input's WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need, and {why}, so GDAL cannot read it either: the rasters have no CRS; {gis}"), None),
+        Ok(()) => (format!("its WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need: each raster's CRS is that WKT in GDAL's sidecar file beside it (NAME.tif.aux.xml beside NAME.tif), which GDAL (QGIS, rasterio, R terra) and ArcGIS read; a program that reads only GeoTIFF keys sees no CRS"), Some(wkt.to_string())),
+        Err(why) => (format!("its WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need, and {why}, so GDAL cannot read it either: the rasters have no CRS; {gis}"), None),
     };
     RasterCrs {
         described: format!("{name} (the input's WKT, which names no EPSG code)"),

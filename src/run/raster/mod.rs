@@ -101,7 +101,11 @@ fn make_rasters(
     let symbol = unit_symbol(first);
     let mut columns = choose_columns(first, job.columns.as_deref(), &symbol)?;
     check::check_dir(&job.dir, "-o")?;
-    let crs = check_one_map(&sources, Joined::Rasters, reporter)?;
+    let (crs, crs_notes) = check_one_map(&sources, Joined::Rasters)?;
+    // Before the grid's check: inputs that may not share a CRS explain an all but empty grid.
+    for note in &crs_notes {
+        reporter.warn(note);
+    }
     check::check_grid(&sources, (cell, &symbol))?;
     let readers = sources
         .iter()
@@ -133,7 +137,7 @@ fn make_rasters(
     if let Some(w) = &crs.warning {
         reporter.warn(w);
     }
-    reporter.info(&format!("raster CRS: {}", crs.described));
+    reporter.info(&format!("raster CRS: {}", crs.carried()));
     rasterizer.finish(&crs, cancel)
 }
 
