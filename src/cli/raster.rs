@@ -25,7 +25,7 @@ pub(super) fn run(a: RasterArgs) -> Result<i32, i32> {
         &CANCEL,
     )
     .map_err(|e| fail(&e))?;
-    if let Some(w) = s.sparse_warning() {
+    for w in s.warnings() {
         reporter.warn(&w);
     }
     if !a.exec.quiet() {

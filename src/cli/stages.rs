@@ -18,17 +18,25 @@ pub(super) fn plan(a: PlanArgs) -> Result<i32, i32> {
     let p = cluster::plan(&a.inputs(), params, &a.work, split, &reporter).map_err(|e| fail(&e))?;
     if !a.quiet {
         say!(
-            "planned {}: {} bucket tasks, {} tile tasks of {} tiles of the grid each",
+            "planned {}: {}, {} of {} of the grid each",
             a.work.display(),
-            p.bucket_tasks,
-            p.tile_tasks,
-            p.tiles_per_task
+            counted(p.bucket_tasks, "bucket task"),
+            counted(p.tile_tasks, "tile task"),
+            counted(p.tiles_per_task, "tile")
         );
     }
     out!("bucket tasks: {}", p.bucket_tasks);
     out!("tiles per task: {}", p.tiles_per_task);
     out!("tasks: {}", p.tile_tasks);
     Ok(exit::OK)
+}
+
+/// "1 tile", "2 tiles": `n` of `noun` for a message.
+fn counted(n: impl TryInto<u64>, noun: &str) -> String {
+    match n.try_into().unwrap_or(u64::MAX) {
+        1 => format!("1 {noun}"),
+        n => format!("{n} {noun}s"),
+    }
 }
 
 /// `tilecurv bucket`.
@@ -43,7 +51,10 @@ pub(super) fn bucket(a: BucketArgs) -> Result<i32, i32> {
     let ran =
         cluster::bucket(&a.work, &opts, task, &reporter, &CANCEL).map_err(|e| fail_run(&e))?;
     if !a.exec.quiet() {
-        say!("done: {ran} bucket tasks run (the others were done)");
+        say!(
+            "done: {} run (the others were done)",
+            counted(ran, "bucket task")
+        );
     }
     Ok(exit::OK)
 }

@@ -146,7 +146,7 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
                 ));
             }
         })?;
-        if let Some(w) = s.sparse_warning() {
+        for w in s.warnings() {
             exec.reporter.warn(&w);
         }
         exec.reporter.info(&format!(

@@ -158,9 +158,38 @@ impl RasterSummary {
         length_text(self.grid.cell, &self.unit)
     }
 
+    /// What a user is to be told of the rasters written: a sparse grid, and other runs' rasters
+    /// left in the directory.
+    pub fn warnings(&self) -> Vec<String> {
+        self.sparse_warning()
+            .into_iter()
+            .chain(self.others_warning())
+            .collect()
+    }
+
+    /// A warning when the rasters' directory holds GeoTIFFs this run did not write (an earlier
+    /// run's columns, which it replaces only where the names meet): they may be of other points
+    /// or in another CRS, and a GIS opening the folder shows them beside these.
+    fn others_warning(&self) -> Option<String> {
+        let dir = self.files.first()?.parent()?;
+        let mut others: Vec<String> = (std::fs::read_dir(dir).ok()?)
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "tif") && !self.files.contains(p))
+            .filter_map(|p| Some(p.file_name()?.to_string_lossy().into_owned()))
+            .collect();
+        others.sort();
+        (!others.is_empty()).then(|| {
+            format!(
+                "{} also holds {}, which this run did not write: an earlier run's, perhaps of other points or in another CRS; remove them, or write these rasters to a directory of their own",
+                dir.display(),
+                others.join(", ")
+            )
+        })
+    }
+
     /// A warning when fewer than a quarter of the cells hold a point: the cell is finer than
     /// the points' spacing over much of the area, and the rasters are mostly no-data.
-    pub fn sparse_warning(&self) -> Option<String> {
+    fn sparse_warning(&self) -> Option<String> {
         let all = self.grid.cells();
         (self.cells.saturating_mul(4) < all).then(|| {
             format!(

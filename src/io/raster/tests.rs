@@ -118,3 +118,39 @@ fn cell_sizes_read_and_sparse_grids_are_warned_about() {
         "{w}"
     );
 }
+
+/// GeoTIFFs in the rasters' directory that the run did not write (an earlier run's) are named
+/// in a warning; the run's own files, and files of other kinds, are not.
+#[test]
+fn other_runs_rasters_are_warned_about() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let ours = ["H.tif", "H.png", "PointCount.tif"].map(|f| dir.path().join(f));
+    for f in ours
+        .iter()
+        .chain(&[dir.path().join("Old.tif"), dir.path().join("notes.txt")])
+    {
+        std::fs::write(f, b"x").expect("file");
+    }
+    let s = RasterSummary {
+        grid: CellGrid {
+            cell: 1.0,
+            west: 0,
+            north: 0,
+            width: 2,
+            height: 2,
+        },
+        unit: "m".into(),
+        points: 4,
+        cells: 4,
+        files: ours.to_vec(),
+    };
+    let w = s.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].contains("also holds Old.tif, which this run did not write"),
+        "{}",
+        w[0]
+    );
+    std::fs::remove_file(dir.path().join("Old.tif")).expect("removed");
+    assert!(s.warnings().is_empty());
+}
