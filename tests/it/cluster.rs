@@ -5,6 +5,14 @@
 
 use crate::common::{generate_terrain, s, stdout_of as run, tilecurv};
 
+/// Runs the tile tasks `tasks` of the work directory `work`, each to success.
+fn run_tiles(work: &std::path::Path, tasks: std::ops::Range<u64>) {
+    for t in tasks {
+        let task = t.to_string();
+        run(&["run-tile", "--work", s(work), "--task", &task, "-q"], 0);
+    }
+}
+
 #[test]
 fn stages_by_hand_give_the_bytes_of_process() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -58,19 +66,7 @@ fn stages_by_hand_give_the_bytes_of_process() {
         run(&["bucket", "--work", s(&work), "--task", t, "-q"], 0);
     }
     assert!(!dead.exists(), "the dead attempt's directory was not swept");
-    for t in 0..tasks {
-        run(
-            &[
-                "run-tile",
-                "--work",
-                s(&work),
-                "--task",
-                &t.to_string(),
-                "-q",
-            ],
-            0,
-        );
-    }
+    run_tiles(&work, 0..tasks);
     // A task run again changes nothing.
     run(&["run-tile", "--work", s(&work), "--task", "1", "-q"], 0);
     assert_eq!(
@@ -150,19 +146,7 @@ fn plan_refuses_one_name_twice_and_assemble_makes_the_output_folder() {
     let last: u64 = (status.trim().rsplit('-').next())
         .and_then(|t| t.parse().ok())
         .expect("the tile tasks missing, as FIRST-LAST");
-    for t in 0..=last {
-        run(
-            &[
-                "run-tile",
-                "--work",
-                s(&work),
-                "--task",
-                &t.to_string(),
-                "-q",
-            ],
-            0,
-        );
-    }
+    run_tiles(&work, 0..last + 1);
     let out = dir.path().join("new/deeper/a.las");
     run(&["assemble", "--work", s(&work), "-o", s(&out), "-q"], 0);
     let (x, y) = (
