@@ -97,7 +97,15 @@ fn estimate(run: &Run, exec: &Exec<'_>, work_path: &Path) -> Result<()> {
     let result_bytes = estimated_point_bytes(&spec.cols);
     let disk = n * (bucket_bytes + result_bytes);
     let est = 2.0 * scan_s + n * us_per_point * 1e-6;
-    out!("plan: {} points in {} tiles of {:.3} (file units); points per tile: min {}, median {median}, max {}", scan.stats.count, tplan.tiles.len(), spec.grid.size, counts[0], counts[counts.len() - 1]);
+    // The tile's edge in the CRS unit ("50 m"; "file units" without one).
+    let edge = crate::io::raster::length_text(spec.grid.size, &spec.cols.unit);
+    out!(
+        "plan: {} points in {} tiles of {edge}; points per tile: min {}, median {median}, max {}",
+        scan.stats.count,
+        tplan.tiles.len(),
+        counts[0],
+        counts[counts.len() - 1]
+    );
     out!(
         "halo: {:.1}% extra points loaded on the median tile",
         100.0 * (halo_factor - 1.0)

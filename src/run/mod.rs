@@ -264,19 +264,29 @@ fn refuses(e: &Error) -> bool {
 }
 
 /// Runs `tilecurv process`: every stage, in one process. A refused run (a usage error or bad
-/// input, exit 2 or 3) leaves no output, no temporary file, no work directory and no output
-/// directory it made; any other failure keeps the work for the same command to resume.
+/// input, exit 2 or 3) and a dry run leave no output, no temporary file, no work directory and
+/// no folder they made (the output directory, or the folders above the output); any other
+/// failure keeps the work for the same command to resume.
 pub fn process(
     job: &Process,
     opts: &ExecOptions,
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<Summary> {
-    let made_dir = !job.output.exists();
+    // Deepest first; the output itself among them when it is a directory to be made.
+    let missing: Vec<PathBuf> = (job.output.ancestors())
+        .filter(|a| !a.as_os_str().is_empty() && !a.exists())
+        .map(Path::to_path_buf)
+        .collect();
     let r = process_in(job, opts, reporter, cancel);
-    if r.as_ref().is_err_and(refuses) && made_dir && job.output.is_dir() {
-        // Empty once the work directory inside it is gone: remove_dir leaves anything else.
-        let _ = std::fs::remove_dir(&job.output);
+    if job.dry_run || r.as_ref().is_err_and(refuses) {
+        // Each empty once the work directory is gone: remove_dir leaves anything else. The
+        // output file's own path, never written by these runs, does not exist.
+        for dir in missing.iter().filter(|d| d.exists()) {
+            if std::fs::remove_dir(dir).is_err() {
+                break;
+            }
+        }
     }
     r
 }

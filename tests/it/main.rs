@@ -10,6 +10,7 @@ mod compact;
 mod damaged;
 mod faults;
 mod features;
+mod folders;
 mod formats;
 mod hostile;
 mod info;
