@@ -16,22 +16,24 @@ use crate::io::source::{PointSource, SourceLayout};
 
 pub(crate) use crate::io::output::PointSink;
 
-/// Whether `a` and `b` name the same existing file: by device and inode, so that a symbolic
-/// link and a hard link (two names of one file, which a path cannot tell apart) are caught.
+/// Which existing file `path` names, None when it names none: its device and inode, so that a
+/// symbolic link and a hard link (two names of one file, which a path cannot tell apart) are
+/// the file they name.
+#[cfg(unix)]
+pub(crate) fn file_id(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+}
+
+/// Which existing file `path` names, None when it names none: its canonical path.
+#[cfg(not(unix))]
+pub(crate) fn file_id(path: &Path) -> Option<PathBuf> {
+    path.canonicalize().ok()
+}
+
+/// Whether `a` and `b` name the same existing file ([`file_id`]).
 pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt;
-        match (std::fs::metadata(a), std::fs::metadata(b)) {
-            (Ok(x), Ok(y)) => (x.dev(), x.ino()) == (y.dev(), y.ino()),
-            _ => false,
-        }
-    }
-    #[cfg(not(unix))]
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => false,
-    }
+    file_id(a).is_some_and(|x| file_id(b) == Some(x))
 }
 
 /// The output formats, chosen by the output's extension.

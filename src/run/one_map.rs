@@ -5,7 +5,6 @@
 
 use crate::error::{Error, Result};
 use crate::io::raster::geokeys::{source_crs, RasterCrs};
-use crate::io::sink::same_file;
 use crate::io::source::PointSource;
 
 /// What the joined inputs become: the words of the messages about them.
@@ -45,10 +44,9 @@ impl Joined {
     }
 }
 
-/// The CRS of the first of `sources` and the warnings about the others, refusing inputs that
-/// cannot be joined into `joined`: the
-/// same file twice (its points would count twice) or a file in another CRS (by EPSG code:
-/// [`RasterCrs::same_map`]). CRSs that cannot be compared are warned about when they differ (a
+/// The CRS of the first of `sources` and the warnings about the others, refusing a file in
+/// another CRS than the first's (by EPSG code: [`RasterCrs::same_map`]); the same file named
+/// twice is `run::prepare::check_distinct_files`'s to refuse, before the files are opened. CRSs that cannot be compared are warned about when they differ (a
 /// file without a CRS beside one with it, user-defined keys that differ, WKTs without an EPSG
 /// code that differ): the coordinates may well be in one CRS. The warnings are the caller's to
 /// print once its other checks have passed, so that a run refused later does not first say how
@@ -62,14 +60,7 @@ pub(crate) fn check_one_map(
         return Err(Error::Usage("name at least one input file".into()));
     };
     let crs = source_crs(first.as_ref());
-    for (i, s) in sources.iter().enumerate().skip(1) {
-        if let Some(twin) = sources[..i].iter().find(|t| same_file(t.path(), s.path())) {
-            return Err(Error::Usage(format!(
-                "{} is named twice (also as {}): its points would count twice; name each file once",
-                s.path().display(),
-                twin.path().display()
-            )));
-        }
+    for s in sources.iter().skip(1) {
         let other = source_crs(s.as_ref());
         match crs.same_map(&other) {
             Some(false) => {

@@ -3,6 +3,7 @@
 //! tilecurv output's own columns are replaced, see `run::rerun`), then resolves the
 //! configuration against the inputs into a [`RunSpec`].
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use crate::config::{Resolved, RunParams};
@@ -10,7 +11,7 @@ use crate::core::plan::TileGrid;
 use crate::error::{Error, Result};
 use crate::io::columns::{ColumnSet, Group};
 use crate::io::crs::UnitSource;
-use crate::io::sink::{same_file, OutputOptions};
+use crate::io::sink::{file_id, same_file, OutputOptions};
 use crate::io::source::{PointSource, SourceLayout};
 use crate::progress::Reporter;
 use crate::run::one_map::{check_one_map, Joined};
@@ -39,31 +40,42 @@ pub(crate) fn output_paths(inputs: &[PathBuf], output: &Path) -> Result<Vec<Path
         .collect())
 }
 
-/// Refuses inputs whose outputs would collide, since the outputs of several inputs take their
-/// inputs' file names: the same file named twice (its points would count twice; a link is the
-/// file it names), or two files of one name in different folders. Checked by every stage, so
-/// that a cluster's `plan` refuses what its `assemble` would.
-pub(crate) fn check_input_names(inputs: &[PathBuf]) -> Result<()> {
-    for (i, input) in inputs.iter().enumerate() {
-        let name = input
-            .file_name()
-            .ok_or_else(|| Error::Usage(format!("{}: not a file name", input.display())))?;
-        let Some(twin) = inputs[..i].iter().find(|t| t.file_name() == Some(name)) else {
-            continue;
-        };
-        return Err(Error::Usage(match same_file(twin, input) {
-            true => format!(
+/// Refuses the same file named twice among `inputs`, whose points would count twice (a link is
+/// the file it names: [`file_id`]).
+pub(crate) fn check_distinct_files(inputs: &[PathBuf]) -> Result<()> {
+    let mut seen = HashMap::new();
+    for input in inputs {
+        let Some(id) = file_id(input) else { continue };
+        if let Some(twin) = seen.insert(id, input) {
+            return Err(Error::Usage(format!(
                 "{} is named twice (also as {}): its points would count twice; name each file once",
                 input.display(),
                 twin.display()
-            ),
-            false => format!(
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses inputs whose outputs would collide, since the outputs of several inputs take their
+/// inputs' file names: the same file named twice ([`check_distinct_files`]), or two files of
+/// one name in different folders. Checked by `process` and by the cluster's `plan`, so that
+/// `plan` refuses what `assemble` would.
+pub(crate) fn check_input_names(inputs: &[PathBuf]) -> Result<()> {
+    check_distinct_files(inputs)?;
+    let mut seen = HashMap::new();
+    for input in inputs {
+        let name = input
+            .file_name()
+            .ok_or_else(|| Error::Usage(format!("{}: not a file name", input.display())))?;
+        if let Some(twin) = seen.insert(name, input) {
+            return Err(Error::Usage(format!(
                 "two inputs are named {} ({} and {}): the outputs of several inputs take their inputs' file names, so theirs would collide; rename one, or process them apart",
                 name.to_string_lossy(),
                 twin.display(),
                 input.display()
-            ),
-        }));
+            )));
+        }
     }
     Ok(())
 }
@@ -364,6 +376,8 @@ pub(crate) fn open_inputs(
     params: RunParams,
     reporter: &dyn Reporter,
 ) -> Result<RunSpec> {
+    // The outputs `assemble` will name after the inputs, refused now rather than after the work.
+    check_input_names(inputs)?;
     open_checked(inputs, params, Vec::new(), reporter)
 }
 
@@ -419,9 +433,6 @@ fn open_checked(
     outputs: Vec<PathBuf>,
     reporter: &dyn Reporter,
 ) -> Result<RunSpec> {
-    if inputs.len() > 1 {
-        check_input_names(inputs)?;
-    }
     let mut notes = Vec::new();
     let sources = open_sources(inputs, &cfg, &mut notes)?;
     resolve(inputs, sources, notes, cfg, outputs, reporter)

@@ -19,6 +19,7 @@ use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
 use crate::io::source::{declared_bounds, PointSource};
 use crate::progress::Reporter;
 use crate::run::one_map::{check_one_map, Joined};
+use crate::run::prepare::check_distinct_files;
 use crate::run::spec::RunSpec;
 use read::{column_names, reader, reader_of_later, tally_integers, Binner, Reader};
 
@@ -81,6 +82,7 @@ fn make_rasters(
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<RasterSummary> {
+    check_distinct_files(&job.inputs)?;
     let sources = job
         .inputs
         .iter()
