@@ -196,7 +196,10 @@ fn from_keys(keys: Result<GeoKeys, String>, doubles: Vec<f64>, ascii: String) ->
 /// Keys naming the EPSG codes of a WKT's horizontal (and vertical) CRS; the WKT itself, for
 /// the sidecar, when it names no horizontal code.
 fn from_wkt(wkt: &str) -> RasterCrs {
-    let tree = parse(wkt);
+    let (tree, whole) = match parse(wkt) {
+        Some((tree, whole)) => (Some(tree), whole),
+        None => (None, Err("is not well-formed".into())),
+    };
     let (horizontal, vertical) = match &tree {
         Some(n) if is(n, &["COMPD_CS", "COMPOUNDCRS"]) => (
             n.children.iter().find(|c| horizontal_kind(c).is_some()),
@@ -210,7 +213,7 @@ fn from_wkt(wkt: &str) -> RasterCrs {
     let h = horizontal.and_then(|n| Some((horizontal_kind(n)?, epsg(n)?)));
     let v = vertical.and_then(epsg);
     let Some((kind, code)) = h else {
-        return without_code(wkt, name_of(horizontal.or(tree.as_ref())));
+        return without_code(wkt, whole, name_of(horizontal.or(tree.as_ref())));
     };
     let mut keys = vec![
         (MODEL_TYPE, kind.0),
@@ -266,12 +269,13 @@ fn epsg(n: &Node) -> Option<u16> {
 }
 
 /// The CRS of a WKT that names no EPSG code for its horizontal CRS (`name`): no keys, and the
-/// WKT for GDAL's sidecar when it is whole. A WKT whose brackets close before its end (the
-/// root node ends early: las14_pdrf6's vertical CRS is outside it) is one GDAL refuses too.
-fn without_code(wkt: &str, name: String) -> RasterCrs {
+/// WKT for GDAL's sidecar when it is `whole` (else what is wrong with it). A WKT whose brackets
+/// close before its end (the root node ends early: las14_pdrf6's vertical CRS is outside it)
+/// is one GDAL refuses too.
+fn without_code(wkt: &str, whole: Result<(), String>, name: String) -> RasterCrs {
     let gis =
         "assign it in the GIS (QGIS: Layer > Set CRS; GDAL: gdal_edit.py -a_srs with the CRS)";
-    let (warning, wkt) = match whole_end(wkt) {
+    let (warning, wkt) = match whole {
         Ok(()) => (format!("its WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need: each raster's CRS is that WKT in GDAL's sidecar file beside it (NAME.tif.aux.xml beside NAME.tif), which GDAL (QGIS, rasterio, R terra) and ArcGIS read; a program that reads only GeoTIFF keys sees no CRS"), Some(wkt.to_string())),
         Err(why) => (format!("its WKT CRS ({name}) names no EPSG code, which GeoTIFF keys need, and {why}, so GDAL cannot read it either: the rasters have no CRS; {gis}"), None),
     };
@@ -283,35 +287,28 @@ fn without_code(wkt: &str, name: String) -> RasterCrs {
     }
 }
 
-/// Whether `wkt` is one node and nothing after it; else what is wrong, for a message.
-fn whole_end(wkt: &str) -> Result<(), String> {
-    let chars: Vec<char> = wkt.chars().collect();
-    let mut at = 0;
-    if node(&chars, &mut at).is_none() {
-        return Err("is not well-formed".into());
-    }
-    skip_spaces(&chars, &mut at);
-    match at == chars.len() {
-        true => Ok(()),
-        false => Err(format!(
-            "its brackets close at character {} of {}, before its end",
-            at,
-            chars.len()
-        )),
-    }
-}
-
 /// A node's name (its first quoted value), for messages.
 fn name_of(n: Option<&Node>) -> String {
     n.and_then(|n| n.values.first().cloned())
         .unwrap_or_else(|| "unnamed".into())
 }
 
-/// Parses a WKT into its tree; None when it is not one.
-fn parse(wkt: &str) -> Option<Node> {
+/// Parses a WKT into its tree, with whether the tree is the whole text (else where it ends,
+/// for a message); None when it is not a WKT.
+fn parse(wkt: &str) -> Option<(Node, Result<(), String>)> {
     let chars: Vec<char> = wkt.chars().collect();
     let mut at = 0;
-    node(&chars, &mut at)
+    let tree = node(&chars, &mut at)?;
+    skip_spaces(&chars, &mut at);
+    let whole = match at == chars.len() {
+        true => Ok(()),
+        false => Err(format!(
+            "its brackets close at character {} of {}, before its end",
+            at,
+            chars.len()
+        )),
+    };
+    Some((tree, whole))
 }
 
 fn skip_spaces(c: &[char], at: &mut usize) {
