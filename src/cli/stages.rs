@@ -20,7 +20,7 @@ pub(super) fn plan(a: PlanArgs) -> Result<i32, i32> {
         say!(
             "planned {}: {}, {} of {} of the grid each",
             a.work.display(),
-            counted(p.bucket_tasks, "bucket task"),
+            counted(p.bucket_tasks as u64, "bucket task"),
             counted(p.tile_tasks, "tile task"),
             counted(p.tiles_per_task, "tile")
         );
@@ -32,8 +32,8 @@ pub(super) fn plan(a: PlanArgs) -> Result<i32, i32> {
 }
 
 /// "1 tile", "2 tiles": `n` of `noun` for a message.
-fn counted(n: impl TryInto<u64>, noun: &str) -> String {
-    match n.try_into().unwrap_or(u64::MAX) {
+fn counted(n: u64, noun: &str) -> String {
+    match n {
         1 => format!("1 {noun}"),
         n => format!("{n} {noun}s"),
     }
@@ -53,7 +53,7 @@ pub(super) fn bucket(a: BucketArgs) -> Result<i32, i32> {
     if !a.exec.quiet() {
         say!(
             "done: {} run (the others were done)",
-            counted(ran, "bucket task")
+            counted(ran as u64, "bucket task")
         );
     }
     Ok(exit::OK)
