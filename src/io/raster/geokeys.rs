@@ -23,7 +23,8 @@ const PIXEL_IS_AREA: u16 = 1;
 /// A raster's CRS, as the three GeoTIFF key tags hold it.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub(crate) struct RasterCrs {
-    /// GeoKeyDirectoryTag (34735): the header, then 4 shorts per key, sorted by key id.
+    /// GeoKeyDirectoryTag (34735): the header, then 4 shorts per key, sorted by key id; empty
+    /// for no CRS (the tag is then not written).
     pub(crate) directory: Vec<u16>,
     /// GeoDoubleParamsTag (34736), if any key refers to it.
     pub(crate) doubles: Vec<f64>,
@@ -148,10 +149,13 @@ fn ascii_params(data: &[u8]) -> String {
     s
 }
 
-/// Keys with only the model and raster types (user-defined model).
+/// No key directory at all: GDAL reads such a raster as having no CRS, so that a GIS asks for
+/// one. (A directory of a user-defined model type alone GDAL reads as `LOCAL_CS["unnamed"]`,
+/// which a GIS takes as set; and without a model type, as the same. The raster type left out
+/// is PixelIsArea, GeoTIFF's default.)
 fn no_keys() -> RasterCrs {
     RasterCrs {
-        directory: directory(&[(MODEL_TYPE, USER_DEFINED), (RASTER_TYPE, PIXEL_IS_AREA)]),
+        directory: Vec::new(),
         ..RasterCrs::default()
     }
 }
@@ -406,7 +410,7 @@ mod tests {
     const UTM: &str = r#"PROJCS["NAD83 / UTM zone 10N",GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101,AUTHORITY["EPSG","7019"]],AUTHORITY["EPSG","6269"]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4269"]],PROJECTION["Transverse_Mercator"],PARAMETER["central_meridian",-123],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AUTHORITY["EPSG","26910"]]"#;
 
     fn key(c: &RasterCrs, id: u16) -> Option<u16> {
-        c.directory[4..]
+        (c.directory.get(4..).unwrap_or_default())
             .chunks_exact(4)
             .find(|e| e[0] == id)
             .map(|e| e[3])

@@ -168,7 +168,9 @@ fn encode<W: Write + Seek, K: TiffKind>(
         dir.write_tag(Tag::SampleFormat, 3u16)?;
         dir.write_tag(tag(PIXEL_SCALE), &[grid.cell, grid.cell, 0.0][..])?;
         dir.write_tag(tag(TIEPOINT), &[0.0, 0.0, 0.0, west, north, 0.0][..])?;
-        dir.write_tag(tag(KEY_DIRECTORY), &crs.directory[..])?;
+        if !crs.directory.is_empty() {
+            dir.write_tag(tag(KEY_DIRECTORY), &crs.directory[..])?;
+        }
         if !crs.doubles.is_empty() {
             dir.write_tag(tag(DOUBLE_PARAMS), &crs.doubles[..])?;
         }

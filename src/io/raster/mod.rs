@@ -128,6 +128,7 @@ pub struct RasterSummary {
 pub(crate) fn length_text(x: f64, unit: &str) -> String {
     let x = six_digits(x);
     match unit {
+        "unit" if x == "1" => "1 file unit".into(),
         "unit" => format!("{x} file units"),
         u => format!("{x} {u}"),
     }
@@ -193,14 +194,26 @@ impl RasterSummary {
         let all = self.grid.cells();
         (self.cells.saturating_mul(4) < all).then(|| {
             format!(
-                "only {:.1}% of the {}x{} cells hold a point: cells of {} are finer than the points' spacing over much of the area, so the rasters are mostly no-data; a larger cell fills more",
-                100.0 * self.cells as f64 / all as f64,
+                "only {} of the {}x{} cells ({}) hold a point: cells of {} are finer than the points' spacing over much of the area, so the rasters are mostly no-data; a larger cell fills more",
+                self.cells,
                 self.grid.width,
                 self.grid.height,
+                percent(self.cells as f64 / all as f64),
                 self.cell_text()
             )
         })
     }
+}
+
+/// The fraction `f` as a percentage for messages: one decimal from 1%, two significant digits
+/// below it ("0.0068%"), so that a small share does not read as none.
+fn percent(f: f64) -> String {
+    let p = 100.0 * f;
+    if p >= 1.0 || p <= 0.0 || !p.is_finite() {
+        return format!("{p:.1}%");
+    }
+    let decimals = (1.0 - p.log10().floor()) as usize;
+    format!("{p:.decimals$}%")
 }
 
 /// `x` to six significant digits, without trailing zeros; in exponent form below 1e-4 and from

@@ -111,10 +111,19 @@ fn cell_sizes_read_and_sparse_grids_are_warned_about() {
     assert_eq!(summary(1.0 / 0.3048, "ft", 50).cell_text(), "3.28084 ft");
     assert_eq!(summary(1e300, "m", 50).cell_text(), "1e300 m");
     assert_eq!(summary(0.25, "unit", 50).cell_text(), "0.25 file units");
+    assert_eq!(summary(1.0, "unit", 50).cell_text(), "1 file unit");
     assert_eq!(summary(2.0, "m", 25).sparse_warning(), None);
     let w = summary(2.0, "m", 24).sparse_warning().expect("a warning");
     assert!(
-        w.starts_with("only 24.0% of the 10x10 cells hold a point: cells of 2 m "),
+        w.starts_with("only 24 of the 10x10 cells (24.0%) hold a point: cells of 2 m "),
+        "{w}"
+    );
+    // 1 of 14600x10 cells is 0.000685%: two significant digits, not "0.0%".
+    let mut tiny = summary(2.0, "m", 1);
+    tiny.grid.width = 14600;
+    let w = tiny.sparse_warning().expect("a warning");
+    assert!(
+        w.starts_with("only 1 of the 14600x10 cells (0.00068%) hold a point"),
         "{w}"
     );
 }
