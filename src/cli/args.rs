@@ -79,7 +79,8 @@ pub(super) struct ProcessArgs {
     /// Work directory for buckets and per-tile results (default: `.<output name>.tilecurv` beside
     /// the output). Kept when a run is interrupted or fails, so that the same command resumes
     /// from the finished tiles; removed after success. Work from other inputs or parameters is
-    /// detected and discarded.
+    /// detected and discarded. A new or empty folder, or one a tilecurv run left: a folder
+    /// holding other files is refused, never emptied, and so are outputs inside it.
     #[arg(long)]
     work_dir: Option<PathBuf>,
 }
@@ -154,7 +155,8 @@ pub(super) struct PlanArgs {
     inputs: Vec<PathBuf>,
 
     /// The work directory (created if needed): on a file system every node sees at the same
-    /// path. Work left there from other inputs or options is discarded.
+    /// path. Work left there from other inputs or options is discarded. A new or empty folder,
+    /// or one a tilecurv run left: a folder holding other files is refused, never emptied.
     #[arg(long)]
     pub work: PathBuf,
 

@@ -50,6 +50,14 @@ fn temp_of_this_host(entry: &str) -> Option<(&str, &str)> {
     (!base.is_empty()).then_some((base, pid))
 }
 
+/// The file a temporary name of any host is for: `Some(name)` for
+/// `.<name>.tilecurv-<host>-<pid>.tmp` ([`tmp_name`]).
+pub(crate) fn temp_of(entry: &str) -> Option<&str> {
+    let rest = entry.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let (base, _) = rest.rsplit_once(".tilecurv-")?;
+    (!base.is_empty()).then_some(base)
+}
+
 /// Removes what killed processes of this host left in `dir` under temporary names
 /// ([`tmp_name`]), all of them, or only those of the file `only`: result files, sidecars,
 /// manifests, bucket task directories, outputs. Those of running processes (another task on

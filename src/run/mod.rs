@@ -291,6 +291,40 @@ pub fn process(
     r
 }
 
+/// Refuses outputs (files or the rasters' directory) in the work directory `work` or below
+/// it: the work directory is removed once the run is done and refused by the next run while
+/// it holds anything of its own (io::workdir), so outputs there would stop every rerun.
+fn check_outside_work<'p>(work: &Path, outputs: impl Iterator<Item = &'p PathBuf>) -> Result<()> {
+    // Absolute, with `.` and `..` folded as the names read (`a/../w` is `w`).
+    let abs = |p: &Path| {
+        let mut n = PathBuf::new();
+        for c in std::path::absolute(p)
+            .unwrap_or_else(|_| p.to_path_buf())
+            .components()
+        {
+            match c {
+                std::path::Component::ParentDir => {
+                    n.pop();
+                }
+                std::path::Component::CurDir => {}
+                c => n.push(c),
+            }
+        }
+        n
+    };
+    let inside = abs(work);
+    for out in outputs {
+        if abs(out).starts_with(&inside) {
+            return Err(Error::Usage(format!(
+                "{} is in the work directory {}, which is tilecurv's own scratch space; write the outputs elsewhere, or name another --work-dir",
+                out.display(),
+                work.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// [`process`] but for the output directory it made.
 fn process_in(
     job: &Process,
@@ -305,6 +339,9 @@ fn process_in(
         .work_dir
         .clone()
         .unwrap_or_else(|| crate::io::workdir::default_path(&spec.outputs[0]));
+    let raster_dir = (exec.rasters.as_ref())
+        .map(|r| (r.dir.clone()).unwrap_or_else(|| raster::default_dir(&spec.outputs)));
+    check_outside_work(&path, spec.outputs.iter().chain(&raster_dir))?;
     let summary =
         |spec: &RunSpec, tiles: usize, resumed: usize, undefined: u64, retried: u64| Summary {
             points: spec.total_points,

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use crate::core::plan::TileSpec;
 use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
-use crate::io::durable::{sweep_dead_temps, write_durably};
+use crate::io::durable::{sweep_dead_temps, temp_of, write_durably};
 pub use names::default_path;
 use names::{BUCKETS, BUCKETS_DONE, BUCKETS_RELEASED, LOCK, MANIFEST, RESULTS, TASKS};
 
@@ -117,6 +117,7 @@ impl WorkDir {
     /// Opens (creating it if needed) and locks the work directory at `path`, compares its
     /// manifest with `manifest` (whose first line is the fingerprint), and discards stale work.
     pub(crate) fn open(path: &Path, manifest: &str) -> Result<Self> {
+        check_own(path)?;
         std::fs::create_dir_all(path).map_err(|e| Error::write(path, e))?;
         let lock_file = take_lock(path)?;
         sweep_dead_temps(path, None);
@@ -131,7 +132,7 @@ impl WorkDir {
             Err(e) => return Err(Error::read_work(&mpath, e)),
         };
         if resume != Resume::Resumed {
-            clear_except_lock(path)?;
+            remove_own_entries(path, false)?;
             write_durably(&mpath, manifest.as_bytes())?;
         }
         Ok(WorkDir {
@@ -143,8 +144,10 @@ impl WorkDir {
     }
 
     /// The scratch directory of a dry run beside the work directory `path`, opened and locked
-    /// as [`WorkDir::open`] does.
+    /// as [`WorkDir::open`] does, once `path` is found fit to be a work directory.
     pub(crate) fn open_scratch(path: &Path, manifest: &str) -> Result<Self> {
+        // Refused as the run would refuse it.
+        check_own(path)?;
         WorkDir::open(&path.with_extension("dryrun"), manifest)
     }
 
@@ -279,9 +282,13 @@ impl WorkDir {
         Ok(ResultStore { dir })
     }
 
-    /// Removes the whole directory (after a successful run).
+    /// Removes the directory (after a successful run): its own entries, then the directory if
+    /// that leaves it empty. Nothing else in it is touched ([`check_own`] refused a directory
+    /// holding anything else; what appears there during the run, such as an output written
+    /// into it, stays, and so does the directory).
     pub(crate) fn remove(self) {
-        let _ = std::fs::remove_dir_all(&self.path);
+        let _ = remove_own_entries(&self.path, true);
+        let _ = std::fs::remove_dir(&self.path);
     }
 }
 
@@ -340,14 +347,64 @@ impl ResultStore {
     }
 }
 
-fn clear_except_lock(dir: &Path) -> Result<()> {
+/// Whether `name` is an entry of a work directory: one of its names ([`names`]), a temporary
+/// of one ([`crate::io::durable::tmp_name`]), or a file NFS keeps for one deleted while open
+/// (`.nfs` and hex digits, gone once it is closed).
+fn is_own_entry(name: &str) -> bool {
+    let own = |n: &str| [LOCK, MANIFEST, TASKS, BUCKETS, RESULTS].contains(&n);
+    own(name) || temp_of(name).is_some_and(own) || name.starts_with(".nfs")
+}
+
+/// Refuses a directory at `path` that holds anything but a work directory's own entries
+/// ([`is_own_entry`]): tilecurv empties a work directory of stale work and removes it after a
+/// successful run, so a folder of other files (`--work-dir .` beside the input, a home
+/// directory) is never taken for one. A missing or empty directory, or a work directory, is
+/// accepted.
+fn check_own(path: &Path) -> Result<()> {
+    let entries = match std::fs::read_dir(path) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => {
+            return Err(Error::Usage(format!(
+                "{}: the work directory is a file, not a folder; name a new or empty folder for it",
+                path.display()
+            )))
+        }
+        Err(e) => return Err(Error::write(path, e)),
+    };
+    let mut foreign: Vec<String> = entries
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| !is_own_entry(n))
+        .collect();
+    if foreign.is_empty() {
+        return Ok(());
+    }
+    foreign.sort();
+    let more = foreign.len().saturating_sub(3);
+    foreign.truncate(3);
+    let mut held = foreign.join(", ");
+    if more > 0 {
+        held.push_str(&format!(" and {more} more"));
+    }
+    Err(Error::Usage(format!(
+        "{}: not a tilecurv work directory (it holds {held}): tilecurv empties its work directory of stale work and removes it when a run is done, so it must be a new or empty folder of its own; name one with --work-dir (`plan`: --work), or leave the default (.NAME.tilecurv beside the output)",
+        path.display()
+    )))
+}
+
+/// Empties the work directory `dir` of its own entries ([`is_own_entry`]; the lock only with
+/// `lock`), leaving anything else.
+fn remove_own_entries(dir: &Path, lock: bool) -> Result<()> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::write(dir, e))?;
     for e in entries.flatten() {
-        if e.file_name() == LOCK {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !is_own_entry(&name) || name.starts_with(".nfs") || (name == LOCK && !lock) {
             continue;
         }
         let p = e.path();
-        let r = if p.is_dir() {
+        // The entry's own type: a link named like an entry is removed, not followed.
+        let r = if e.file_type().is_ok_and(|t| t.is_dir()) {
             std::fs::remove_dir_all(&p)
         } else {
             std::fs::remove_file(&p)
@@ -367,21 +424,52 @@ mod tests {
         let wd = dir.path().join("w");
         let w = WorkDir::open(&wd, "fp 1\n").expect("open");
         assert_eq!(w.resume, Resume::Fresh);
-        std::fs::write(wd.join("tile_0_0.res"), b"x").expect("write");
+        std::fs::create_dir(wd.join(RESULTS)).expect("results");
+        std::fs::write(wd.join(RESULTS).join("tile_0_0.res"), b"x").expect("write");
         drop(w);
         let w = WorkDir::open(&wd, "fp 1\n").expect("open");
         assert_eq!(w.resume, Resume::Resumed);
-        assert!(wd.join("tile_0_0.res").exists());
+        assert!(wd.join(RESULTS).join("tile_0_0.res").exists());
         drop(w);
         let w = WorkDir::open(&wd, "fp 2\n").expect("open");
         assert_eq!(w.resume, Resume::Discarded);
-        assert!(!wd.join("tile_0_0.res").exists());
+        assert!(!wd.join(RESULTS).exists());
         drop(w);
         // A lock file left by a run that died (here naming pid 1) holds no lock: taken over.
         std::fs::write(wd.join(LOCK), "1\n").expect("write lock");
         let w = WorkDir::open(&wd, "fp 2\n").expect("open");
         w.remove();
         assert!(!wd.exists());
+    }
+
+    /// A folder of other files is refused untouched; what appears in a work directory during
+    /// a run stays when the run removes its own entries, and so does the directory then.
+    #[test]
+    fn only_a_work_directorys_own_entries_are_ever_removed() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let wd = dir.path().join("w");
+        std::fs::create_dir(&wd).expect("dir");
+        std::fs::write(wd.join("survey.las"), b"points").expect("write");
+        let refused = WorkDir::open(&wd, "fp 1\n");
+        assert!(matches!(&refused, Err(Error::Usage(m)) if m.contains("it holds survey.las")));
+        assert_eq!(
+            std::fs::read(wd.join("survey.las")).expect("kept"),
+            b"points"
+        );
+        std::fs::remove_file(wd.join("survey.las")).expect("remove");
+        std::fs::write(wd.join(".nfs000000001"), b"").expect("nfs");
+        let w = WorkDir::open(&wd, "fp 1\n").expect("an empty folder is accepted");
+        w.results().expect("results");
+        std::fs::write(wd.join("later.txt"), b"mine").expect("write");
+        w.remove();
+        let mut left: Vec<_> = std::fs::read_dir(&wd)
+            .expect("kept")
+            .map(|e| e.expect("entry").file_name())
+            .collect();
+        left.sort();
+        assert_eq!(left, [".nfs000000001", "later.txt"]);
+        assert_eq!(temp_of(".results.tilecurv-node-7-42.tmp"), Some("results"));
+        assert_eq!(temp_of(".tilecurv-node-42.tmp"), None);
     }
 
     #[test]
