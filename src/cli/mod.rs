@@ -207,7 +207,7 @@ fn process(args: ProcessArgs) -> Result<i32, i32> {
             _ => String::new(),
         };
         say!(
-            "done: {} points in {:.1} s{rate}, {} tiles ({} resumed), {} undefined ({:.2}%), {} recomputed with a wider halo -> {}",
+            "done: {} points in {:.1} s{rate}, {} tiles ({} resumed), {} undefined ({:.2}%), {} points recomputed with a wider halo -> {}",
             s.points,
             s.seconds,
             s.tiles,

@@ -68,7 +68,7 @@ pub(super) fn run_tile(a: RunTileArgs) -> Result<i32, i32> {
         cluster::run_tile(&a.work, &opts, task, &reporter, &CANCEL).map_err(|e| fail_run(&e))?;
     if !a.exec.quiet() {
         say!(
-            "done: task {task}: {} tiles already done, {} undefined points among those computed now, {} recomputed with a wider halo",
+            "done: task {task}: {} tiles already done, {} undefined points among those computed now, {} points recomputed with a wider halo",
             d.resumed, d.undefined, d.retried
         );
     }

@@ -452,6 +452,7 @@ pub(crate) fn resolve(
     // First: inputs in two CRSs differ in more than their units.
     let (_, crs_notes) = check_one_map(&sources, Joined::Scene)?;
     notes.extend(crs_notes);
+    notes.extend(sources.iter().flat_map(|s| s.warnings()));
     let CommonUnit {
         symbol: unit_name,
         unit,

@@ -495,3 +495,77 @@ print(" ".join(repr(float(x)) for x in v))
     );
     assert!(!output.exists() && !dir.path().join(".kept.las.tilecurv").exists());
 }
+
+/// A header whose point counts contradict each other or the data is warned about, and the
+/// output's header counts the records it holds, as laspy reads them: Topography.las (LAS 1.2)
+/// counting 100 of its 73,403 records; test1_4.las (LAS 1.4 format 6, 1,000 points) with its
+/// 64-bit count zeroed (the 32-bit one is read) or set to 100 (the 64-bit one is read). The
+/// first records of the output are the input's, byte for byte.
+#[test]
+fn output_headers_count_the_records_they_hold() {
+    let (Some(topo), Some(las14)) = (shared("las/Topography.las"), shared("las/test1_4.las"))
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let patched = |from: &Path, name: &str, at: usize, bytes: &[u8]| {
+        let mut b = std::fs::read(from).expect("input");
+        b[at..at + bytes.len()].copy_from_slice(bytes);
+        let p = dir.path().join(name);
+        std::fs::write(&p, b).expect("write");
+        p
+    };
+    let cases = [
+        (
+            patched(&topo, "topo100.las", 107, &100u32.to_le_bytes()),
+            100,
+            "holds 73403 whole records but the header counts 100",
+        ),
+        (
+            patched(&las14, "c64_zero.las", 247, &0u64.to_le_bytes()),
+            1000,
+            "1000 in the 32-bit field (byte 107), 0 in the 64-bit one",
+        ),
+        (
+            patched(&las14, "c64_100.las", 247, &100u64.to_le_bytes()),
+            100,
+            "1000 in the 32-bit field (byte 107), 100 in the 64-bit one",
+        ),
+    ];
+    for (input, n, said) in &cases {
+        let output = input.with_extension("out.las");
+        let run = crate::common::run_process(input, &output, &["-q"]);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{}: {err}", input.display());
+        assert!(err.contains(said), "{}: {err}", input.display());
+        let (out, recs) = records(&output);
+        assert_eq!(out.header.point_count, *n);
+        // The 32-bit count: the count for format 1 (LAS 1.2), 0 for format 6 (LAS 1.4 2.4).
+        let legacy = u32::from_le_bytes(out.header.raw[107..111].try_into().expect("4 bytes"));
+        let want = if out.header.point_format <= 5 {
+            *n as u32
+        } else {
+            0
+        };
+        assert_eq!(legacy, want, "{}", input.display());
+        let (src, inrecs) = records(input);
+        let (a, b) = (
+            src.header.record_length as usize,
+            out.header.record_length as usize,
+        );
+        for i in [0, *n as usize - 1] {
+            assert_eq!(
+                &inrecs[i * a..i * a + a],
+                &recs[i * b..i * b + a],
+                "record {i}"
+            );
+        }
+        if laspy_available() {
+            let said = laspy(
+                "import sys, laspy; print(len(laspy.read(sys.argv[1]).points))",
+                &[&output],
+            );
+            assert_eq!(said.trim(), n.to_string(), "{}", input.display());
+        }
+    }
+}

@@ -57,6 +57,9 @@ pub struct LasHeader {
     pub evlr_count: u32,
     /// The original header bytes (`header_size` of them).
     pub raw: Vec<u8>,
+    /// A LAS 1.4 header whose 32-bit and 64-bit point counts disagree: which one is read, for
+    /// a warning.
+    pub count_note: Option<String>,
 }
 
 fn u16_at(b: &[u8], o: usize) -> u16 {
@@ -184,9 +187,17 @@ impl LasHeader {
         } else {
             0
         };
+        let mut count_note = None;
         let (evlr_start, evlr_count, point_count) = if version.1 >= 4 {
             let c64 = u64_at(bytes, 247);
+            // The 64-bit count rules (LAS 1.4 2.4), as laspy and PDAL read it; a legacy count
+            // alone (a writer that filled only it) is read rather than no points.
             let count = if c64 != 0 { c64 } else { legacy_count };
+            if legacy_count != 0 && legacy_count != c64 {
+                count_note = Some(format!(
+                    "the header's point counts disagree: {legacy_count} in the 32-bit field (byte 107), {c64} in the 64-bit one (byte 247); {count} points are read, and the output's header gives the count it holds"
+                ));
+            }
             (u64_at(bytes, 235), u32_at(bytes, 243), count)
         } else {
             (0, 0, legacy_count)
@@ -212,6 +223,7 @@ impl LasHeader {
             evlr_start,
             evlr_count,
             raw: bytes[..header_size as usize].to_vec(),
+            count_note,
         })
     }
 
@@ -247,6 +259,14 @@ impl LasHeader {
         b[100..104].copy_from_slice(&out.num_vlrs.to_le_bytes());
         b[104] = self.point_format | if out.compressed { 0x80 } else { 0 };
         b[105..107].copy_from_slice(&out.record_length.to_le_bytes());
+        // The counts of the records written, whatever the input's header said of them: the
+        // 32-bit count where it fits and the format allows it (0 to 5: LAS 1.4 2.4), 0 where
+        // not; LAS 1.4's 64-bit count.
+        let legacy = match u32::try_from(self.point_count) {
+            Ok(n) if self.point_format <= 5 => n,
+            _ => 0,
+        };
+        b[107..111].copy_from_slice(&legacy.to_le_bytes());
         if self.version.1 >= 3 {
             // Waveform data inside the file moves with the data before it; an external one (0 or
             // "in an auxiliary file" bit) keeps its value.
@@ -260,6 +280,7 @@ impl LasHeader {
         if self.version.1 >= 4 {
             b[235..243].copy_from_slice(&out.evlr_start.to_le_bytes());
             b[243..247].copy_from_slice(&out.evlr_count.to_le_bytes());
+            b[247..255].copy_from_slice(&self.point_count.to_le_bytes());
         }
         b
     }

@@ -349,6 +349,26 @@ impl PointSource for LasSource {
         self.header.point_count
     }
 
+    /// Point counts that disagree, and whole records past the count (uncompressed points,
+    /// whose records can be counted from their bytes).
+    fn warnings(&self) -> Vec<String> {
+        let h = &self.header;
+        let mut v: Vec<String> = h.count_note.iter().cloned().collect();
+        if !h.compressed {
+            let end = h.point_data_end(self.map.len() as u64);
+            let room = end.saturating_sub(h.offset_to_point_data as u64) / h.record_length as u64;
+            if room > h.point_count {
+                v.push(format!(
+                    "the point data holds {room} whole records but the header counts {}: only those {} are read (and written); if the count is wrong, correct the header (LAStools: lasinfo -repair)",
+                    h.point_count, h.point_count
+                ));
+            }
+        }
+        v.into_iter()
+            .map(|w| format!("{}: {w}", self.path.display()))
+            .collect()
+    }
+
     /// Whether the file carries NormalX/Y/Z extra dimensions.
     fn has_normals(&self) -> bool {
         self.normal_dims.is_some()

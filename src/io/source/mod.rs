@@ -117,6 +117,11 @@ pub trait PointSource: Send + Sync {
     }
     /// A short description of the format for the log, e.g. "LAS 1.4 format 6 (LAZ)".
     fn describe(&self) -> String;
+    /// What a user is to be told of the file that does not stop the run (a header that
+    /// contradicts itself or its data), each naming the file.
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
     /// How the raw records are laid out: LAS records with the file's header, VLRs, EVLRs and
     /// extra-bytes descriptors (a LAS/LAZ output keeps them byte for byte), or the reader's own
     /// records, which a LAS/LAZ writer converts from [`PointSource::properties`].
