@@ -6,6 +6,9 @@
 //! reader of the source sees the trimmed records, header and descriptors only.
 
 mod compressed;
+mod properties;
+
+use properties::las_properties;
 
 use std::fs::File;
 use std::ops::Range;
@@ -16,13 +19,13 @@ use crate::core::tasks::Cuts;
 use crate::error::{Error, Result};
 use crate::io::crs::{horizontal_unit, UnitSource};
 use crate::io::las::chunks::{chunk_of, read_chunk_table, Chunk, ChunkAt};
-use crate::io::las::extra_bytes::{self, Descriptor, ScalarType};
+use crate::io::las::extra_bytes::{self, Descriptor};
 use crate::io::las::header::{LasHeader, Quantisation, POINT_FORMAT_SIZES};
 use crate::io::las::parts::LasParts;
 use crate::io::las::trim::Trim;
 use crate::io::las::vlr::{self, read_evlrs, read_vlrs, Vlr};
 
-use super::{InputBytes, PointSource, Property, SourceLayout, SourcePoint, Stored};
+use super::{InputBytes, PointSource, Property, SourceLayout, SourcePoint};
 
 /// An opened LAS or LAZ file.
 pub struct LasSource {
@@ -496,73 +499,4 @@ impl PointSource for LasSource {
     fn properties(&self) -> Vec<Property> {
         las_properties(&self.header, &self.extra)
     }
-}
-
-/// The properties of a LAS record that a non-LAS writer keeps: x, y, z as f64 (scale and offset
-/// applied), the standard fields that decode without tables (intensity, return numbers,
-/// classification, user data, point source id, GPS time and RGB when the format has them), and
-/// every scalar extra dimension (as f64 when it has a scale or offset).
-fn las_properties(h: &LasHeader, extra: &[Descriptor]) -> Vec<Property> {
-    use ScalarType::*;
-    let mut v: Vec<Property> = (0..3)
-        .map(|a| {
-            let stored = Stored::Scaled {
-                raw: I32,
-                at: 4 * a,
-                scale: h.scale[a],
-                offset: h.offset[a],
-            };
-            Property::new(["x", "y", "z"][a], F64, stored)
-        })
-        .collect();
-    v.push(Property::new("intensity", U16, Stored::Le(12)));
-    let legacy = h.point_format < 6;
-    let bits = |at, shift, width| Stored::Bits { at, shift, width };
-    let (rn, nr, class) = if legacy {
-        (bits(14, 0, 3), bits(14, 3, 3), bits(15, 0, 5))
-    } else {
-        (bits(14, 0, 4), bits(14, 4, 4), Stored::Le(16))
-    };
-    v.push(Property::new("return_number", U8, rn));
-    v.push(Property::new("number_of_returns", U8, nr));
-    v.push(Property::new("classification", U8, class));
-    let (user, source_id) = if legacy { (17, 18) } else { (17, 20) };
-    v.push(Property::new("user_data", U8, Stored::Le(user)));
-    v.push(Property::new("point_source_id", U16, Stored::Le(source_id)));
-    let gps = match h.point_format {
-        1 | 3 | 4 | 5 => Some(20),
-        6..=10 => Some(22),
-        _ => None,
-    };
-    if let Some(at) = gps {
-        v.push(Property::new("gps_time", F64, Stored::Le(at)));
-    }
-    let rgb = match h.point_format {
-        2 => Some(20),
-        3 | 5 => Some(28),
-        7 | 8 | 10 => Some(30),
-        _ => None,
-    };
-    if let Some(at) = rgb {
-        for (i, c) in ["red", "green", "blue"].into_iter().enumerate() {
-            v.push(Property::new(c, U16, Stored::Le(at + 2 * i)));
-        }
-    }
-    let base = POINT_FORMAT_SIZES[h.point_format as usize] as usize;
-    for d in extra {
-        let Some(raw) = d.scalar() else { continue };
-        let at = base + d.offset;
-        if d.scale == 1.0 && d.value_offset == 0.0 {
-            v.push(Property::new(d.name.clone(), raw, Stored::Le(at)));
-        } else {
-            let stored = Stored::Scaled {
-                raw,
-                at,
-                scale: d.scale,
-                offset: d.value_offset,
-            };
-            v.push(Property::new(d.name.clone(), F64, stored));
-        }
-    }
-    v
 }
