@@ -128,7 +128,47 @@ impl RunParams {
             )));
         }
         self.validate_scale()?;
+        self.validate_estimator_options()?;
         self.validate_features()
+    }
+
+    /// Checks that `--triangles` and `--jet-degree` go with the estimator they set (given to
+    /// another one, they would change nothing while the provenance recorded them), and that
+    /// principal directions are asked of an estimator that has them.
+    fn validate_estimator_options(&self) -> Result<()> {
+        let (e, p) = (self.estimator, &self.estimator_params);
+        if e == EstimatorKind::Apss && self.columns.has(Group::Directions) {
+            return Err(Error::Usage("--directions (the column group `directions`) with --estimator apss: APSS fits a sphere, along which every direction is principal, so it has no principal directions to write (each point's would be zero, flagged 16, umbilic); choose another estimator for them (jet, wme, aso or a CNC), or drop --directions".into()));
+        }
+        let default = EstimatorParams::default();
+        if p.triangles == 0 {
+            return Err(Error::Usage(format!(
+                "--triangles 0: CNC-Uniform needs at least one triangle per point ({} by default)",
+                default.triangles
+            )));
+        }
+        let unused = [
+            (
+                "--triangles",
+                p.triangles,
+                default.triangles,
+                EstimatorKind::CncUniform,
+            ),
+            (
+                "--jet-degree",
+                p.jet_degree,
+                default.jet_degree,
+                EstimatorKind::Jet,
+            ),
+        ]
+        .into_iter()
+        .find(|&(_, v, d, with)| v != d && e != with);
+        match unused {
+            Some((flag, v, _, with)) => Err(Error::Usage(format!(
+                "{flag} {v} sets --estimator {with}, which this run does not use (--estimator {e}): add --estimator {with}, or drop {flag}"
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// Checks `-k auto` against the options it cannot be combined with (yet).
@@ -227,8 +267,44 @@ mod tests {
         assert!(k(&[("jet_degree", "5")]).is_err());
     }
 
+    /// Options an estimator does not use are refused with it, and so is `--triangles 0`;
+    /// with the estimator they set they are taken.
+    #[test]
+    fn estimator_options_go_with_their_estimator() {
+        let run = |pairs: &[(&str, &str)]| {
+            let mut o = RunOptions::default();
+            for (key, v) in pairs {
+                o.set(key, v).expect(key);
+            }
+            RunParams::new(o).map_err(|e| e.to_string())
+        };
+        let refused = |pairs: &[(&str, &str)], says: &str| {
+            let e = run(pairs).expect_err("refused");
+            assert!(e.contains(says), "{pairs:?}: {e}");
+        };
+        refused(
+            &[("triangles", "50")],
+            "--triangles 50 sets --estimator cnc-uniform",
+        );
+        refused(
+            &[("jet_degree", "3"), ("estimator", "wme")],
+            "--jet-degree 3 sets --estimator jet",
+        );
+        refused(
+            &[("triangles", "0"), ("estimator", "cnc-uniform")],
+            "at least one triangle",
+        );
+        refused(
+            &[("estimator", "apss"), ("directions", "true")],
+            "no principal directions",
+        );
+        assert!(run(&[("triangles", "50"), ("estimator", "cnc-uniform")]).is_ok());
+        assert!(run(&[("jet_degree", "3"), ("estimator", "jet")]).is_ok());
+        assert!(run(&[("estimator", "apss")]).is_ok());
+    }
+
     /// The provenance lists the options in the table's order under their provenance keys,
-    /// the jet degree only when it is not the default.
+    /// the jet degree only when it is not the default and the triangles only for cnc-uniform.
     #[test]
     fn provenance_keys_in_order() {
         let r = Resolved {
@@ -252,7 +328,6 @@ mod tests {
                 "k_range",
                 "radius",
                 "seed",
-                "triangles",
                 "normals",
                 "orientation",
                 "tile",

@@ -177,7 +177,8 @@ point's coordinates, so that it does not depend on the order of the records).",
         aliases: &[],
         value_name: Some("L"),
         default: Some("100"),
-        help: "Triangles per point for cnc-uniform.",
+        help: "Triangles per point of --estimator cnc-uniform (at least 1; refused with another \
+estimator, which does not use it). Recorded in the provenance with cnc-uniform.",
         choices: None,
         set: |o, v| {
             o.triangles = number(v)?;
@@ -186,7 +187,10 @@ point's coordinates, so that it does not depend on the order of the records).",
         get: |o| text(o.triangles),
         provenance: Some(ProvenanceLine {
             key: "triangles",
-            value: |p, _| Some(text(p.estimator_params.triangles)),
+            value: |p, _| {
+                (p.estimator == EstimatorKind::CncUniform)
+                    .then(|| text(p.estimator_params.triangles))
+            },
         }),
     },
     OptionDef {
@@ -197,8 +201,8 @@ point's coordinates, so that it does not depend on the order of the records).",
         value_name: Some("2..4"),
         default: Some("2"),
         help: "Degree of the osculating jet of --estimator jet: 2 (a quadric, the least noise) to \
-4 (needs at least 15 neighbours; follows higher-order shapes at small k). Recorded in the \
-provenance when it is not 2.",
+4 (needs at least 15 neighbours; follows higher-order shapes at small k). Refused with another \
+estimator, which does not use it. Recorded in the provenance when it is not 2.",
         choices: None,
         set: |o, v| {
             o.jet_degree = number(v)?;
