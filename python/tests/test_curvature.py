@@ -25,6 +25,12 @@ ESTIMATORS = [
 ]
 ALL = "normals,H,K,k1,k2,directions,flags"
 
+
+def columns_for(kw):
+    """ALL, without the directions for APSS, whose sphere has none (refused with it)."""
+    return ALL.replace(",directions", "") if kw.get("estimator") == "apss" else ALL
+
+
 # (keyword options, the same as command-line flags)
 CASES = [({"estimator": e}, ["--estimator", e]) for e in ESTIMATORS] + [
     ({"estimator": "vcm", "features": True}, ["--estimator", "vcm", "--features"]),
@@ -91,9 +97,9 @@ def _names(got):
 @pytest.mark.parametrize("kw,flags", CASES, ids=IDS)
 def test_array_is_bit_identical_to_process_on_a_ply(cli, tmp_path, window, kw, flags):
     w = window(points_for(kw))
-    got = tilecurv.curvature(w.xyz, columns=ALL, threads=2, **kw)
+    got = tilecurv.curvature(w.xyz, columns=columns_for(kw), threads=2, **kw)
     assert len(got["H"]) == len(w.xyz)
-    want = cli_columns(cli, tmp_path, w.ply, ["--columns", ALL, "--ply-las-names", *flags], _names(got))
+    want = cli_columns(cli, tmp_path, w.ply, ["--columns", columns_for(kw), "--ply-las-names", *flags], _names(got))
     assert_bit_identical(got, want, kw)
     # A real computation: most points are defined, and the values vary.
     defined = (got["CurvatureFlags"] & 7) == 0
@@ -103,8 +109,8 @@ def test_array_is_bit_identical_to_process_on_a_ply(cli, tmp_path, window, kw, f
 @pytest.mark.parametrize("kw,flags", CASES, ids=IDS)
 def test_lasdata_is_bit_identical_to_process_on_its_file(cli, tmp_path, window, kw, flags):
     w = window(points_for(kw))
-    got = tilecurv.curvature(w.las, columns=ALL, threads=2, **kw)
-    want = cli_columns(cli, tmp_path, w.path, ["--columns", ALL, *flags], _names(got))
+    got = tilecurv.curvature(w.las, columns=columns_for(kw), threads=2, **kw)
+    want = cli_columns(cli, tmp_path, w.path, ["--columns", columns_for(kw), *flags], _names(got))
     assert_bit_identical(got, want, kw)
 
 
@@ -271,3 +277,13 @@ def test_a_tilecurv_output_is_computed_as_a_rerun_on_it(cli, tmp_path, window):
     assert not np.any(got["CurvatureFlags"] & 32)
     want = cli_columns(cli, tmp_path, out, ["--columns", "normals,H,K,flags", "--estimator", "jet"], list(got))
     assert_bit_identical(got, want, "re-run")
+
+
+def test_directions_of_apss_are_refused(window):
+    """APSS fits a sphere: it has no principal directions, so asking for them is a usage error
+    (exit 2 on the command line), as it is for options an estimator does not use."""
+    w = window(3000)
+    with pytest.raises(tilecurv.UsageError, match="no principal directions"):
+        tilecurv.curvature(w.xyz, columns=ALL, estimator="apss")
+    with pytest.raises(tilecurv.UsageError, match="sets --estimator jet"):
+        tilecurv.curvature(w.xyz, jet_degree=3)

@@ -361,17 +361,18 @@ fn is_own_entry(name: &str) -> bool {
 /// directory) is never taken for one. A missing or empty directory, or a work directory, is
 /// accepted.
 fn check_own(path: &Path) -> Result<()> {
-    let entries = match std::fs::read_dir(path) {
-        Ok(entries) => entries,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => {
+    match std::fs::metadata(path) {
+        // Missing, or below a file: making it says why it cannot be made.
+        Err(_) => return Ok(()),
+        Ok(m) if !m.is_dir() => {
             return Err(Error::Usage(format!(
                 "{}: the work directory is a file, not a folder; name a new or empty folder for it",
                 path.display()
             )))
         }
-        Err(e) => return Err(Error::write(path, e)),
-    };
+        Ok(_) => {}
+    }
+    let entries = std::fs::read_dir(path).map_err(|e| Error::write(path, e))?;
     let mut foreign: Vec<String> = entries
         .flatten()
         .map(|e| e.file_name().to_string_lossy().into_owned())
