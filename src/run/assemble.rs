@@ -349,6 +349,11 @@ fn merge_records(
             let first_of = |g: usize| m.first_id + first + (g * GROUP * piece) as u64;
             let [ready, next] = &mut results;
             for g in 0..=groups.len() {
+                // Checked at every group too: a chunk of a million LAZ points takes a second
+                // or more to merge, encode and write.
+                if m.cancel.load(Ordering::Relaxed) {
+                    return Err(Error::Interrupted);
+                }
                 let (taken, encoded) = m.pool.install(|| {
                     rayon::join(
                         || match groups.get(g) {
@@ -370,10 +375,12 @@ fn merge_records(
                     }
                     hand.send(e.buf)?;
                 }
+                if let Some(p) = g.checked_sub(1) {
+                    m.reporter.advance((groups[p].len() / rl) as u64);
+                }
                 taken?;
                 std::mem::swap(ready, next);
             }
-            m.reporter.advance((records.len() / rl) as u64);
             Ok(())
         })?;
     Ok(undefined)
