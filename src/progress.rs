@@ -162,7 +162,8 @@ impl TermReporter {
         let json = json.map(Mutex::new);
         let tty = std::io::stderr().is_terminal() && !quiet;
         let bar = tty.then(|| {
-            let b = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
+            // Hidden until the first phase gives it a length: a bar of 0 points draws full.
+            let b = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::hidden());
             b.set_style(
                 ProgressStyle::with_template(
                     "{prefix:>10} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} pts {msg}",
@@ -275,6 +276,9 @@ impl Reporter for TermReporter {
             b.set_length(total);
             b.set_prefix(name.to_string());
             b.set_message("run ETA ...");
+            if b.is_hidden() {
+                b.set_draw_target(ProgressDrawTarget::stderr());
+            }
         }
         if let Ok(mut guard) = self.phase.lock() {
             let p = Phase {

@@ -44,7 +44,8 @@ Exit codes:
   1    internal error (a bug: please report it with the command line)
   2    usage error: a bad option or value, or a memory limit (ulimit -v, the cgroup's) too
        small for even the smallest budget (the message says what to raise it to)
-  3    bad input: the input is unreadable, malformed or unsupported (the message names the file and byte offset)
+  3    bad input: the input is unreadable, malformed or unsupported (the message names the
+       file and the byte offset)
   4    output failure: the output or the work directory could not be written or read, or a
        limit of the machine stopped the run (disk space, ulimit -f, ulimit -n, memory, or a
        processor without the AVX2 and FMA instructions the build uses: the message says how to

@@ -291,7 +291,8 @@ halo overhead.",
         value_name: Some("LIST"),
         default: Some("H,K,flags"),
         help: "The new columns, a comma-separated list of: normals (NormalX/Y/Z), H, K, k1, k2, \
-directions (d1x..d2z), features (with --estimator vcm: SharpFeature, VcmNormalX/Y/Z), flags \
+directions (d1x..d2z), features (with --estimator vcm: SharpFeature, VcmNormalX/Y/Z), scale \
+(ScaleK, ScaleFlags: the K -k auto chose; always written with -k auto), flags \
 (CurvatureFlags), then the terrain columns (gravity along -z of the file, convex positive; docs/algorithms.md 10): profile (ProfileCurvature, 1/unit), tangential (TangentialCurvature), plan (PlanCurvature), shape_index (ShapeIndex, -1 bowl .. +1 dome), curvedness (Curvedness), slope (Slope, degrees), aspect (Aspect, downslope, degrees clockwise from north), or terrain for all seven; TerrainFlags comes with any of them (1: slope under 0.1 degree, where profile, tangential, plan and aspect are undefined). Written in that order whatever the order given.\n\nThe default, H,K,flags, \
 keeps a LAZ output within 2x its LAZ input on aerial and forest LIDAR; the normals and k1 with \
 k2 cost about as much again each (`--columns normals,H,K,k1,k2,flags`: 3 to 4.2 times the \

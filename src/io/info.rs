@@ -123,7 +123,7 @@ pub fn file_info(path: &Path) -> Result<FileInfo> {
 }
 
 /// The info of a non-LAS file: its properties other than x, y, z as extra dimensions, the
-/// bounds from a scan, and no CRS (these formats have none).
+/// bounds from a scan, no CRS (these formats have none), and a PLY's provenance.
 fn other_format(
     path: &Path,
     source: &dyn PointSource,
@@ -142,6 +142,13 @@ fn other_format(
             no_data: None,
         })
         .collect();
+    // A PLY output of tilecurv carries its record in header comments.
+    let provenance = match crate::io::source::detect(path)? {
+        crate::io::source::Format::Ply => {
+            crate::io::source::ply::provenance(path, &crate::io::source::map_file(path)?)?
+        }
+        _ => None,
+    };
     Ok(FileInfo {
         path: path.to_path_buf(),
         format,
@@ -158,6 +165,6 @@ fn other_format(
             vertical: Err("the format has no CRS".into()),
         },
         extra,
-        provenance: None,
+        provenance,
     })
 }

@@ -244,7 +244,7 @@ fn check_classes(cfg: &RunParams, sources: &[Box<dyn PointSource>]) -> Result<()
     }
     match sources.iter().find(|s| !s.has_classes()) {
         Some(s) => Err(Error::Usage(format!(
-            "{}: {} has no LAS classes or withheld flags, so --classes, --skip-classes and --skip-withheld cannot select its points; drop them or convert the file to LAS with a classification",
+            "{}: its points ({}) have no LAS classes or withheld flags, so --classes, --skip-classes and --skip-withheld cannot select them; drop those options, or give points with a classification (a LAS/LAZ file; in Python, a laspy LasData)",
             s.path().display(),
             s.describe()
         ))),

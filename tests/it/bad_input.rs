@@ -106,7 +106,12 @@ fn empty_and_foreign_files() {
         &["text.las", "not a LAS/LAZ file"],
     );
     let b = sample();
-    expect_failure("hdr.las", &b[..200], 3, &["hdr.las", "not a LAS/LAZ file"]);
+    expect_failure(
+        "hdr.las",
+        &b[..200],
+        3,
+        &["hdr.las", "only 200 bytes", "truncated"],
+    );
 }
 
 #[test]
@@ -197,6 +202,21 @@ fn a_directory_as_input_is_named_as_such() {
     assert_eq!(out.status.code(), Some(3), "{msg}");
     assert!(msg.contains("is a directory"), "{msg}");
     assert!(!dir.path().join("out.las").exists());
+    // Without an extension too (it was "unsupported input format \"\"").
+    let bare = dir.path().join("scans");
+    std::fs::create_dir(&bare).expect("a directory");
+    let out = tilecurv(&[
+        "process",
+        bare.to_str().expect("utf-8"),
+        "-o",
+        dir.path().join("out.las").to_str().expect("utf-8"),
+    ]);
+    let msg = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{msg}");
+    assert!(
+        msg.contains("is a directory") && msg.contains("/*.laz"),
+        "{msg}"
+    );
 }
 
 /// A cloud of one or two points: every point has fewer than 3 neighbours, so flag 1 (and flag

@@ -81,3 +81,32 @@ fn info_of_a_missing_file_is_a_bad_input() {
     let out = tilecurv(&["info", "/nonexistent/file.las"]);
     assert_eq!(out.status.code(), Some(3));
 }
+
+/// A PLY output's provenance (its header comments) is shown as a LAS output's is, with the
+/// run's options; a PLY that tilecurv did not write has none.
+#[test]
+fn info_shows_the_provenance_of_a_ply_output() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let output = dir.path().join("hay.ply");
+    process(
+        &crate::common::root().join("data/Haystack_Rock.las"),
+        &output,
+        &["-k", "24"],
+    );
+    let out = tilecurv(&["info", output.to_str().expect("utf-8")]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    for want in [
+        "  tilecurv provenance:\n    tilecurv ",
+        "    k=24\n",
+        "    inputs=Haystack_Rock.las\n",
+    ] {
+        assert!(text.contains(want), "{want:?} in:\n{text}");
+    }
+    let Some(plain) = shared("objects/building.ply") else {
+        return;
+    };
+    let out = tilecurv(&["info", plain.to_str().expect("utf-8")]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("tilecurv provenance: none\n"), "{text}");
+}

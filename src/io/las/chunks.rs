@@ -51,8 +51,11 @@ pub fn read_chunk_table(
     if table_at <= start as i64 {
         table_at = i64_at(file, file.len() - 8);
     }
-    if table_at < (start + 8) as i64 || (table_at as u64).checked_add(8).is_none_or(|e| e > len) {
-        return Err(bad(start, format!("the LAZ chunk table offset {table_at} is outside the file's compressed data ({}..{len}); the file is truncated or corrupt", start + 8)));
+    if table_at < (start + 8) as i64 {
+        return Err(bad(start, format!("the LAZ chunk table offset {table_at} points before the compressed data, which starts at byte {}; the file is corrupt", start + 8)));
+    }
+    if (table_at as u64).checked_add(8).is_none_or(|e| e > len) {
+        return Err(bad(start, format!("the LAZ chunk table offset {table_at} leaves no room for the table's 8-byte header before the file ends at byte {len}; the file is truncated (re-copy it) or the offset is corrupt")));
     }
     let table_at = table_at as u64;
     let data_bytes = table_at - (start + 8);

@@ -80,6 +80,9 @@ fn f64_at(b: &[u8], o: usize) -> f64 {
 /// The version (major, minor) after the signature, checked to be a LAS 1.0 to 1.4 header of at
 /// least 227 bytes; `bad` makes the error at a byte offset.
 fn signature_and_version(bytes: &[u8], bad: &dyn Fn(usize, String) -> Error) -> Result<(u8, u8)> {
+    if bytes.len() < 227 && bytes.starts_with(b"LASF") {
+        return Err(bad(0, format!("the file is only {} bytes, shorter than the 227 of a LAS header alone: it is truncated (re-copy it)", bytes.len())));
+    }
     if bytes.len() < 227 || &bytes[0..4] != b"LASF" {
         let got = if bytes.len() >= 4 {
             format!("{:?}", String::from_utf8_lossy(&bytes[0..4]))

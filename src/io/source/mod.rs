@@ -432,6 +432,16 @@ pub enum Format {
 /// The format of a file, from its extension, or from a LAS or PLY signature when the extension
 /// is unknown.
 pub fn detect(path: &Path) -> Result<Format> {
+    if path.is_dir() {
+        return Err(Error::bad_input(
+            path,
+            None,
+            format!(
+                "is a directory, not a point file; name the files in it (for example {}/*.laz)",
+                path.display()
+            ),
+        ));
+    }
     let ext = path
         .extension()
         .and_then(|e| e.to_str())

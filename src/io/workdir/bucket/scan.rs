@@ -287,8 +287,13 @@ fn grids_of(inputs: &[ScanInput<'_>]) -> Grids {
 fn check_point(source: &dyn PointSource, grid: TileGrid, p: &SourcePoint) -> Result<()> {
     let [x, y, z] = p.xyz;
     if !computable(p.xyz) {
+        // Integer coordinates (LAS) are always finite: their scale or offset is to blame.
+        let why = match source.integer_coordinates() {
+            Some(_) => "the file's scale, offset or point record is corrupt",
+            None => "the data holds a NaN, an infinity or an absurd value there: remove or fix such points",
+        };
         return Err(Error::bad_input(source.path(), None, format!(
-            "point {} has coordinates ({x:e}, {y:e}, {z:e}), which are not finite or beyond +-{MAX_COORDINATE:e}; the file's scale, offset or point record is corrupt",
+            "point {} has coordinates ({x:e}, {y:e}, {z:e}), which are not finite or beyond +-{MAX_COORDINATE:e}; {why}",
             p.id)));
     }
     if !grid.holds(x, y) {
