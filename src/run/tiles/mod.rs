@@ -133,10 +133,9 @@ fn report_plan(spec: &RunSpec, scan: &Bucketed, tplan: &TilePlan, resumed: usize
         ));
     }
     exec.reporter.info(&format!(
-        "plan: {} tiles of {:.3} {}{}; buckets {}",
+        "plan: {} tiles of {}{}; buckets {}",
         tplan.tiles.len(),
-        spec.grid.size,
-        spec.resolved.unit_name,
+        crate::io::raster::length_text(spec.grid.size, &spec.cols.unit),
         if resumed > 0 {
             format!(", {resumed} already done")
         } else {
