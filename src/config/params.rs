@@ -246,16 +246,19 @@ mod tests {
         RunParams::new(o).expect("features with vcm");
     }
 
+    /// The parameters of the options `pairs` (key, value) given over the defaults.
+    fn params_of(pairs: &[(&str, &str)]) -> Result<RunParams> {
+        let mut o = RunOptions::default();
+        for (key, v) in pairs {
+            o.set(key, v).expect(key);
+        }
+        RunParams::new(o)
+    }
+
     /// The defaults validate, and k follows -k, --k-range and --radius.
     #[test]
     fn k_is_resolved_from_its_options() {
-        let k = |pairs: &[(&str, &str)]| {
-            let mut o = RunOptions::default();
-            for (key, v) in pairs {
-                o.set(key, v).expect(key);
-            }
-            RunParams::new(o).map(|p| (p.k, p.ladder.map(|l| l.max)))
-        };
+        let k = |pairs: &[(&str, &str)]| params_of(pairs).map(|p| (p.k, p.ladder.map(|l| l.max)));
         assert_eq!(k(&[]).ok(), Some((30, None)));
         assert_eq!(k(&[("radius", "2m")]).ok(), Some((100, None)));
         assert_eq!(k(&[("radius", "2m"), ("k", "12")]).ok(), Some((12, None)));
@@ -271,13 +274,7 @@ mod tests {
     /// with the estimator they set they are taken.
     #[test]
     fn estimator_options_go_with_their_estimator() {
-        let run = |pairs: &[(&str, &str)]| {
-            let mut o = RunOptions::default();
-            for (key, v) in pairs {
-                o.set(key, v).expect(key);
-            }
-            RunParams::new(o).map_err(|e| e.to_string())
-        };
+        let run = |pairs: &[(&str, &str)]| params_of(pairs).map_err(|e| e.to_string());
         let refused = |pairs: &[(&str, &str)], says: &str| {
             let e = run(pairs).expect_err("refused");
             assert!(e.contains(says), "{pairs:?}: {e}");

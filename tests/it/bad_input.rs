@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::common::{root, tilecurv};
+use crate::common::{root, s, tilecurv};
 
 fn sample() -> Vec<u8> {
     std::fs::read(root().join("data/Haystack_Rock.las")).expect("shipped sample")
@@ -185,38 +185,25 @@ fn a_closed_stderr_does_not_stop_the_run() {
     assert!(bytes > 20_000 * 20, "output of {bytes} bytes");
 }
 
-/// A directory given as an input is bad input (exit 3) that says it is a directory (it said
-/// "No such device", the mmap error).
+/// A directory given as an input is bad input (exit 3) that says it is a directory and how to
+/// name its files, with a LAS name (it said "No such device", the mmap error) or without an
+/// extension (it said "unsupported input format \"\"").
 #[test]
 fn a_directory_as_input_is_named_as_such() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let input = dir.path().join("scans.las");
-    std::fs::create_dir(&input).expect("a directory with a LAS name");
-    let out = tilecurv(&[
-        "process",
-        input.to_str().expect("utf-8"),
-        "-o",
-        dir.path().join("out.las").to_str().expect("utf-8"),
-    ]);
-    let msg = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(3), "{msg}");
-    assert!(msg.contains("is a directory"), "{msg}");
-    assert!(!dir.path().join("out.las").exists());
-    // Without an extension too (it was "unsupported input format \"\"").
-    let bare = dir.path().join("scans");
-    std::fs::create_dir(&bare).expect("a directory");
-    let out = tilecurv(&[
-        "process",
-        bare.to_str().expect("utf-8"),
-        "-o",
-        dir.path().join("out.las").to_str().expect("utf-8"),
-    ]);
-    let msg = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(3), "{msg}");
-    assert!(
-        msg.contains("is a directory") && msg.contains("/*.laz"),
-        "{msg}"
-    );
+    let output = dir.path().join("out.las");
+    for name in ["scans.las", "scans"] {
+        let input = dir.path().join(name);
+        std::fs::create_dir(&input).expect("a directory");
+        let out = tilecurv(&["process", s(&input), "-o", s(&output)]);
+        let msg = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{msg}");
+        assert!(
+            msg.contains("is a directory") && msg.contains("/*.laz"),
+            "{msg}"
+        );
+        assert!(!output.exists());
+    }
 }
 
 /// A cloud of one or two points: every point has fewer than 3 neighbours, so flag 1 (and flag

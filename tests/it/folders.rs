@@ -107,41 +107,28 @@ fn a_folder_of_other_files_is_never_taken_for_a_work_directory() {
     }
     // A new folder is the work directory, removed after the run.
     let work = dir.path().join("new_work");
-    let run = tilecurv(&[
-        "process",
-        s(&input),
-        "-o",
-        s(&out),
-        "--work-dir",
-        s(&work),
-        "-q",
-    ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    assert!(!work.exists());
-    // A work directory a killed run left (its manifest, a dead process's temporary) is reused.
+    let run_into = |output: &std::path::Path| {
+        let args = [
+            "process",
+            s(&input),
+            "-o",
+            s(output),
+            "--work-dir",
+            s(&work),
+            "-q",
+        ];
+        let run = tilecurv(&args);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{err}");
+        assert!(!work.exists());
+    };
+    run_into(&out);
+    // A work directory a killed run left (its manifest, another host's temporary) is reused.
     std::fs::create_dir(&work).expect("work");
     std::fs::write(work.join("manifest.txt"), "stale\n").expect("manifest");
     std::fs::write(work.join(".manifest.txt.tilecurv-elsewhere-1.tmp"), "x").expect("temp");
     let again = dir.path().join("again.las");
-    let run = tilecurv(&[
-        "process",
-        s(&input),
-        "-o",
-        s(&again),
-        "--work-dir",
-        s(&work),
-        "-q",
-    ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    assert!(!work.exists());
+    run_into(&again);
     assert_eq!(
         std::fs::read(&again).expect("again"),
         std::fs::read(&out).expect("out")
