@@ -58,8 +58,9 @@ pub(super) struct ProcessArgs {
     /// under laspy's names, the scan angle in degrees, and the scalar extra dimensions), plus
     /// the columns H (mean curvature), K (Gaussian) and CurvatureFlags and, as --columns asks,
     /// NormalX/Y/Z, k1 <= k2 (principal), d1x..d2z (also --directions), SharpFeature and
-    /// VcmNormalX/Y/Z (also --features) and the terrain columns. Curvature is positive where the surface bends away from its
-    /// normal (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
+    /// VcmNormalX/Y/Z (also --features) and the terrain columns. Curvature is positive where
+    /// the surface bends away from its normal (hilltops with upward normals), in
+    /// 1/(horizontal unit of the file's CRS).
     #[arg(short, long)]
     output: PathBuf,
 
@@ -305,9 +306,9 @@ pub(super) struct AssembleArgs {
     /// Output file, or a directory (end it with /) for several inputs, where each output gets
     /// its input's file name. The extension chooses the format: .las, .laz, .ply (binary) or
     /// .ascii.ply. Holds every input point in the same order with its original fields (as
-    /// `process --output` says), plus the columns the plan's --columns chose (by default H, K and CurvatureFlags). Curvature is positive
-    /// where the surface bends away from its normal (hilltops with upward normals), in
-    /// 1/(horizontal unit of the file's CRS).
+    /// `process --output` says), plus the columns the plan's --columns chose (by default H, K
+    /// and CurvatureFlags). Curvature is positive where the surface bends away from its normal
+    /// (hilltops with upward normals), in 1/(horizontal unit of the file's CRS).
     #[arg(short, long)]
     pub output: PathBuf,
 

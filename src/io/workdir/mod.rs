@@ -283,9 +283,8 @@ impl WorkDir {
     }
 
     /// Removes the directory (after a successful run): its own entries, then the directory if
-    /// that leaves it empty. Nothing else in it is touched ([`check_own`] refused a directory
-    /// holding anything else; what appears there during the run, such as an output written
-    /// into it, stays, and so does the directory).
+    /// that leaves it empty. Nothing else in it is touched: [`check_own`] refused a directory
+    /// holding anything else, and a file put there during the run stays, with the directory.
     pub(crate) fn remove(self) {
         let _ = remove_own_entries(&self.path, true);
         let _ = std::fs::remove_dir(&self.path);
