@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::io::columns::ColumnSet;
 use crate::io::durable::{sweep_dead_temps, temp_of, write_durably};
 pub use names::default_path;
-use names::{BUCKETS, BUCKETS_DONE, BUCKETS_RELEASED, LOCK, MANIFEST, RESULTS, TASKS};
+use names::{BUCKETS, BUCKETS_DONE, BUCKETS_RELEASED, LOCK, LOGS, MANIFEST, RESULTS, TASKS};
 
 /// The version of the work directory's file formats (bucket frames, result files, the task
 /// layout), in every manifest and its fingerprint: work left by a tilecurv that wrote other
@@ -346,11 +346,11 @@ impl ResultStore {
     }
 }
 
-/// Whether `name` is an entry of a work directory: one of its names ([`names`]), a temporary
-/// of one ([`crate::io::durable::tmp_name`]), or a file NFS keeps for one deleted while open
-/// (`.nfs` and hex digits, gone once it is closed).
+/// Whether `name` is an entry of a work directory: one of its names ([`names`], the Slurm
+/// recipe's logs included), a temporary of one ([`crate::io::durable::tmp_name`]), or a file
+/// NFS keeps for one deleted while open (`.nfs` and hex digits, gone once it is closed).
 fn is_own_entry(name: &str) -> bool {
-    let own = |n: &str| [LOCK, MANIFEST, TASKS, BUCKETS, RESULTS].contains(&n);
+    let own = |n: &str| [LOCK, MANIFEST, TASKS, BUCKETS, RESULTS, LOGS].contains(&n);
     own(name) || temp_of(name).is_some_and(own) || name.starts_with(".nfs")
 }
 

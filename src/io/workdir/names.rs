@@ -13,6 +13,8 @@
 //!     tile_<x>_<y>.res        one finished tile's results, sorted by point id (the journal)
 //!     tile_<x>_<y>.ori        its orientation sidecar (`--orient propagate` only)
 //!     run_<n>.res             merge runs of assemble past its fan-in (removed after use)
+//!   log/                      the Slurm recipe's task logs (scripts/slurm/submit.sh), which
+//!                             tilecurv never writes but counts as the directory's own
 //! ```
 //!
 //! Every file is written durably (`io::durable`): under `.<name>.tilecurv-<host>-<pid>.tmp`
@@ -35,6 +37,9 @@ pub(crate) const TASKS: &str = "tasks.txt";
 pub(crate) const BUCKETS: &str = "buckets";
 /// The directory of the tile results.
 pub(crate) const RESULTS: &str = "results";
+/// The directory where the Slurm recipe (scripts/slurm/submit.sh) puts its task logs by
+/// default: part of the work directory, cleared with its stale work.
+pub(crate) const LOGS: &str = "log";
 /// The file that marks a bucket task's directory complete, with its statistics.
 pub(crate) const BUCKETS_DONE: &str = "buckets.done";
 /// The file in the buckets directory that says the bucket files were deleted once every tile
