@@ -342,15 +342,12 @@ fn merge_records(
     let mut undefined = 0u64;
     m.source
         .for_each_chunk(m.chunk_points, &mut |first, records| {
-            if m.cancel.load(Ordering::Relaxed) {
-                return Err(Error::Interrupted);
-            }
             let groups: Vec<&[u8]> = records.chunks(GROUP * piece * rl).collect();
             let first_of = |g: usize| m.first_id + first + (g * GROUP * piece) as u64;
             let [ready, next] = &mut results;
             for g in 0..=groups.len() {
-                // Checked at every group too: a chunk of a million LAZ points takes a second
-                // or more to merge, encode and write.
+                // Checked at every group, not once a chunk: a chunk of a million LAZ points
+                // takes a second or more to merge, encode and write.
                 if m.cancel.load(Ordering::Relaxed) {
                     return Err(Error::Interrupted);
                 }

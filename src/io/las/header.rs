@@ -57,9 +57,6 @@ pub struct LasHeader {
     pub evlr_count: u32,
     /// The original header bytes (`header_size` of them).
     pub raw: Vec<u8>,
-    /// A LAS 1.4 header whose 32-bit and 64-bit point counts disagree: which one is read, for
-    /// a warning.
-    pub count_note: Option<String>,
 }
 
 fn u16_at(b: &[u8], o: usize) -> u16 {
@@ -190,17 +187,11 @@ impl LasHeader {
         } else {
             0
         };
-        let mut count_note = None;
         let (evlr_start, evlr_count, point_count) = if version.1 >= 4 {
             let c64 = u64_at(bytes, 247);
             // The 64-bit count rules (LAS 1.4 2.4), as laspy and PDAL read it; a legacy count
             // alone (a writer that filled only it) is read rather than no points.
             let count = if c64 != 0 { c64 } else { legacy_count };
-            if legacy_count != 0 && legacy_count != c64 {
-                count_note = Some(format!(
-                    "the header's point counts disagree: {legacy_count} in the 32-bit field (byte 107), {c64} in the 64-bit one (byte 247); {count} points are read, and the output's header gives the count it holds"
-                ));
-            }
             (u64_at(bytes, 235), u32_at(bytes, 243), count)
         } else {
             (0, 0, legacy_count)
@@ -226,8 +217,25 @@ impl LasHeader {
             evlr_start,
             evlr_count,
             raw: bytes[..header_size as usize].to_vec(),
-            count_note,
         })
+    }
+
+    /// A LAS 1.4 header's two point counts, (32-bit, 64-bit), when they disagree (the 32-bit
+    /// one is not 0 and not the 64-bit one): [`LasHeader::point_count`] is the 64-bit one, or
+    /// the 32-bit one when the 64-bit one is 0.
+    pub fn disagreeing_counts(&self) -> Option<(u64, u64)> {
+        if self.version.1 < 4 {
+            return None;
+        }
+        let (legacy, c64) = (u32_at(&self.raw, 107) as u64, u64_at(&self.raw, 247));
+        (legacy != 0 && legacy != c64).then_some((legacy, c64))
+    }
+
+    /// The whole records the point data of a file of `file_len` bytes has room for (an
+    /// uncompressed file's, whatever the header counts).
+    pub fn whole_records(&self, file_len: u64) -> u64 {
+        let data = self.point_data_end(file_len);
+        data.saturating_sub(self.offset_to_point_data as u64) / self.record_length as u64
     }
 
     /// Number of extra bytes per record beyond the point format's fixed fields.

@@ -42,7 +42,7 @@ pub(crate) struct RasterCrs {
 impl RasterCrs {
     /// What the rasters carry, for the log: the keys' CRS, the WKT of the sidecar, or none.
     pub(crate) fn carried(&self) -> String {
-        match (&self.wkt, self.directory == no_keys().directory) {
+        match (&self.wkt, self.directory.is_empty()) {
             (Some(_), _) => format!("{}, in GDAL's sidecar of each raster", self.described),
             (None, true) => "none".into(),
             (None, false) => self.described.clone(),
@@ -66,8 +66,7 @@ impl RasterCrs {
         if self.wkt.is_some() && self.wkt == other.wkt {
             return Some(true);
         }
-        let none = no_keys().directory;
-        if self.directory == none || other.directory == none {
+        if self.directory.is_empty() || other.directory.is_empty() {
             return None;
         }
         let code = |c: &RasterCrs| match c.key(PROJECTED) {

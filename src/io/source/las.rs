@@ -332,8 +332,7 @@ fn check_size(path: &Path, header: &LasHeader, len: u64) -> Result<()> {
         .and_then(|b| b.checked_add(header.offset_to_point_data as u64));
     let end = header.point_data_end(len);
     if need.is_none_or(|n| n > end) {
-        let whole =
-            (end.saturating_sub(header.offset_to_point_data as u64)) / header.record_length as u64;
+        let whole = header.whole_records(len);
         return Err(Error::bad_input(path, Some(header.offset_to_point_data as u64), format!(
             "the header says {} points of {} bytes, but the point data ends at byte {end}: only {whole} whole points are present. The file is truncated (re-copy it) or its point count is wrong",
             header.point_count, header.record_length)));
@@ -356,10 +355,15 @@ impl PointSource for LasSource {
     /// whose records can be counted from their bytes).
     fn warnings(&self) -> Vec<String> {
         let h = &self.header;
-        let mut v: Vec<String> = h.count_note.iter().cloned().collect();
+        let mut v = Vec::new();
+        if let Some((legacy, c64)) = h.disagreeing_counts() {
+            v.push(format!(
+                "the header's point counts disagree: {legacy} in the 32-bit field (byte 107), {c64} in the 64-bit one (byte 247); {} points are read, and the output's header gives the count it holds",
+                h.point_count
+            ));
+        }
         if !h.compressed {
-            let end = h.point_data_end(self.map.len() as u64);
-            let room = end.saturating_sub(h.offset_to_point_data as u64) / h.record_length as u64;
+            let room = h.whole_records(self.map.len() as u64);
             if room > h.point_count {
                 v.push(format!(
                     "the point data holds {room} whole records but the header counts {}: only those {} are read (and written); if the count is wrong, correct the header (LAStools: lasinfo -repair)",

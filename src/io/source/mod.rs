@@ -372,17 +372,26 @@ pub(crate) fn for_each_record_chunk(
     Ok(())
 }
 
+/// The error of a directory given as an input file (bad input: [`detect`] finds it before a
+/// reader, [`map_file`] when the name looks like a point file's).
+fn a_directory(path: &Path) -> Error {
+    Error::bad_input(
+        path,
+        None,
+        format!(
+            "is a directory, not a point file; name the files in it (for example {}/*.laz)",
+            path.display()
+        ),
+    )
+}
+
 /// Memory-maps an input file read-only.
 pub fn map_file(path: &Path) -> Result<InputBytes> {
     let io = |e| Error::read_input(path, e);
     let file = std::fs::File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
     if meta.is_dir() {
-        return Err(Error::bad_input(
-            path,
-            None,
-            "is a directory, not a point cloud file; give the files in it (e.g. dir/*.laz)",
-        ));
+        return Err(a_directory(path));
     }
     if meta.len() == 0 {
         return Err(Error::bad_input(path, None, "the file is empty (0 bytes)"));
@@ -433,14 +442,7 @@ pub enum Format {
 /// is unknown.
 pub fn detect(path: &Path) -> Result<Format> {
     if path.is_dir() {
-        return Err(Error::bad_input(
-            path,
-            None,
-            format!(
-                "is a directory, not a point file; name the files in it (for example {}/*.laz)",
-                path.display()
-            ),
-        ));
+        return Err(a_directory(path));
     }
     let ext = path
         .extension()
