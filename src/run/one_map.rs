@@ -46,9 +46,10 @@ impl Joined {
 
 /// The CRS of the first of `sources` and the warnings about the others, refusing a file in
 /// another CRS than the first's (by EPSG code: [`RasterCrs::same_map`]); the same file named
-/// twice is `run::prepare::check_distinct_files`'s to refuse, before the files are opened. CRSs that cannot be compared are warned about when they differ (a
-/// file without a CRS beside one with it, user-defined keys that differ, WKTs without an EPSG
-/// code that differ): the coordinates may well be in one CRS. The warnings are the caller's to
+/// twice is `run::prepare::check_distinct_files`'s to refuse, before the files are opened.
+/// CRSs that cannot be compared are warned about when they differ (a file without a CRS beside
+/// one with it, user-defined keys that differ, WKTs without an EPSG code that differ): the
+/// coordinates may well be in one CRS. The warnings are the caller's to
 /// print once its other checks have passed, so that a run refused later does not first say how
 /// it would have joined the files.
 pub(crate) fn check_one_map(
