@@ -231,11 +231,11 @@ impl LasHeader {
         (legacy != 0 && legacy != c64).then_some((legacy, c64))
     }
 
-    /// The whole records the point data of a file of `file_len` bytes has room for (an
-    /// uncompressed file's, whatever the header counts).
-    pub fn whole_records(&self, file_len: u64) -> u64 {
+    /// The whole records of `record_length` bytes the point data of a file of `file_len` bytes
+    /// has room for (an uncompressed file's, whatever the header counts).
+    pub fn whole_records(&self, file_len: u64, record_length: usize) -> u64 {
         let data = self.point_data_end(file_len);
-        data.saturating_sub(self.offset_to_point_data as u64) / self.record_length as u64
+        data.saturating_sub(self.offset_to_point_data as u64) / record_length.max(1) as u64
     }
 
     /// Number of extra bytes per record beyond the point format's fixed fields.

@@ -332,7 +332,7 @@ fn check_size(path: &Path, header: &LasHeader, len: u64) -> Result<()> {
         .and_then(|b| b.checked_add(header.offset_to_point_data as u64));
     let end = header.point_data_end(len);
     if need.is_none_or(|n| n > end) {
-        let whole = header.whole_records(len);
+        let whole = header.whole_records(len, header.record_length as usize);
         return Err(Error::bad_input(path, Some(header.offset_to_point_data as u64), format!(
             "the header says {} points of {} bytes, but the point data ends at byte {end}: only {whole} whole points are present. The file is truncated (re-copy it) or its point count is wrong",
             header.point_count, header.record_length)));
@@ -363,7 +363,8 @@ impl PointSource for LasSource {
             ));
         }
         if !h.compressed {
-            let room = h.whole_records(self.map.len() as u64);
+            // The stored length: a tilecurv output's own columns are trimmed from the header's.
+            let room = h.whole_records(self.map.len() as u64, self.stored_length());
             if room > h.point_count {
                 v.push(format!(
                     "the point data holds {room} whole records but the header counts {}: only those {} are read (and written); if the count is wrong, correct the header (LAStools: lasinfo -repair)",
