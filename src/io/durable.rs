@@ -210,11 +210,31 @@ impl TempFile {
     /// Makes the completely written `file` the output: syncs it, renames it over the output and
     /// syncs the directory so that the rename is durable. On failure the temporary file is
     /// removed.
-    pub(crate) fn commit(mut self, file: File) -> Result<()> {
+    pub(crate) fn commit(self, file: File) -> Result<()> {
+        self.ready(file)?.commit()
+    }
+
+    /// Syncs the completely written `file`, which [`Ready::commit`] then makes the output: so
+    /// that several outputs appear together, or none of them. On failure the temporary file is
+    /// removed.
+    pub(crate) fn ready(self, file: File) -> Result<Ready> {
         file.sync_all().map_err(|e| self.error(e))?;
         drop(file);
-        commit_file(&self.path, &self.output)?;
-        self.committed = true;
+        Ok(Ready(self))
+    }
+}
+
+/// A complete, synced temporary file ([`TempFile::ready`]) not yet renamed over its output.
+/// Dropping it removes the file.
+#[derive(Debug)]
+pub(crate) struct Ready(TempFile);
+
+impl Ready {
+    /// Renames the file over its output and syncs the directory. On failure the temporary file
+    /// is removed.
+    pub(crate) fn commit(mut self) -> Result<()> {
+        commit_file(&self.0.path, &self.0.output)?;
+        self.0.committed = true;
         Ok(())
     }
 }

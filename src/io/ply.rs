@@ -16,7 +16,7 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
 use crate::io::direct::DirectFile;
-use crate::io::durable::TempFile;
+use crate::io::durable::{Ready, TempFile};
 use crate::io::las::extra_bytes::ScalarType;
 use crate::io::output::PointSink;
 use crate::io::source::ply::ply_type_name;
@@ -227,10 +227,10 @@ impl PointSink for PlyWriter {
         self.w.write_all(bytes).map_err(|e| self.tmp.error(e))
     }
 
-    fn finish(self: Box<Self>) -> Result<()> {
+    fn finish(self: Box<Self>) -> Result<Ready> {
         let PlyWriter { tmp, w, .. } = *self;
         let file = w.into_file().map_err(|e| tmp.error(e))?;
-        tmp.commit(file)
+        tmp.ready(file)
     }
 
     fn abandon(self: Box<Self>) {

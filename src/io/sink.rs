@@ -235,7 +235,9 @@ mod tests {
                 };
                 // The rename fails: a non-empty directory stands where the output goes.
                 std::fs::create_dir_all(out.join("x")).expect("blocking directory");
-                let e = sink().finish().expect_err("the rename fails");
+                let e = (sink().finish())
+                    .and_then(|r| r.commit())
+                    .expect_err("the rename fails");
                 assert!(
                     matches!(&e, Error::WriteIo { path, .. } if path == &out),
                     "{what}: {e}"
@@ -246,7 +248,12 @@ mod tests {
                 assert!(leftovers(dir.path(), "").is_empty(), "{what}: abandon");
                 drop(sink());
                 assert!(leftovers(dir.path(), "").is_empty(), "{what}: drop");
-                sink().finish().expect("finishes");
+                drop(sink().finish().expect("finishes"));
+                assert!(leftovers(dir.path(), "").is_empty(), "{what}: not committed");
+                assert!(!out.exists(), "{what}: not committed");
+                (sink().finish())
+                    .and_then(|r| r.commit())
+                    .expect("finishes");
                 assert_eq!(leftovers(dir.path(), name), Vec::<String>::new(), "{what}");
                 std::fs::remove_file(&out).expect("clean");
             }

@@ -21,6 +21,7 @@ use crate::io::columns::output::{Encoding, OutputColumns, Steps};
 use crate::io::columns::{
     ColumnSet, ColumnType, Group, ResultLayout, Stored, TerrainValue, Transcoder, Value,
 };
+use crate::io::durable::Ready;
 use crate::io::sink::{create_sink, output_columns, OutputOptions, PointSink};
 use crate::io::source::PointSource;
 use crate::io::workdir::results::{record_size, scene_stats, Merger};
@@ -106,6 +107,7 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
     exec.reporter.phase("write", spec.total_points);
     let chunk = chunk_points(spec, exec);
     let mut undefined = 0;
+    let mut ready = Vec::new();
     let outputs = spec.sources.iter().zip(&spec.outputs).zip(&spec.first_ids);
     for (i, (((source, output), first), out_cols)) in outputs.zip(outs).enumerate() {
         let provenance = format!("{}{}", spec.provenance(), out_cols.provenance());
@@ -125,18 +127,26 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
             Some(r) => Some(r.tap(i, source.as_ref(), &out_cols)?),
             None => None,
         };
-        undefined += assemble(
+        let (n, out) = assemble(
             &merge,
             &mut merger,
             (output, tap.as_mut()),
             &provenance,
             &spec.output_options,
         )?;
+        undefined += n;
+        ready.push(out);
     }
     exec.reporter.finish_phase();
+    // The point outputs replace what their paths held only once every output and raster is
+    // written: an interrupted run leaves them as they were. A raster failing otherwise leaves
+    // the point outputs, which `tilecurv raster` turns into rasters.
+    let commit = |ready: Vec<Ready>| ready.into_iter().try_for_each(Ready::commit);
     if let Some(r) = rasters {
-        let s = r.finish(exec.reporter, exec.cancel).inspect_err(|e| {
-            if !matches!(e, Error::Interrupted) {
+        let s = match r.finish(exec.reporter, exec.cancel) {
+            Err(Error::Interrupted) => return Err(Error::Interrupted),
+            Err(e) => {
+                commit(ready)?;
                 exec.reporter.warn(&format!(
                     "the point outputs are complete ({}), the rasters failed: once the cause is fixed, `tilecurv raster` makes them from the outputs",
                     (spec.outputs.iter())
@@ -144,8 +154,10 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
                         .collect::<Vec<_>>()
                         .join(", ")
                 ));
+                return Err(e);
             }
-        })?;
+            Ok(s) => s,
+        };
         for w in s.warnings() {
             exec.reporter.warn(&w);
         }
@@ -162,6 +174,7 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
                 .map_or(String::new(), |d| d.display().to_string())
         ));
     }
+    commit(ready)?;
     Ok(undefined)
 }
 
@@ -217,20 +230,21 @@ pub(crate) struct Merge<'a> {
 
 /// Writes `output` from `m.source` (whose point 0 has global id `m.first_id`) and the next
 /// results of `merger`; with `m.flips` (`--orient propagate`), the results of the patches
-/// marked there are written with the opposite orientation. The output appears only if every
-/// point was matched with its result; otherwise the temporary file is removed. Points
+/// marked there are written with the opposite orientation. The output is ready to appear only
+/// if every point was matched with its result; otherwise the temporary file is removed. Points
 /// `m.select` does not select have no result and are written as not computed. Returns the
-/// number of points written whose curvature is undefined.
+/// number of points written whose curvature is undefined and the written file, which its
+/// [`Ready::commit`] renames over the output.
 pub(crate) fn assemble(
     m: &Merge<'_>,
     merger: &mut Merger,
     (output, tap): (&Path, Option<&mut Tap<'_>>),
     provenance: &str,
     options: &OutputOptions,
-) -> Result<u64> {
+) -> Result<(u64, Ready)> {
     let mut writer = create_sink(m.source, output, m.cols, provenance, options)?;
     match merge_into(writer.as_mut(), m, merger, tap) {
-        Ok(undefined) => writer.finish().map(|_| undefined),
+        Ok(undefined) => writer.finish().map(|r| (undefined, r)),
         Err(e) => {
             writer.abandon();
             Err(e)

@@ -331,6 +331,55 @@ fn killed_runs_resume_to_a_byte_identical_output() {
     );
 }
 
+/// SIGINT while `process --raster` writes its rasters, its point output written by then: exit
+/// 130, the output's path holds what it held before, byte for byte, with nothing beside it,
+/// and the raster directory the run made is gone. The same command then resumes and finishes.
+#[test]
+fn an_interrupted_raster_write_leaves_the_previous_output() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("terrain.las");
+    generate(&input, "300k", "4");
+    let out = dir.path().join("out.las");
+    process(&input, &out, &["--columns", "H,K,flags"]);
+    let before = std::fs::read(&out).expect("the first output");
+    let rasters = dir.path().join("out.rasters");
+    // 5 cm cells: 16 rasters of 3465 x 3465 cells take a second or more to write.
+    let args = [
+        "process",
+        s(&input),
+        "-o",
+        s(&out),
+        "--columns",
+        "H,K,flags,terrain",
+        "--raster",
+        "5cm",
+    ];
+    let writing = |_| {
+        std::fs::read_dir(&rasters).is_ok_and(|mut d| {
+            d.any(|e| e.is_ok_and(|e| e.file_name().to_string_lossy().contains(".tif.")))
+        })
+    };
+    let log = dir.path().join("stderr.txt");
+    let (status, err, sent) = start(&args, &log).signal_when(writing, libc::SIGINT);
+    assert!(sent, "the run finished before its rasters were written: {err}");
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("no output was written"), "{err}");
+    assert!(
+        std::fs::read(&out).expect("the output") == before,
+        "the interrupted run replaced the output"
+    );
+    assert!(!rasters.exists(), "the raster directory is left");
+    let beside: Vec<String> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n.starts_with(".out.las") && !n.ends_with(".tilecurv"))
+        .collect();
+    assert!(beside.is_empty(), "left beside the output: {beside:?}");
+    resume(&args);
+    assert!(std::fs::read(&out).expect("the output") != before);
+    assert!(rasters.join("ProfileCurvature.tif").exists());
+}
+
 #[test]
 fn stale_work_is_discarded() {
     let dir = tempfile::tempdir().expect("temp dir");

@@ -14,7 +14,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::direct::DirectFile;
-use crate::io::durable::TempFile;
+use crate::io::durable::{Ready, TempFile};
 use crate::io::las::extra_bytes;
 use crate::io::las::header::{LasHeader, NewHeader, OutputLayout, POINT_FORMAT_SIZES};
 use crate::io::las::provenance::PROVENANCE;
@@ -336,7 +336,12 @@ impl LasFileWriter {
     /// Finishes the points, writes the EVLRs, rewrites the header with the final layout, syncs
     /// the file and renames it over the output. On failure the temporary file is removed (by
     /// `TempFile`'s drop, whichever step failed).
-    pub fn finish(mut self) -> Result<()> {
+    pub fn finish(self) -> Result<()> {
+        self.ready()?.commit()
+    }
+
+    /// [`LasFileWriter::finish`] but the rename, which the [`Ready`] does.
+    pub(crate) fn ready(mut self) -> Result<Ready> {
         // The header's counts are the caller's (an input's are carried over untouched): a file
         // with another number of records would be corrupt.
         if self.written != self.header.point_count {
@@ -377,7 +382,7 @@ impl LasFileWriter {
         .map_err(werr)?;
         file.write_all_at(&self.header.patched(&self.layout), 0)
             .map_err(werr)?;
-        tmp.commit(file)
+        tmp.ready(file)
     }
 
     /// Removes the temporary file; the buffered records are discarded, not flushed.
@@ -422,8 +427,8 @@ impl PointSink for LasFileWriter {
         self.write_records(records)
     }
 
-    fn finish(self: Box<Self>) -> Result<()> {
-        LasFileWriter::finish(*self)
+    fn finish(self: Box<Self>) -> Result<Ready> {
+        LasFileWriter::ready(*self)
     }
 
     fn abandon(self: Box<Self>) {

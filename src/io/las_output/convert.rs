@@ -9,6 +9,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
+use crate::io::durable::Ready;
 use crate::io::las::extra_bytes::{self, encode, parse, NewColumn};
 use crate::io::las::header::{LasHeader, NewHeader, Quantisation};
 use crate::io::las::parts::LasParts;
@@ -100,8 +101,8 @@ impl PointSink for ConvertedSink {
         self.writer.write_records(records)
     }
 
-    fn finish(self: Box<Self>) -> Result<()> {
-        self.writer.finish()
+    fn finish(self: Box<Self>) -> Result<Ready> {
+        self.writer.ready()
     }
 
     fn abandon(self: Box<Self>) {

@@ -66,12 +66,16 @@ pub fn raster(
     cancel: &AtomicBool,
 ) -> Result<RasterSummary> {
     let made = !job.dir.exists();
-    make_rasters(job, memory_bytes, chunk, reporter, cancel).inspect_err(|_| {
-        if made {
-            // A refused run leaves the folder as it was: the directory it made goes if empty.
-            let _ = std::fs::remove_dir(&job.dir);
-        }
-    })
+    let made = made.then_some(job.dir.as_path());
+    make_rasters(job, memory_bytes, chunk, reporter, cancel).inspect_err(|_| remove_made(made))
+}
+
+/// Removes `made`, a directory a run made, if it is empty: a refused or interrupted run leaves
+/// the folder as it was.
+fn remove_made(made: Option<&Path>) {
+    if let Some(dir) = made {
+        let _ = std::fs::remove_dir(dir);
+    }
 }
 
 /// [`raster`]'s work.
@@ -316,6 +320,8 @@ pub(crate) struct OutputRasters {
     crs: RasterCrs,
     /// Per output, the readers of its records' raster columns (taken by its tap).
     readers: Vec<Vec<Reader>>,
+    /// The directory the rasters go to, if the run makes it.
+    made: Option<PathBuf>,
 }
 
 impl OutputRasters {
@@ -353,6 +359,7 @@ impl OutputRasters {
             rasterizer: Rasterizer::new(request, &scratch, budget, extent),
             crs: source_crs(first),
             readers,
+            made: (!dir.exists()).then_some(dir),
         })
     }
 
@@ -383,7 +390,7 @@ impl OutputRasters {
         if let Some(w) = &self.crs.warning {
             reporter.warn(w);
         }
-        self.rasterizer.finish(&self.crs, cancel)
+        (self.rasterizer.finish(&self.crs, cancel)).inspect_err(|_| remove_made(self.made.as_deref()))
     }
 }
 
