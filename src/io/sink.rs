@@ -249,7 +249,10 @@ mod tests {
                 drop(sink());
                 assert!(leftovers(dir.path(), "").is_empty(), "{what}: drop");
                 drop(sink().finish().expect("finishes"));
-                assert!(leftovers(dir.path(), "").is_empty(), "{what}: not committed");
+                assert!(
+                    leftovers(dir.path(), "").is_empty(),
+                    "{what}: not committed"
+                );
                 assert!(!out.exists(), "{what}: not committed");
                 (sink().finish())
                     .and_then(|r| r.commit())

@@ -361,7 +361,10 @@ fn an_interrupted_raster_write_leaves_the_previous_output() {
     };
     let log = dir.path().join("stderr.txt");
     let (status, err, sent) = start(&args, &log).signal_when(writing, libc::SIGINT);
-    assert!(sent, "the run finished before its rasters were written: {err}");
+    assert!(
+        sent,
+        "the run finished before its rasters were written: {err}"
+    );
     assert_eq!(status.code(), Some(130), "{err}");
     assert!(err.contains("no output was written"), "{err}");
     assert!(

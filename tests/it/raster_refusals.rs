@@ -53,6 +53,11 @@ fn process_refuses_bad_raster_requests_before_the_work() {
         &run(&["--raster-dir", s(&file)]),
         &["exists and is not a directory", "--raster-dir"],
     );
+    // With a trailing slash, which makes the file read as missing.
+    refused(
+        &run(&["--raster-dir", &format!("{}/", s(&file))]),
+        &["exists and is not a directory", "--raster-dir"],
+    );
     let under_file = file.join("r");
     refused(
         &run(&["--raster-dir", s(&under_file)]),
@@ -242,4 +247,75 @@ fn the_raster_statistic_needs_a_raster_and_answers_to_stat() {
         rasters[0] != rasters[2],
         "the median rasters equal the mean's"
     );
+}
+
+/// An ASCII PLY of a 20 x 20 grid (1 unit apart, z = 0) whose further float properties are
+/// named `names` and hold the values `values` on every point.
+fn ply_with(path: &Path, names: &[&str], values: &[f32]) {
+    let mut t = String::from("ply\nformat ascii 1.0\nelement vertex 400\n");
+    for p in ["x", "y", "z"].iter().chain(names) {
+        t.push_str(&format!("property float {p}\n"));
+    }
+    t.push_str("end_header\n");
+    for i in 0..400 {
+        let v: Vec<String> = values.iter().map(f32::to_string).collect();
+        t.push_str(&format!("{} {} 0 {}\n", i % 20, i / 20, v.join(" ")));
+    }
+    std::fs::write(path, t).expect("writes the PLY");
+}
+
+/// A column whose name cannot name its raster file (a path, the point count's file, another
+/// column's file on a file system that ignores case) is refused before a point is read, and
+/// nothing is written, beside the directory or in it; a column named exactly as asked is taken
+/// over one whose name differs only in case.
+#[test]
+fn columns_that_cannot_name_their_raster_files_are_refused() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let ply = dir.path().join("names.ply");
+    ply_with(
+        &ply,
+        &["../evil", "PointCount", "h", "H"],
+        &[1.0, 2.0, 7.0, 8.0],
+    );
+    let out = dir.path().join("r").join("");
+    let run = |cols: &str| -> Vec<String> {
+        [
+            "raster",
+            s(&ply),
+            "--cell",
+            "2",
+            "--columns",
+            cols,
+            "-o",
+            s(&out),
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    refused(&run("../evil"), &["\"../evil\"", "path separator"]);
+    refused(
+        &run("z,PointCount"),
+        &["\"PointCount\"", "holds the point count"],
+    );
+    refused(&run("H,h"), &["\"h\"", "H is rastered to the same file"]);
+    assert_eq!(listing(dir.path()), ["names.ply"]);
+    // H (8), not h (7): its raster is that of a file where H is the only such column.
+    let only = dir.path().join("only.ply");
+    ply_with(&only, &["H"], &[8.0]);
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    for (input, to) in [(&ply, &a), (&only, &b)] {
+        let o = tilecurv(&[
+            "raster",
+            s(input),
+            "--cell",
+            "2",
+            "--columns",
+            "H",
+            "-o",
+            s(to),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let read = |d: &Path| std::fs::read(d.join("H.tif")).expect("H.tif");
+    assert!(read(&a) == read(&b), "the raster of H is not that of H");
 }

@@ -1,24 +1,61 @@
 //! What would make rasters fail, checked before any point is read (for `process --raster`,
-//! before the curvature work): the raster directory and the size of the grid the inputs'
-//! declared bounds span. The inputs' CRSs are checked by `run::one_map`.
+//! before the curvature work): the raster directory, the columns' names as file names and the
+//! size of the grid the inputs' declared bounds span. The inputs' CRSs are checked by
+//! `run::one_map`.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::core::raster::Cell;
 use crate::error::{Error, Result};
-use crate::io::raster::{check_size, length_text};
+use crate::io::raster::{check_size, length_text, RasterColumn, COUNT_NAME};
 use crate::io::source::{declared_bounds, PointSource};
+
+/// Refuses columns whose names cannot name their raster files in the raster directory (each
+/// column's raster is `<name>.tif`, beside `PointCount.tif`): a name with a path separator or
+/// a control character, `.` or `..`, a name starting with a dot (hidden, as the rasters'
+/// temporary files are), or one that names the file of the point count or of another column
+/// (compared without case, as some file systems do).
+pub(super) fn check_names(columns: &[RasterColumn], file: &Path) -> Result<()> {
+    let mut taken = vec![COUNT_NAME];
+    for c in columns {
+        let n = c.name.as_str();
+        let why = if n
+            .chars()
+            .any(|ch| ch == '/' || ch == '\\' || ch.is_control())
+        {
+            Some("it holds a path separator or a control character".to_string())
+        } else if n.is_empty() || n.starts_with('.') {
+            Some("it is empty or starts with a dot".to_string())
+        } else {
+            (taken.iter().find(|t| t.eq_ignore_ascii_case(n))).map(|&t| match t {
+                COUNT_NAME => format!("{COUNT_NAME}.tif holds the point count"),
+                t => format!("{t} is rastered to the same file"),
+            })
+        };
+        if let Some(why) = why {
+            return Err(Error::Usage(format!(
+                "the column {n:?} of {} cannot name a raster file ({why}): leave it out of the columns to raster, or rename it in the file",
+                file.display()
+            )));
+        }
+        taken.push(n);
+    }
+    Ok(())
+}
 
 /// Refuses a raster directory `dir` (given by `option`) that is a file or cannot be made: the
 /// nearest existing folder on its path gets a directory made and removed at once, so that the
 /// folder is left as it was.
-pub(super) fn check_dir(dir: &Path, option: &str) -> Result<()> {
+pub(super) fn check_dir(given: &Path, option: &str) -> Result<()> {
     let refuse = |why: String| {
         Error::Usage(format!(
             "{}: {why}; name another raster directory with {option}",
-            dir.display()
+            given.display()
         ))
     };
+    // Without a trailing slash, which makes a file that stands there read as missing.
+    let dir: PathBuf = given.components().collect();
+    let dir = dir.as_path();
     if dir.exists() {
         if !dir.is_dir() {
             return Err(refuse("exists and is not a directory".into()));

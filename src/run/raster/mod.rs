@@ -21,7 +21,7 @@ use crate::progress::Reporter;
 use crate::run::one_map::{check_one_map, Joined};
 use crate::run::prepare::check_distinct_files;
 use crate::run::spec::RunSpec;
-use read::{column_names, reader, reader_of_later, tally_integers, Binner, Reader};
+use read::{column_names, reader, reader_of_later, spelled, tally_integers, Binner, Reader};
 
 mod check;
 mod read;
@@ -193,6 +193,7 @@ fn choose_columns(
             column_names(s).join(", ")
         )));
     }
+    check::check_names(&chosen, s.path())?;
     Ok(chosen)
 }
 
@@ -203,13 +204,11 @@ fn describe(known: &[(RasterColumn, bool)], name: &str, s: &dyn PointSource) -> 
     let coordinate = ["x", "y", "z"].iter().any(|c| c.eq_ignore_ascii_case(name));
     let unit = unit_symbol(s);
     // Named as the file names it (`Z` as `z`), as tilecurv's own columns are.
-    let names = column_names(s);
-    let name = (names.iter())
-        .find(|n| n.eq_ignore_ascii_case(name))
-        .map_or(name, String::as_str);
+    let spelling = spelled(s, name);
+    let name = spelling.as_deref().unwrap_or(name);
     known
         .iter()
-        .find(|(k, _)| k.name.eq_ignore_ascii_case(name))
+        .find(|(k, _)| k.name == name)
         .map(|(k, _)| k.clone())
         .unwrap_or_else(|| RasterColumn {
             name: name.to_string(),
@@ -291,6 +290,7 @@ fn output_raster_columns(
             written.join(", ")
         )));
     }
+    check::check_names(&columns, first.path())?;
     Ok(columns)
 }
 
@@ -390,7 +390,8 @@ impl OutputRasters {
         if let Some(w) = &self.crs.warning {
             reporter.warn(w);
         }
-        (self.rasterizer.finish(&self.crs, cancel)).inspect_err(|_| remove_made(self.made.as_deref()))
+        (self.rasterizer.finish(&self.crs, cancel))
+            .inspect_err(|_| remove_made(self.made.as_deref()))
     }
 }
 

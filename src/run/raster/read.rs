@@ -127,11 +127,12 @@ fn each<T>(
     }
 }
 
-/// The reader of the column `name` in `s` (names compare without case).
+/// The reader of the column `name` in `s`, as [`spelled`] finds it.
 pub(super) fn reader(s: &dyn PointSource, name: &str) -> Option<Reader> {
+    let name = spelled(s, name)?;
     if let SourceLayout::Las(p) = s.layout() {
         let base = POINT_FORMAT_SIZES[p.header.point_format as usize] as usize;
-        if let Some(d) = p.extra.iter().find(|d| d.name.eq_ignore_ascii_case(name)) {
+        if let Some(d) = p.extra.iter().find(|d| d.name == name) {
             return d.scalar().map(|_| Reader::Extra {
                 at: base,
                 d: d.clone(),
@@ -140,8 +141,19 @@ pub(super) fn reader(s: &dyn PointSource, name: &str) -> Option<Reader> {
     }
     s.properties()
         .into_iter()
-        .find(|p| p.name.eq_ignore_ascii_case(name))
+        .find(|p| p.name == name)
         .map(Reader::Property)
+}
+
+/// The name of `s`'s column `name` as the file spells it: the column of exactly that name,
+/// else the first whose name differs only in case (`Z` for `z`, `h` for `H` in a file
+/// without an `H`).
+pub(super) fn spelled(s: &dyn PointSource, name: &str) -> Option<String> {
+    let names = column_names(s);
+    let exact = names.iter().find(|n| *n == name);
+    exact
+        .or_else(|| names.iter().find(|n| n.eq_ignore_ascii_case(name)))
+        .cloned()
 }
 
 /// The reader of the column `name` of a later input `s`, or the error that it lacks one the
