@@ -103,12 +103,28 @@ def reduce(stat, values, circular, integers):
         return np.nan
     if stat == "mean" and integers and not circular:
         return float(defined.mean())
-    if stat == "mean" and circular:
+    if circular:
         r = np.radians(v.astype(np.float64))
         s, c = np.sin(r).sum(), np.cos(r).sum()
         if np.hypot(s, c) < 1e-9 * len(v):
             return np.nan
-        return float(np.degrees(np.arctan2(s, c)) % 360.0)
+        mean = float(np.degrees(np.arctan2(s, c)) % 360.0)
+        if stat == "mean":
+            return mean
+        # Median, min and max of the angles unwrapped to within 180 degrees of their mean.
+        start = float(np.float32(mean)) - 180.0
+        u = (v.astype(np.float64) - start) % 360.0
+        k = np.lexsort((v, u))
+        n = len(v)
+        if stat == "min":
+            x = float(v[k[0]])
+        elif stat == "max":
+            x = float(v[k[-1]])
+        elif n % 2:
+            x = float(v[k[n // 2]])
+        else:
+            x = ((u[k[n // 2 - 1]] + u[k[n // 2]]) / 2 + start) % 360.0
+        return x % 360.0
     if stat == "mean":
         return float(v.astype(np.float64).mean())
     if stat == "median":
@@ -167,7 +183,7 @@ def main():
         want32 = want[d].astype(np.float32).astype(np.float64)
         err = np.abs(got[d] - want32)
         tol = 1e-6 * np.maximum(np.abs(want32), 1e-30)
-        if name.lower() == "aspect" and a.stat == "mean":
+        if name.lower() == "aspect" and a.stat in ("mean", "median"):
             err = np.minimum(err, 360 - err)
             tol = np.full_like(err, 1e-3)
         bad = err > tol

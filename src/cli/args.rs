@@ -333,8 +333,9 @@ pub(super) struct InfoArgs {
 
 /// What `--stat` says.
 const STAT_HELP: &str = "How a cell's value is formed from the defined values of its points: \
-mean (the default; for Aspect the direction of the mean unit vector), median, min, max, or \
-count. Undefined values (no-data, NaN) are left out.";
+mean (the default; for Aspect the direction of the mean unit vector), median, min, max (for \
+Aspect, of the angles unwrapped to within 180 degrees of that direction), or count. Undefined \
+values (no-data, NaN) are left out; a cell without a defined value is no-data (count: 0).";
 
 /// What the raster columns' option says.
 const COLUMNS_HELP: &str = "The columns to raster, comma-separated, by their names in the file \

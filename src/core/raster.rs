@@ -164,34 +164,84 @@ impl Stat {
 
     /// The cell value of `values` (one cell's values of one column, NaN for undefined ones),
     /// NaN when none is defined. `circular` takes the values as angles in degrees (aspect):
-    /// the mean is the direction of the mean unit vector, in [0, 360), and the median, min and
-    /// max are those of the plain values. The result does not depend on the values' order: a mean
-    /// whose f64 sum is exact in any order takes it as it comes, other means
-    /// and the median sort the values first (NaN last); the min and max compare by total order
-    /// (-0 below +0).
+    /// the mean is the direction of the mean unit vector, in [0, 360); the median, min and max
+    /// are those of the angles unwrapped about that mean ([`circular_order`]), so that 359 and
+    /// 1 have the median 0, not 180. The result does not depend on the values' order: a mean
+    /// whose f64 sum is exact in any order takes it as it comes, other means and the median
+    /// sort the values first (NaN last); the min and max compare by total order (-0 below +0).
     pub fn reduce(self, values: &mut [f32], circular: bool) -> f32 {
         let defined = values.iter().copied().filter(|v| !v.is_nan());
         match self {
             Stat::Count => return defined.count() as f32,
+            _ if circular => {}
             Stat::Min => return defined.min_by(f32::total_cmp).unwrap_or(f32::NAN),
             Stat::Max => return defined.max_by(f32::total_cmp).unwrap_or(f32::NAN),
-            Stat::Mean if !circular => {
+            Stat::Mean => {
                 if let Some(mean) = exact_mean(values) {
                     return mean;
                 }
             }
-            Stat::Mean | Stat::Median => {}
+            Stat::Median => {}
         }
         values.sort_unstable_by(|a, b| a.total_cmp(b));
         let n = values.iter().take_while(|v| !v.is_nan()).count();
         let v = &values[..n];
+        if n == 0 {
+            return f32::NAN;
+        }
+        if circular {
+            return circular_order(self, v);
+        }
         match self {
-            _ if n == 0 => f32::NAN,
-            Stat::Mean if circular => circular_mean(v),
-            Stat::Median if n % 2 == 1 => v[n / 2],
-            Stat::Median => ((v[n / 2 - 1] as f64 + v[n / 2] as f64) / 2.0) as f32,
+            Stat::Median => median(v),
             _ => (v.iter().map(|&x| x as f64).sum::<f64>() / n as f64) as f32,
         }
+    }
+}
+
+/// The middle of the sorted `v` (not empty), or the mean of the two middle ones in f64.
+fn median(v: &[f32]) -> f32 {
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        ((v[n / 2 - 1] as f64 + v[n / 2] as f64) / 2.0) as f32
+    }
+}
+
+/// `stat` of the angles `degrees` (sorted, defined, not empty) as directions: the circular
+/// mean; or the median, min or max of the angles ordered as unwrapped into the half-turns
+/// either side of that mean (each taken to the mean - 180 to mean + 180): an angle itself, or
+/// the middle of two in f64, in [0, 360). NaN where the mean is undefined
+/// (directions that cancel), which leaves the others undefined too.
+fn circular_order(stat: Stat, degrees: &[f32]) -> f32 {
+    let mean = circular_mean(degrees);
+    if stat == Stat::Mean || mean.is_nan() {
+        return mean;
+    }
+    let from = mean as f64 - 180.0;
+    let mut u: Vec<(f64, f32)> = (degrees.iter())
+        .map(|&d| ((d as f64 - from).rem_euclid(360.0), d))
+        .collect();
+    u.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let n = u.len();
+    let picked = match stat {
+        Stat::Min => u[0].1 as f64,
+        Stat::Max => u[n - 1].1 as f64,
+        _ if n % 2 == 1 => u[n / 2].1 as f64,
+        _ => ((u[n / 2 - 1].0 + u[n / 2].0) / 2.0 + from).rem_euclid(360.0),
+    };
+    // An angle of 360 (a file may hold one) is north: 0.
+    below_360(picked.rem_euclid(360.0))
+}
+
+/// `degrees` in [0, 360] as an f32 in [0, 360): 360 (or what rounds to it) is north, 0.
+fn below_360(degrees: f64) -> f32 {
+    let d = degrees as f32;
+    if d >= 360.0 {
+        0.0
+    } else {
+        d
     }
 }
 
@@ -347,7 +397,7 @@ fn circular_mean(degrees: &[f32]) -> f32 {
     if s.hypot(c) < 1e-9 * degrees.len() as f64 {
         return f32::NAN;
     }
-    (s.atan2(c).to_degrees().rem_euclid(360.0) as f32).min(f32::from_bits(360f32.to_bits() - 1))
+    below_360(s.atan2(c).to_degrees().rem_euclid(360.0))
 }
 
 #[cfg(test)]
@@ -534,5 +584,46 @@ mod tests {
         let mut v = [0.0f32, 180.0];
         assert!(Stat::Mean.reduce(&mut v, true).is_nan());
         assert_eq!(Stat::Mean.reduce(&mut [350.0f32, 10.0], false), 180.0);
+    }
+
+    /// The median, min and max of aspects are those of the angles about their circular mean:
+    /// the trial's cell of 6.5 and 358.8 degrees has the median 2.65 (it had 182.65), its min
+    /// 358.8 and max 6.5 (the arc from one to the other clockwise through north); away from
+    /// north they are the plain ones; where directions cancel they are undefined.
+    #[test]
+    fn the_median_min_and_max_of_aspects_are_circular() {
+        let cell = [6.5f32, 358.8];
+        let r = |s: Stat, v: &[f32]| s.reduce(&mut v.to_vec(), true);
+        assert!(
+            (r(Stat::Median, &cell) - 2.65).abs() < 1e-4,
+            "{}",
+            r(Stat::Median, &cell)
+        );
+        assert_eq!(r(Stat::Min, &cell), 358.8);
+        assert_eq!(r(Stat::Max, &cell), 6.5);
+        let across = [355.0f32, 359.0, 3.0, 20.0, 350.0];
+        assert!((r(Stat::Median, &across) - 359.0).abs() < 1e-4);
+        assert_eq!(r(Stat::Min, &across), 350.0);
+        assert_eq!(r(Stat::Max, &across), 20.0);
+        let east = [80.0f32, 95.0, 91.0, 120.0];
+        assert_eq!(
+            r(Stat::Median, &east),
+            Stat::Median.reduce(&mut east.to_vec(), false)
+        );
+        assert_eq!(r(Stat::Min, &east), 80.0);
+        assert_eq!(r(Stat::Max, &east), 120.0);
+        for s in [Stat::Median, Stat::Min, Stat::Max] {
+            assert!(r(s, &[0.0, 180.0]).is_nan(), "{s:?}");
+            assert!(r(s, &[f32::NAN]).is_nan(), "{s:?}");
+            assert_eq!(r(s, &[f32::NAN, 42.0]), 42.0, "{s:?}");
+        }
+        // Across north the values stay in [0, 360).
+        for k in 0..200 {
+            let a = 359.999f32 + k as f32 * 1e-5;
+            for s in [Stat::Mean, Stat::Median, Stat::Min, Stat::Max] {
+                let v = r(s, &[a, 360.0 - a, 1e-6]);
+                assert!((0.0..360.0).contains(&v), "{s:?} of {a}: {v}");
+            }
+        }
     }
 }
