@@ -165,6 +165,7 @@ def main():
             assert r.nodata == float(np.finfo(np.float32).min), (name, r.nodata)
             assert r.dtypes[0] == "float32" and r.compression is not None, (name, r.dtypes)
             check_crs(name, r.crs, expect_crs)
+            assert r.descriptions == (name,), (name, r.descriptions)
             grid = r.read(1, masked=True)
         want = np.full(width * height, np.nan)
         if name == "PointCount":

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use crate::common::{column, laspy_available, median, process, tilecurv};
+use crate::common::{column, laspy_available, median, process, s, tilecurv};
 
 const FT_US: f64 = 1200.0 / 3937.0;
 
@@ -79,6 +79,32 @@ fn heights_in_feet_under_a_metre_crs_are_converted() {
             text.contains("z_scale=0.3048006096"),
             "{crs}: provenance: {text}"
         );
+        // Rasters name each band's unit as the file's CRS has it: z in US survey feet, H in
+        // 1/m (the horizontal unit), as rasterio (GDAL) reads them.
+        let r = dir.path().join(format!("r_{crs}"));
+        let run = tilecurv(&[
+            "raster",
+            s(&out),
+            "--cell",
+            "5m",
+            "--columns",
+            "z,H",
+            "-o",
+            s(&r),
+        ]);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let read = r#"
+import sys, rasterio
+for n in ("z", "H", "PointCount"):
+    with rasterio.open(f"{sys.argv[1]}/{n}.tif") as t:
+        print(t.descriptions[0], t.units[0])
+"#;
+        let said = crate::interop::laspy(read, &[&r]);
+        assert_eq!(said, "z ftUS\nH 1/m\nPointCount points\n", "{crs}");
     }
     // A vertical CRS without a unit: taken in metres, with a warning naming the file.
     let vague = dir.path().join("terrain_vague.las");

@@ -1,6 +1,7 @@
 //! One GeoTIFF being written: float32 cells in strips, Deflate-compressed, the no-data value
-//! declared (GDAL_NODATA), georeferenced by a tie point at the grid's north-west corner and
-//! the cell size (PixelIsArea), with the CRS's GeoTIFF keys. The file is laid out by the `tiff`
+//! declared (GDAL_NODATA), the band's name and unit in GDAL's metadata (QGIS and rasterio show
+//! them), georeferenced by a tie point at the grid's north-west corner and the cell size
+//! (PixelIsArea), with the CRS's GeoTIFF keys. The file is laid out by the `tiff`
 //! crate (image-rs: maintained, pure Rust, arbitrary tags, BigTIFF) and the strips compressed
 //! by `flate2`, on a thread of its own
 //! that takes strips as they are filled, so that the compression of several rasters runs in
@@ -32,13 +33,46 @@ const BIG: u64 = 3 << 30;
 const QUEUE: usize = 2;
 
 /// ModelPixelScaleTag, ModelTiepointTag, GeoKeyDirectoryTag, GeoDoubleParamsTag,
-/// GeoAsciiParamsTag, GDAL_NODATA.
+/// GeoAsciiParamsTag, GDAL_METADATA, GDAL_NODATA.
 const PIXEL_SCALE: u16 = 33550;
 const TIEPOINT: u16 = 33922;
 const KEY_DIRECTORY: u16 = 34735;
 const DOUBLE_PARAMS: u16 = 34736;
 const ASCII_PARAMS: u16 = 34737;
+const GDAL_METADATA: u16 = 42112;
 const GDAL_NODATA: u16 = 42113;
+
+/// GDAL's metadata of a band named `name` whose values are in `unit` (none if empty): its
+/// description and unit type, as GDAL writes them.
+fn gdal_metadata(name: &str, unit: &str) -> String {
+    let item = |key: &str, role: &str, v: &str| {
+        format!(
+            "<Item name=\"{key}\" sample=\"0\" role=\"{role}\">{}</Item>",
+            xml_text(v)
+        )
+    };
+    let mut m = format!("<GDALMetadata>{}", item("DESCRIPTION", "description", name));
+    if !unit.is_empty() {
+        m.push_str(&item("UNITTYPE", "unittype", unit));
+    }
+    m + "</GDALMetadata>"
+}
+
+/// `s` with XML's five special characters escaped (a column's name may hold any).
+fn xml_text(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&apos;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
 
 /// Rows per strip for rasters `width` cells wide: strips of about 256 KiB.
 pub(crate) fn rows_per_strip(width: u32) -> u32 {
@@ -53,11 +87,17 @@ pub(crate) struct GeoTiff {
 }
 
 impl GeoTiff {
-    /// Starts writing `path` for `grid` in `crs`.
-    pub(crate) fn create(path: &Path, grid: &CellGrid, crs: &RasterCrs) -> Result<GeoTiff> {
+    /// Starts writing `path` for `grid` in `crs`, its band named `name` and in `unit` (`band`).
+    pub(crate) fn create(
+        path: &Path,
+        grid: &CellGrid,
+        crs: &RasterCrs,
+        (name, unit): (&str, &str),
+    ) -> Result<GeoTiff> {
         let (tmp, file) = TempFile::create(path)?;
         let (tx, rx) = bounded::<Vec<f32>>(QUEUE);
         let (grid, crs) = (*grid, crs.clone());
+        let meta = gdal_metadata(name, unit);
         let big = grid.width as u64 * grid.height as u64 * 4 > BIG;
         let writer = std::thread::Builder::new()
             .name("geotiff".into())
@@ -65,8 +105,8 @@ impl GeoTiff {
                 let mut w = BufWriter::with_capacity(1 << 20, &file);
                 let strips = rx.iter();
                 let written = match big {
-                    true => encode(TiffEncoder::new_big(&mut w), &grid, &crs, strips),
-                    false => encode(TiffEncoder::new(&mut w), &grid, &crs, strips),
+                    true => encode(TiffEncoder::new_big(&mut w), (&grid, &crs, &meta), strips),
+                    false => encode(TiffEncoder::new(&mut w), (&grid, &crs, &meta), strips),
                 };
                 written
                     .and_then(|()| w.flush())
@@ -117,13 +157,13 @@ impl Drop for GeoTiff {
     }
 }
 
-/// Writes the image of `grid` from `strips` (NaN as [`NO_DATA`]) with its georeferencing.
+/// Writes the image of `grid` from `strips` (NaN as [`NO_DATA`]) with its georeferencing in
+/// `crs` and GDAL's metadata `meta`.
 /// The strips are compressed here (zlib, TIFF's Deflate, compression 8): the `tiff` crate's
 /// strip-by-strip writer (0.11) writes strips as given while declaring the compression.
 fn encode<W: Write + Seek, K: TiffKind>(
     encoder: tiff::TiffResult<TiffEncoder<W, K>>,
-    grid: &CellGrid,
-    crs: &RasterCrs,
+    (grid, crs, meta): (&CellGrid, &RasterCrs, &str),
     strips: impl Iterator<Item = Vec<f32>>,
 ) -> std::io::Result<()> {
     let mut encoder = encoder.map_err(tiff_err)?;
@@ -177,6 +217,7 @@ fn encode<W: Write + Seek, K: TiffKind>(
         if !crs.ascii.is_empty() {
             dir.write_tag(tag(ASCII_PARAMS), crs.ascii.as_str())?;
         }
+        dir.write_tag(tag(GDAL_METADATA), meta)?;
         dir.write_tag(tag(GDAL_NODATA), format!("{:e}", NO_DATA as f64).as_str())
     };
     put().map_err(tiff_err)?;

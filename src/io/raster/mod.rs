@@ -478,9 +478,11 @@ impl Rasterizer {
             .map(|c| req.dir.join(format!("{}.tif", c.name)))
             .collect();
         files.push(req.dir.join(format!("{COUNT_NAME}.tif")));
-        let writers = files
-            .iter()
-            .map(|p| GeoTiff::create(p, &grid, crs))
+        let bands = (req.columns.iter())
+            .map(|c| (c.name.as_str(), c.unit.as_str()))
+            .chain([(COUNT_NAME, "points")]);
+        let writers = (files.iter().zip(bands))
+            .map(|(p, band)| GeoTiff::create(p, &grid, crs, band))
             .collect::<Result<Vec<_>>>()?;
         let mut rows = Rows::new(&grid, writers, cancel);
         let n = req.columns.len();

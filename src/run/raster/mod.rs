@@ -11,6 +11,7 @@ use crate::core::raster::Stat;
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
 use crate::io::columns::ColumnSet;
+use crate::io::crs_summary::VerticalUnit;
 use crate::io::durable::{sweep_dead_temps, tmp_name};
 use crate::io::las::extra_bytes;
 use crate::io::raster::geokeys::{source_crs, RasterCrs};
@@ -199,10 +200,17 @@ fn choose_columns(
 
 /// How the column `name` is shown: as tilecurv's own column of that name (`known`), else on a
 /// sequential ramp (a sign means nothing known of another's column, nor of an elevation), in
-/// the unit of the file `s` for x, y and z and without a unit for the others.
+/// the unit of the file `s` for x and y, its vertical unit for z (the horizontal one where it
+/// declares none) and without a unit for the others.
 fn describe(known: &[(RasterColumn, bool)], name: &str, s: &dyn PointSource) -> RasterColumn {
-    let coordinate = ["x", "y", "z"].iter().any(|c| c.eq_ignore_ascii_case(name));
-    let unit = unit_symbol(s);
+    let unit = match name.to_ascii_lowercase().as_str() {
+        "x" | "y" => unit_symbol(s),
+        "z" => match s.vertical_unit() {
+            VerticalUnit::Declared(u) => u.symbol(),
+            _ => unit_symbol(s),
+        },
+        _ => String::new(),
+    };
     // Named as the file names it (`Z` as `z`), as tilecurv's own columns are.
     let spelling = spelled(s, name);
     let name = spelling.as_deref().unwrap_or(name);
@@ -212,7 +220,7 @@ fn describe(known: &[(RasterColumn, bool)], name: &str, s: &dyn PointSource) -> 
         .map(|(k, _)| k.clone())
         .unwrap_or_else(|| RasterColumn {
             name: name.to_string(),
-            unit: if coordinate { unit } else { String::new() },
+            unit,
             signed: false,
             angle: false,
             scale: None,
