@@ -183,6 +183,17 @@ def test_input_order_is_kept(xyz):
         assert np.array_equal(a[name][perm], b[name], equal_nan=True), name
 
 
+def test_flag_columns_are_uint8(xyz):
+    """Every flag column comes back as uint8, as the files store it; TerrainFlags bit 2 (no
+    curvature) marks exactly the points whose curvature is undefined (CurvatureFlags 1, 2, 4
+    or 128)."""
+    got = tilecurv.curvature(xyz[:3000], columns="H,flags,slope", k=20)
+    assert got["CurvatureFlags"].dtype == np.uint8 and got["TerrainFlags"].dtype == np.uint8
+    undefined = (got["CurvatureFlags"] & (1 | 2 | 4 | 128)) != 0
+    assert undefined.any() and not undefined.all()
+    assert np.array_equal((got["TerrainFlags"] & 2) != 0, undefined)
+
+
 def test_normals_are_used_as_file_normals(xyz):
     """Given normals flag the points FILE_NORMAL (32), and a sphere with its exact outward
     normals has H = 1/r: checked against the closed form."""

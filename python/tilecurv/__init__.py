@@ -116,6 +116,25 @@ def _text(key: str, value: Any) -> str:
     return str(value)
 
 
+def _names(value: Optional[Union[str, Sequence[str]]]) -> Optional[List[str]]:
+    """Column names given as a list or as the command line's comma-separated text."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return [n.strip() for n in value.split(",")]
+    return [str(n) for n in value]
+
+
+def _amount(key: str, value: Any) -> Optional[str]:
+    """A length or a byte count given as text (``"1m"``, ``"4G"``) or as a number (file units,
+    bytes), as the command line's text."""
+    if value is None or isinstance(value, str):
+        return value
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        return _text(key, value)
+    raise UsageError(f"{key}: {value!r} is neither a number nor a text such as \"1m\" or \"4G\"")
+
+
 def _pairs(options: Dict[str, Any], allowed: Sequence[str], where: str) -> List[tuple]:
     """The ``(key, text)`` pairs of ``options``, refusing keywords that are not ``allowed``."""
     for key in options:
@@ -210,7 +229,7 @@ def curvature(
     *,
     normals: Optional[np.ndarray] = None,
     threads: Optional[int] = None,
-    memory: Optional[str] = None,
+    memory: Optional[Union[str, int]] = None,
     work_dir: Optional[Union[str, os.PathLike]] = None,
     **options: Any,
 ) -> Dict[str, np.ndarray]:
@@ -232,7 +251,8 @@ def curvature(
 
     ``normals``: an (n, 3) array of normals to use as a file's (a point whose normal is not
     finite or zero gets a PCA normal); ``threads``: worker threads (default every core);
-    ``memory``: the budget as text (``"2G"``; default half the machine's memory, at most 4G);
+    ``memory``: the budget as text (``"2G"``) or in bytes (default half the machine's memory, at
+    most 4G);
     ``work_dir``: where the run's temporary work directory goes (default the system's temporary
     directory; removed after the run).
 
@@ -266,7 +286,7 @@ def curvature(
         normals,
         pairs,
         threads,
-        memory,
+        _amount("memory", memory),
         None if work_dir is None else os.fspath(work_dir),
     )
     for note in notes:
@@ -286,11 +306,11 @@ def process(
     work_dir: Optional[Union[str, os.PathLike]] = None,
     dry_run: bool = False,
     threads: Optional[int] = None,
-    memory: Optional[str] = None,
+    memory: Optional[Union[str, int]] = None,
     quiet: bool = False,
-    raster: Optional[str] = None,
+    raster: Optional[Union[str, float]] = None,
     raster_dir: Optional[Union[str, os.PathLike]] = None,
-    raster_columns: Optional[Sequence[str]] = None,
+    raster_columns: Optional[Union[str, Sequence[str]]] = None,
     raster_stat: Optional[str] = None,
     **options: Any,
 ) -> Dict[str, Any]:
@@ -325,13 +345,13 @@ def process(
         None if work_dir is None else os.fspath(work_dir),
         dry_run,
         threads,
-        memory,
+        _amount("memory", memory),
         quiet,
         on_line if progress is not None else None,
         (
-            raster,
+            _amount("raster", raster),
             None if raster_dir is None else os.fspath(raster_dir),
-            None if raster_columns is None else list(raster_columns),
+            _names(raster_columns),
             raster_stat,
         ),
     )
@@ -341,29 +361,29 @@ def raster(
     inputs: Union[str, os.PathLike, Sequence[Union[str, os.PathLike]]],
     output: Union[str, os.PathLike],
     *,
-    cell: str,
-    columns: Optional[Sequence[str]] = None,
+    cell: Union[str, float],
+    columns: Optional[Union[str, Sequence[str]]] = None,
     stat: str = "mean",
-    memory: Optional[str] = None,
+    memory: Optional[Union[str, int]] = None,
     quiet: bool = True,
 ) -> Dict[str, Any]:
     """``tilecurv raster``: one float32 GeoTIFF per column of the point files ``inputs`` (one
     scene) in the directory ``output``, plus ``PointCount.tif``, each with a PNG quick look.
 
-    ``cell`` is a length with a unit (``"1m"``, ``"3ft"``) or in file units (``"0.5"``); cells
-    are whole multiples of it in the CRS. ``columns`` names the columns (default: every
-    curvature column the first file holds); ``stat`` is ``mean``, ``median``, ``min``, ``max``
-    or ``count``. Returns files (a list of pathlib.Path), points, cells, width, height and cell
+    ``cell`` is a length with a unit (``"1m"``, ``"3ft"``) or in file units (``"0.5"``, ``0.5``);
+    cells are whole multiples of it in the CRS. ``columns`` names the columns, as a list or as
+    text (``"H,Slope"``; default: every curvature column the first file holds); ``stat`` is
+    ``mean``, ``median``, ``min``, ``max`` or ``count``. Returns files (a list of pathlib.Path), points, cells, width, height and cell
     (in file units)."""
     if isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
     return _tilecurv.raster(
         [os.fspath(i) for i in inputs],
         os.fspath(output),
-        cell,
-        None if columns is None else list(columns),
+        _amount("cell", cell),
+        _names(columns),
         stat,
-        memory,
+        _amount("memory", memory),
         quiet,
     )
 

@@ -19,7 +19,7 @@ use crate::core::compute::PointResult;
 use crate::core::plan::TilePlan;
 use crate::core::tasks::TaskLayout;
 use crate::error::{Error, Result};
-use crate::io::columns::Value;
+use crate::io::columns::{TerrainValue, Value};
 use crate::io::source::memory::MemorySource;
 use crate::io::source::PointSource;
 use crate::io::workdir::results::{record_size, Merger};
@@ -32,7 +32,7 @@ use crate::run::{bucket, prepare, tiles, Exec, Run};
 pub enum Values {
     /// Curvatures, normals, directions, features: NaN where undefined.
     F64(Vec<f64>),
-    /// `CurvatureFlags` and `ScaleFlags`.
+    /// `CurvatureFlags`, `ScaleFlags` and `TerrainFlags`.
     U8(Vec<u8>),
     /// `ScaleK`.
     U16(Vec<u16>),
@@ -62,7 +62,9 @@ fn reserve<T>(n: usize, name: &str) -> Result<Vec<T>> {
 impl Values {
     fn for_value(value: Value, n: usize, name: &str) -> Result<Self> {
         Ok(match value {
-            Value::Flags | Value::ScaleFlags => Values::U8(reserve(n, name)?),
+            Value::Flags | Value::ScaleFlags | Value::Terrain(TerrainValue::Flags) => {
+                Values::U8(reserve(n, name)?)
+            }
             Value::ScaleK => Values::U16(reserve(n, name)?),
             _ => Values::F64(reserve(n, name)?),
         })

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::config::{Length, RasterOptions};
+use crate::config::{ExecOptions, Length, RasterOptions};
 use crate::core::raster::Stat;
 use crate::error::{Error, Result};
 use crate::io::columns::output::OutputColumns;
@@ -66,6 +66,13 @@ pub fn raster(
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<RasterSummary> {
+    // The checks of `process`'s --memory and --chunk-size.
+    let exec = ExecOptions {
+        memory_bytes,
+        chunk_points: chunk,
+        ..ExecOptions::default()
+    };
+    exec.validate()?;
     let made = !job.dir.exists();
     let made = made.then_some(job.dir.as_path());
     make_rasters(job, memory_bytes, chunk, reporter, cancel).inspect_err(|_| remove_made(made))
