@@ -457,3 +457,42 @@ fn rasters_take_the_files_spelling_of_a_column() {
         .collect();
     assert_eq!(names, ["H.tif", "PointCount.tif", "intensity.tif", "z.tif"]);
 }
+
+/// A PLY output names its columns as CloudCompare loads them (`scalar_H`): rastered, they are
+/// tilecurv's columns all the same, by default and by name, the same bytes as the rasters of a
+/// PLY output with the LAS names (`--ply-las-names`).
+#[test]
+fn a_ply_outputs_columns_are_rastered_as_tilecurvs() {
+    let Some(input) = shared("las/Topography.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (cc, las) = (dir.path().join("cc.ply"), dir.path().join("las.ply"));
+    let cols = ["--columns", "H,K,flags,slope", "-k", "10"];
+    process(&input, &cc, &cols);
+    process(&input, &las, &[&cols[..], &["--ply-las-names"]].concat());
+    for (list, want) in [
+        (None, vec!["H.tif", "K.tif", "PointCount.tif"]),
+        (
+            Some("Slope,H"),
+            vec!["H.tif", "PointCount.tif", "Slope.tif"],
+        ),
+    ] {
+        let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+        for (points, to) in [(&cc, &a), (&las, &b)] {
+            let mut args = vec![s(points), "--cell", "5", "-o", s(to)];
+            args.extend(list.iter().flat_map(|l| ["--columns", *l]));
+            raster(&args);
+        }
+        let names: Vec<String> = (listing(&a).into_iter())
+            .filter(|n| n.ends_with(".tif"))
+            .collect();
+        assert_eq!(names, want);
+        for n in &names {
+            let stem = n.trim_end_matches(".tif");
+            assert!(tif(&a, stem) == tif(&b, stem), "{n}");
+        }
+        std::fs::remove_dir_all(&a).expect("clean");
+        std::fs::remove_dir_all(&b).expect("clean");
+    }
+}

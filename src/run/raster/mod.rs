@@ -14,6 +14,7 @@ use crate::io::columns::ColumnSet;
 use crate::io::crs_summary::VerticalUnit;
 use crate::io::durable::{sweep_dead_temps, tmp_name};
 use crate::io::las::extra_bytes;
+use crate::io::ply::PlyNames;
 use crate::io::raster::geokeys::{source_crs, RasterCrs};
 pub use crate::io::raster::RasterSummary;
 use crate::io::raster::{known_columns, RasterColumn, RasterRequest, Rasterizer};
@@ -218,12 +219,13 @@ fn describe(known: &[(RasterColumn, bool)], name: &str, s: &dyn PointSource) -> 
         },
         _ => String::new(),
     };
-    // Named as the file names it (`Z` as `z`), as tilecurv's own columns are.
+    // Named as the file names it (`Z` as `z`), as tilecurv's own columns are, even as a PLY
+    // output names them (`scalar_H`, read as `H`).
     let spelling = spelled(s, name);
     let name = spelling.as_deref().unwrap_or(name);
     known
         .iter()
-        .find(|(k, _)| k.name == name)
+        .find(|(k, _)| k.name == name || PlyNames::CloudCompare.name(&k.name) == name)
         .map(|(k, _)| k.clone())
         .unwrap_or_else(|| RasterColumn {
             name: name.to_string(),

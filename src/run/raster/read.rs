@@ -5,6 +5,7 @@ use crate::core::raster::{Integers, Stat, UNDEFINED};
 use crate::error::{Error, Result};
 use crate::io::las::extra_bytes::{Descriptor, ScalarType};
 use crate::io::las::header::POINT_FORMAT_SIZES;
+use crate::io::ply::PlyNames;
 use crate::io::raster::{RasterColumn, Rasterizer};
 use crate::io::source::{PointSource, Property, SourceLayout};
 
@@ -147,13 +148,17 @@ pub(super) fn reader(s: &dyn PointSource, name: &str) -> Option<Reader> {
 
 /// The name of `s`'s column `name` as the file spells it: the column of exactly that name,
 /// else the first whose name differs only in case (`Z` for `z`, `h` for `H` in a file
-/// without an `H`).
+/// without an `H`), else the same for the name a PLY output gives the column by default
+/// (`scalar_H` for `H`, `nx` for `NormalX`).
 pub(super) fn spelled(s: &dyn PointSource, name: &str) -> Option<String> {
     let names = column_names(s);
-    let exact = names.iter().find(|n| *n == name);
-    exact
-        .or_else(|| names.iter().find(|n| n.eq_ignore_ascii_case(name)))
-        .cloned()
+    let find = |name: &str| {
+        let exact = names.iter().find(|n| *n == name);
+        exact
+            .or_else(|| names.iter().find(|n| n.eq_ignore_ascii_case(name)))
+            .cloned()
+    };
+    find(name).or_else(|| find(&PlyNames::CloudCompare.name(name)))
 }
 
 /// The reader of the column `name` of a later input `s`, or the error that it lacks one the
