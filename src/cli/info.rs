@@ -8,25 +8,30 @@ use crate::io::crs::{LengthUnit, UnitSource};
 use crate::io::info::{file_info, FileInfo};
 use crate::progress::out;
 
-/// `tilecurv info`: every file's info; the first unreadable file fails the command (exit 3).
+/// `tilecurv info`: every file's info, an error for each unreadable one, which fails the
+/// command with the first one's exit code once the others are printed. With `--json`, the first
+/// unreadable file fails it before anything is printed (the array would be incomplete).
 pub(super) fn info(a: InfoArgs) -> Result<i32, i32> {
     if a.json {
         out!("{}", info_json(&a.files).map_err(|e| fail(&e))?);
         return Ok(exit::OK);
     }
-    let infos = a
-        .files
-        .iter()
-        .map(|p| file_info(p))
-        .collect::<crate::error::Result<Vec<_>>>()
-        .map_err(|e| fail(&e))?;
-    for (i, f) in infos.iter().enumerate() {
-        if i > 0 {
-            out!();
+    let mut failed = None;
+    for (i, p) in a.files.iter().enumerate() {
+        match file_info(p) {
+            Ok(f) => {
+                if i > 0 {
+                    out!();
+                }
+                print!("{}", text(&f));
+            }
+            Err(e) => {
+                let code = fail(&e);
+                failed = failed.or(Some(code));
+            }
         }
-        print!("{}", text(f));
     }
-    Ok(exit::OK)
+    failed.map_or(Ok(exit::OK), Err)
 }
 
 /// What `tilecurv info --json FILE...` prints: a JSON array with one object per file (the first

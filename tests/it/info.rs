@@ -76,10 +76,24 @@ print("ok")
     assert_eq!(said.trim(), "ok");
 }
 
+/// A missing file is a bad input (exit 3); the files around it are still described, each
+/// with its own point count.
 #[test]
 fn info_of_a_missing_file_is_a_bad_input() {
     let out = tilecurv(&["info", "/nonexistent/file.las"]);
     assert_eq!(out.status.code(), Some(3));
+    let (Some(a), Some(b)) = (shared("las/MixedConifer.las"), shared("las/Topography.las")) else {
+        return;
+    };
+    let (a, b) = (a.to_str().expect("utf-8"), b.to_str().expect("utf-8"));
+    let out = tilecurv(&["info", a, "/nonexistent/file.las", b]);
+    assert_eq!(out.status.code(), Some(3));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("points: 37657\n") && text.contains("points: 73403\n"),
+        "{text}"
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/file.las"));
 }
 
 /// A PLY output's provenance (its header comments) is shown as a LAS output's is, with the
