@@ -116,7 +116,7 @@ impl<'a> Exec<'a> {
     ) -> Result<Self> {
         opts.validate()?;
         if let Some(r) = &opts.rasters {
-            raster::check_output_rasters(r, spec)?;
+            raster::check_output_rasters(r, spec, reporter)?;
         }
         let budget = limits::fit_memory(opts, spec, reporter)?;
         let pool = rayon::ThreadPoolBuilder::new()

@@ -366,7 +366,23 @@ fn rasters_of_a_text_input_equal_those_of_its_output() {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("kitten.las");
     let r = dir.path().join("beside");
-    process(&input, &out, &["--raster", "0.5", "--raster-dir", s(&r)]);
+    // A cell with a unit over a file without a CRS is taken in file units, with a warning.
+    let run = tilecurv(&[
+        "process",
+        s(&input),
+        "-o",
+        s(&out),
+        "--raster",
+        "0.5m",
+        "--raster-dir",
+        s(&r),
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains("--raster 0.5m is taken in file units"),
+        "{err}"
+    );
     let again = dir.path().join("again");
     raster(&[s(&out), "--cell", "0.5", "-o", s(&again)]);
     for name in ["H", "K", "PointCount"] {

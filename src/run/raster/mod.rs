@@ -104,14 +104,9 @@ fn make_rasters(
     let Some(first) = sources.first().map(|s| s.as_ref()) else {
         return Err(Error::Usage("raster: name at least one input file".into()));
     };
-    let unit = first.unit();
-    let cell = job.cell.in_file_units(unit.unit());
-    if job.cell.has_unit() && unit.unit().is_none() {
-        reporter.warn(&format!(
-            "{} has no CRS unit: --cell {} is taken in file units",
-            first.path().display(),
-            job.cell
-        ));
+    let cell = job.cell.in_file_units(first.unit().unit());
+    if let Some(w) = cell_in_file_units(first, &job.cell, "--cell") {
+        reporter.warn(&w);
     }
     let symbol = unit_symbol(first);
     let mut columns = choose_columns(first, job.columns.as_deref(), &symbol)?;
@@ -311,15 +306,33 @@ fn output_raster_columns(
     Ok(columns)
 }
 
+/// The warning that the cell `cell` (given by `option`), which has a unit, is taken in the file
+/// units of `first`, which has no CRS unit.
+fn cell_in_file_units(first: &dyn PointSource, cell: &Length, option: &str) -> Option<String> {
+    (cell.has_unit() && first.unit().unit().is_none()).then(|| {
+        format!(
+            "{} has no CRS unit: {option} {cell} is taken in file units",
+            first.path().display()
+        )
+    })
+}
+
 /// Checks the rasters `opts` asks of the run `spec` before any work (run by every command that
 /// runs a stage, so that a dry run checks them too): their columns, their directory and the
 /// grid's size by the declared bounds (the inputs' CRSs were checked when the run was
 /// resolved: `run::one_map`). The same failures found only once the outputs are written would
-/// have cost the whole run.
-pub(crate) fn check_output_rasters(opts: &RasterOptions, spec: &RunSpec) -> Result<()> {
+/// have cost the whole run. Warns through `reporter` of a cell taken in file units.
+pub(crate) fn check_output_rasters(
+    opts: &RasterOptions,
+    spec: &RunSpec,
+    reporter: &dyn Reporter,
+) -> Result<()> {
     let Some(first) = spec.sources.first().map(|s| s.as_ref()) else {
         return Err(Error::Usage("raster: name at least one input file".into()));
     };
+    if let Some(w) = cell_in_file_units(first, &opts.cell, "--raster") {
+        reporter.warn(&w);
+    }
     output_raster_columns(opts, &spec.cols, first)?;
     let dir = opts
         .dir
