@@ -129,10 +129,10 @@ impl Error {
             std::io::ErrorKind::NotFound => " (does the output directory exist?)",
             _ => match source.raw_os_error() {
                 Some(libc::ENOSPC) | Some(libc::EDQUOT) => {
-                    " (no space left there: free space, or put the output or the work directory (--work-dir) elsewhere, then run the same command again: it resumes)"
+                    " (no space left there: free space, or put the output or the work directory (--work-dir) elsewhere, then run the same command again: a run of process resumes from its finished tiles)"
                 }
                 Some(libc::EFBIG) => {
-                    " (the file outgrew the file-size limit: raise `ulimit -f`, or write to a file system that takes larger files, then run the same command again: it resumes)"
+                    " (the file outgrew the file-size limit: raise `ulimit -f`, or write to a file system that takes larger files, then run the same command again: a run of process resumes from its finished tiles)"
                 }
                 _ => resource_hint(&source).unwrap_or(""),
             },
@@ -194,13 +194,13 @@ impl Error {
 fn resource_hint(e: &std::io::Error) -> Option<&'static str> {
     match e.raw_os_error() {
         Some(libc::EMFILE) => Some(
-            " (too many open files: raise the limit, e.g. `ulimit -n 4096`, then run the same command again: it resumes)",
+            " (too many open files: raise the limit, e.g. `ulimit -n 4096`, then run the same command again: a run of process resumes from its finished tiles)",
         ),
         Some(libc::ENFILE) => Some(
-            " (the system's table of open files is full: close other programs or raise fs.file-max, then run the same command again: it resumes)",
+            " (the system's table of open files is full: close other programs or raise fs.file-max, then run the same command again: a run of process resumes from its finished tiles)",
         ),
         Some(libc::ENOMEM) => Some(
-            " (out of memory: lower --memory, or raise `ulimit -v` or the memory limit, then run the same command again: it resumes)",
+            " (out of memory: lower --memory, or raise `ulimit -v` or the memory limit, then run the same command again: a run of process resumes from its finished tiles)",
         ),
         _ => None,
     }

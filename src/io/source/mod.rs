@@ -380,7 +380,7 @@ fn a_directory(path: &Path) -> Error {
         None,
         format!(
             "is a directory, not a point file; name the files in it (for example {}/*.laz)",
-            path.display()
+            path.display().to_string().trim_end_matches('/')
         ),
     )
 }
