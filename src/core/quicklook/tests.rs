@@ -92,6 +92,37 @@ fn a_small_raster_is_its_own_thumbnail_and_missing_rows_are_no_data() {
     assert_eq!((g.width, g.height, g.values.len()), (0, 0, 0));
 }
 
+/// Where the points are sparser than the cells, a thumbnail's blocks hold enough cells that
+/// nearly every block has a point: with `l` points a cell spread at random (Poisson), a block
+/// of `b` x `b` cells is empty with probability `exp(-l b^2)`, at most 0.5%; where there is a
+/// point a cell or more, the factor is the one that fits the side.
+#[test]
+fn sparse_rasters_get_blocks_that_hold_a_point() {
+    for (w, h, points, want) in [
+        (866u32, 866u32, 300_000u64, 4u32), // 0.2 m cells at 10 points/m^2: l = 0.4
+        (866, 866, 7_500_000, 1),           // l = 10
+        (1_000, 1_000, 2_000_000, 2),       // l = 2
+        (4_000, 100, 400_000, 3),           // l = 1, and the side fits at 3 too
+        (4_000, 100, 4_000_000, 3),         // l = 10: the side's factor
+        (10, 10, 0, 10),                    // no point: one block for the whole raster
+    ] {
+        let t = Thumbnail::for_points(w, h, 1_600, points);
+        let fit = Thumbnail::new(w, h, 1_600).factor();
+        assert_eq!(t.factor(), want.max(fit), "{w}x{h} {points}");
+        let l = points as f64 / (w as f64 * h as f64);
+        let b = t.factor() as f64;
+        if points > 0 && b < w.max(h) as f64 {
+            assert!((-l * b * b).exp() <= 0.005, "{w}x{h} {points}: factor {b}");
+        }
+        if t.factor() > fit {
+            assert!(
+                (-l * (b - 1.0) * (b - 1.0)).exp() > 0.005,
+                "{w}x{h}: not the least"
+            );
+        }
+    }
+}
+
 #[test]
 #[should_panic(expected = "out of order")]
 fn rows_out_of_order_are_refused() {

@@ -32,6 +32,28 @@ impl Thumbnail {
     /// already does.
     pub fn new(width: u32, height: u32, max_side: u32) -> Thumbnail {
         let factor = width.max(height).div_ceil(max_side.max(1)).max(1);
+        Thumbnail::with_factor(width, height, factor)
+    }
+
+    /// [`Thumbnail::new`] of a raster of `points` points, its factor raised where the points
+    /// are sparser than the cells: so that a block holds a point with a probability of at
+    /// least 99.5% where the points are spread evenly over the raster (`exp(-l b^2) <= 0.005`,
+    /// `l` the points a cell: `b >= sqrt(5.3 / l)`). A raster of cells finer than the points'
+    /// spacing then shows as a picture, not as scattered cells among no-data. `l` is taken
+    /// over the whole raster, so a survey that fills a part of it gets larger blocks than it
+    /// needs; where there is a point a cell or more, nothing changes.
+    pub fn for_points(width: u32, height: u32, max_side: u32, points: u64) -> Thumbnail {
+        let fit = Thumbnail::new(width, height, max_side).factor;
+        let per_cell = points as f64 / (width as f64 * height as f64).max(1.0);
+        let sparse = (5.3 / per_cell.max(1e-12))
+            .sqrt()
+            .ceil()
+            .min(width.max(height) as f64);
+        Thumbnail::with_factor(width, height, fit.max(sparse as u32).max(1))
+    }
+
+    /// A thumbnail of blocks of `factor` x `factor` cells (at least 1).
+    fn with_factor(width: u32, height: u32, factor: u32) -> Thumbnail {
         let out_width = width.div_ceil(factor);
         let out_height = height.div_ceil(factor);
         Thumbnail {

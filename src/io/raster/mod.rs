@@ -484,7 +484,7 @@ impl Rasterizer {
         let writers = (files.iter().zip(bands))
             .map(|(p, band)| GeoTiff::create(p, &grid, crs, band))
             .collect::<Result<Vec<_>>>()?;
-        let mut rows = Rows::new(&grid, writers, cancel);
+        let mut rows = Rows::new(&grid, (writers, self.points), cancel);
         let n = req.columns.len();
         let floats = self.slots.iter().filter(|s| matches!(s, Slot::Floats(_)));
         let mut values: Vec<Vec<f32>> = vec![Vec::new(); floats.count()];

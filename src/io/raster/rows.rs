@@ -66,7 +66,13 @@ pub(super) struct Rows<'a> {
 }
 
 impl<'a> Rows<'a> {
-    pub(super) fn new(grid: &CellGrid, writers: Vec<GeoTiff>, cancel: &'a AtomicBool) -> Rows<'a> {
+    /// The rows of `writers`' rasters of `grid` (and of one more, without a file: the
+    /// elevation), whose thumbnails suit `points` points.
+    pub(super) fn new(
+        grid: &CellGrid,
+        (writers, points): (Vec<GeoTiff>, u64),
+        cancel: &'a AtomicBool,
+    ) -> Rows<'a> {
         let mut r = Rows {
             cancel,
             width: grid.width as usize,
@@ -75,7 +81,7 @@ impl<'a> Rows<'a> {
             first: 0,
             strips: Vec::new(),
             thumbs: (0..=writers.len())
-                .map(|_| Thumbnail::new(grid.width, grid.height, DEFAULT_MAX_SIDE))
+                .map(|_| Thumbnail::for_points(grid.width, grid.height, DEFAULT_MAX_SIDE, points))
                 .collect(),
             writers,
         };
