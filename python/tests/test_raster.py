@@ -57,7 +57,7 @@ def test_columns_may_be_text_and_lengths_numbers(cli, tmp_path):
         assert (tmp_path / "again" / name).read_bytes() == cli_bytes, name
     with pytest.raises(tilecurv.UsageError, match="neither a number"):
         tilecurv.raster(out, tmp_path / "r", cell=[2])
-    with pytest.raises(tilecurv.UsageError, match="at least 64M"):
+    with pytest.raises(tilecurv.UsageError, match="at least 1M"):
         tilecurv.raster(out, tmp_path / "r", cell="2m", memory=1024)
     assert not (tmp_path / "r").exists()
 

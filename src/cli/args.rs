@@ -17,7 +17,8 @@ pub(super) struct ExecArgs {
     /// flight, and the raster cells being binned; past it, buckets spill to the work directory
     /// (zstd) and raster cells to sorted runs beside the rasters. Default: half the machine's memory,
     /// at most 4G; lowered (with a message) to what `ulimit -v` leaves beside the mapped inputs
-    /// and what the cgroup's memory limit leaves. The program itself adds about 60M.
+    /// and what the cgroup's memory limit leaves; at least 64M (1M for `tilecurv raster`). The
+    /// program itself adds about 60M.
     #[arg(long, value_parser = crate::config::parse_bytes)]
     memory: Option<u64>,
 

@@ -67,13 +67,18 @@ pub fn raster(
     reporter: &dyn Reporter,
     cancel: &AtomicBool,
 ) -> Result<RasterSummary> {
-    // The checks of `process`'s --memory and --chunk-size.
+    // The check of --chunk-size of every command; a budget of its own (binning spills cells
+    // to sorted runs past any budget, where a run of process needs room for its tiles).
     let exec = ExecOptions {
-        memory_bytes,
         chunk_points: chunk,
         ..ExecOptions::default()
     };
     exec.validate()?;
+    if memory_bytes < MIN_RASTER_BYTES {
+        return Err(Error::Usage(format!(
+            "--memory {memory_bytes} bytes is too small for rasters: at least 1M"
+        )));
+    }
     let made = !job.dir.exists();
     let made = made.then_some(job.dir.as_path());
     make_rasters(job, memory_bytes, chunk, reporter, cancel).inspect_err(|_| remove_made(made))
@@ -305,6 +310,10 @@ fn output_raster_columns(
     check::check_names(&columns, first.path())?;
     Ok(columns)
 }
+
+/// The least memory budget of `tilecurv raster`: cells past it go to sorted runs on disk, and a
+/// smaller budget would make a run of a handful of cells.
+const MIN_RASTER_BYTES: u64 = 1 << 20;
 
 /// The warning that the cell `cell` (given by `option`), which has a unit, is taken in the file
 /// units of `first`, which has no CRS unit.
