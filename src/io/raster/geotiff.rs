@@ -21,6 +21,7 @@ use crate::core::raster::CellGrid;
 use crate::error::{Error, Result};
 use crate::io::durable::TempFile;
 use crate::io::raster::geokeys::RasterCrs;
+use crate::io::raster::sidecar::xml_text;
 
 /// The value of a cell without data: the most negative f32, as GDAL writes float rasters.
 pub(crate) const NO_DATA: f32 = f32::MIN;
@@ -56,22 +57,6 @@ fn gdal_metadata(name: &str, unit: &str) -> String {
         m.push_str(&item("UNITTYPE", "unittype", unit));
     }
     m + "</GDALMetadata>"
-}
-
-/// `s` with XML's five special characters escaped (a column's name may hold any).
-fn xml_text(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            c => out.push(c),
-        }
-    }
-    out
 }
 
 /// Rows per strip for rasters `width` cells wide: strips of about 256 KiB.

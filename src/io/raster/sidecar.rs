@@ -26,7 +26,7 @@ fn text(wkt: &str) -> String {
 
 /// `s` as XML character data: the five special characters escaped, and the control characters
 /// XML 1.0 forbids (a WKT record's padding, say) left out.
-fn xml_text(s: &str) -> String {
+pub(super) fn xml_text(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
