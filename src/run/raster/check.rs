@@ -43,7 +43,7 @@ pub(super) fn check_names(columns: &[RasterColumn], file: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Refuses a raster directory `dir` (given by `option`) that is a file or cannot be made: the
+/// Refuses a raster directory `given` (by `option`) that is a file or cannot be made: the
 /// nearest existing folder on its path gets a directory made and removed at once, so that the
 /// folder is left as it was.
 pub(super) fn check_dir(given: &Path, option: &str) -> Result<()> {
