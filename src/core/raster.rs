@@ -165,7 +165,7 @@ impl Stat {
     /// The cell value of `values` (one cell's values of one column, NaN for undefined ones),
     /// NaN when none is defined. `circular` takes the values as angles in degrees (aspect):
     /// the mean is the direction of the mean unit vector, in [0, 360); the median, min and max
-    /// are those of the angles unwrapped about that mean ([`circular_order`]), so that 359 and
+    /// are those of the angles unwrapped about that mean (`circular_order`), so that 359 and
     /// 1 have the median 0, not 180. The result does not depend on the values' order: a mean
     /// whose f64 sum is exact in any order takes it as it comes, other means and the median
     /// sort the values first (NaN last); the min and max compare by total order (-0 below +0).
