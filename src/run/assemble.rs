@@ -142,40 +142,47 @@ pub(crate) fn assemble_outputs(run: &Run, tiles: &TilePlan, exec: &Exec<'_>) -> 
     // written: an interrupted run leaves them as they were. A raster failing otherwise leaves
     // the point outputs, which `tilecurv raster` turns into rasters.
     let commit = |ready: Vec<Ready>| ready.into_iter().try_for_each(Ready::commit);
-    if let Some(r) = rasters {
-        let s = match r.finish(exec.reporter, exec.cancel) {
-            Err(Error::Interrupted) => return Err(Error::Interrupted),
-            Err(e) => {
-                commit(ready)?;
-                exec.reporter.warn(&format!(
-                    "the point outputs are complete ({}), the rasters failed: once the cause is fixed, `tilecurv raster` makes them from the outputs",
-                    (spec.outputs.iter())
-                        .map(|o| o.display().to_string())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ));
-                return Err(e);
-            }
-            Ok(s) => s,
-        };
-        for w in s.warnings() {
-            exec.reporter.warn(&w);
+    if let Err(e) = finish_rasters(rasters, exec) {
+        if !matches!(e, Error::Interrupted) {
+            commit(ready)?;
+            let outputs: Vec<String> = spec
+                .outputs
+                .iter()
+                .map(|o| o.display().to_string())
+                .collect();
+            exec.reporter.warn(&format!(
+                "the point outputs are complete ({}), the rasters failed: once the cause is fixed, `tilecurv raster` makes them from the outputs",
+                outputs.join(", ")
+            ));
         }
-        exec.reporter.info(&format!(
-            "rasters: {} files of {}x{} cells of {} ({} with a point) in {}",
-            s.files.len(),
-            s.grid.width,
-            s.grid.height,
-            s.cell_text(),
-            s.cells,
-            s.files
-                .first()
-                .and_then(|f| f.parent())
-                .map_or(String::new(), |d| d.display().to_string())
-        ));
+        return Err(e);
     }
     commit(ready)?;
     Ok(undefined)
+}
+
+/// Writes `rasters`, if asked for, and reports them.
+fn finish_rasters(rasters: Option<OutputRasters>, exec: &Exec<'_>) -> Result<()> {
+    let Some(r) = rasters else {
+        return Ok(());
+    };
+    let s = r.finish(exec.reporter, exec.cancel)?;
+    for w in s.warnings() {
+        exec.reporter.warn(&w);
+    }
+    exec.reporter.info(&format!(
+        "rasters: {} files of {}x{} cells of {} ({} with a point) in {}",
+        s.files.len(),
+        s.grid.width,
+        s.grid.height,
+        s.cell_text(),
+        s.cells,
+        s.files
+            .first()
+            .and_then(|f| f.parent())
+            .map_or(String::new(), |d| d.display().to_string())
+    ));
+    Ok(())
 }
 
 /// The finished tiles' results of a run: the result store, the files to merge and, with

@@ -333,14 +333,14 @@ impl LasFileWriter {
         self.header.set_bounds(min, max);
     }
 
-    /// Finishes the points, writes the EVLRs, rewrites the header with the final layout, syncs
-    /// the file and renames it over the output. On failure the temporary file is removed (by
-    /// `TempFile`'s drop, whichever step failed).
+    /// [`LasFileWriter::ready`], then the rename over the output.
     pub fn finish(self) -> Result<()> {
         self.ready()?.commit()
     }
 
-    /// [`LasFileWriter::finish`] but the rename, which the [`Ready`] does.
+    /// Finishes the points, writes the EVLRs, rewrites the header with the final layout and
+    /// syncs the file, which the [`Ready`] renames over the output. On failure the temporary
+    /// file is removed (by `TempFile`'s drop, whichever step failed).
     pub(crate) fn ready(mut self) -> Result<Ready> {
         // The header's counts are the caller's (an input's are carried over untouched): a file
         // with another number of records would be corrupt.
@@ -394,8 +394,7 @@ impl LasFileWriter {
     }
 }
 
-/// The I/O error inside an error of the laz crate's compressor, which wraps the writer's errors
-/// (disk full, file too large) in its own: so that they are output failures with their hint.
+/// The I/O error (disk full, file too large) the laz compressor wraps: an output failure.
 fn laz_io(e: std::io::Error) -> std::io::Error {
     if !e.get_ref().is_some_and(|i| i.is::<laz::LasZipError>()) {
         return e;
@@ -410,8 +409,7 @@ fn laz_io(e: std::io::Error) -> std::io::Error {
     }
 }
 
-/// An error of the laz crate's compressor: an I/O error is an output failure naming the
-/// output; anything else (a layout it does not support) is a bug of ours.
+/// A laz compressor error: I/O fails the output; anything else (a layout it lacks) is ours.
 fn laz_error(tmp: &TempFile, e: laz::LasZipError) -> Error {
     match e {
         laz::LasZipError::IoError(io) => tmp.error(laz_io(io)),
