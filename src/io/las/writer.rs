@@ -333,7 +333,7 @@ impl LasFileWriter {
         self.header.set_bounds(min, max);
     }
 
-    /// [`LasFileWriter::ready`], then the rename over the output.
+    /// `LasFileWriter::ready`, then the rename over the output.
     pub fn finish(self) -> Result<()> {
         self.ready()?.commit()
     }
