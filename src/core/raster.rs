@@ -229,9 +229,9 @@ fn circular_order(stat: Stat, degrees: &[f32]) -> f32 {
         Stat::Min => u[0].1 as f64,
         Stat::Max => u[n - 1].1 as f64,
         _ if n % 2 == 1 => u[n / 2].1 as f64,
-        _ => ((u[n / 2 - 1].0 + u[n / 2].0) / 2.0 + from).rem_euclid(360.0),
+        _ => (u[n / 2 - 1].0 + u[n / 2].0) / 2.0 + from,
     };
-    // An angle of 360 (a file may hold one) is north: 0.
+    // Into [0, 360): an angle of 360 (a file may hold one) is north, 0.
     below_360(picked.rem_euclid(360.0))
 }
 

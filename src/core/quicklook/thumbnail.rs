@@ -9,6 +9,12 @@ use super::Grid;
 /// few megabytes at most.
 pub const DEFAULT_MAX_SIDE: u32 = 1600;
 
+/// The least block factor that brings the long side of a `width` x `height` raster within
+/// `max_side` pixels (at least 1).
+fn fit_factor(width: u32, height: u32, max_side: u32) -> u32 {
+    width.max(height).div_ceil(max_side.max(1)).max(1)
+}
+
 /// A thumbnail being built from the rows of a north-up raster (see the module doc).
 #[derive(Debug, Clone)]
 pub struct Thumbnail {
@@ -31,8 +37,7 @@ impl Thumbnail {
     /// (at least 1): the block factor is the smallest integer that fits it, 1 for a raster that
     /// already does.
     pub fn new(width: u32, height: u32, max_side: u32) -> Thumbnail {
-        let factor = width.max(height).div_ceil(max_side.max(1)).max(1);
-        Thumbnail::with_factor(width, height, factor)
+        Thumbnail::with_factor(width, height, fit_factor(width, height, max_side))
     }
 
     /// [`Thumbnail::new`] of a raster of `points` points, its factor raised where the points
@@ -43,7 +48,7 @@ impl Thumbnail {
     /// over the whole raster, so a survey that fills a part of it gets larger blocks than it
     /// needs; where there is a point a cell or more, nothing changes.
     pub fn for_points(width: u32, height: u32, max_side: u32, points: u64) -> Thumbnail {
-        let fit = Thumbnail::new(width, height, max_side).factor;
+        let fit = fit_factor(width, height, max_side);
         let per_cell = points as f64 / (width as f64 * height as f64).max(1.0);
         let sparse = (5.3 / per_cell.max(1e-12))
             .sqrt()
